@@ -1,0 +1,22 @@
+#!/usr/bin/env bash
+# Trains the bundled Panda models (SIK position and SIK pose) exactly as recorded in
+# docs/training.md. Resumable: run it again after an interruption and each run continues from
+# runs/<name>/last.pt. Needs the 30-degree dataset: sik-collect --out data/panda30
+set -euo pipefail
+cd "$(dirname "$0")/.."
+PY=${PY:-.venv/bin/python}
+DATA=${DATA:-data/panda30}
+STEPS=${STEPS:-24000}
+MAX_TIME=${MAX_TIME:-6000}
+[ -d "$DATA" ] || $PY -m sik_ros.cli.collect --robot panda --interval 30 --out "$DATA"
+train() {  # name, then sik-train arguments
+  local name=$1; shift
+  local resume=()
+  [ -f "runs/$name/last.pt" ] && resume=(--resume)
+  $PY -m sik_ros.cli.train --dataset "$DATA" --out "runs/$name" --steps "$STEPS" \
+    --max-time "$MAX_TIME" --threads 1 --quiet --export "runs/$name/model.pt" \
+    "${resume[@]}" "$@"
+}
+train sik_position --model sik --goal position --latent-dim 4 &
+train sik_pose --model sik --goal pose --latent-dim 1 &
+wait

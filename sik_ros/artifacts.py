@@ -1,0 +1,107 @@
+"""Artifacts on disk: manifests, atomic writes, and checks on load.
+
+Every artifact (dataset directory, checkpoint, index table, bundle) carries a JSON manifest. Files
+are written under a temporary name in the same directory and renamed into place, so an interrupted
+write never leaves something that looks complete under the final name.
+"""
+
+import contextlib
+import json
+import os
+from pathlib import Path
+import shutil
+import tempfile
+from typing import Iterator, Mapping
+
+from sik_ros.errors import ArtifactExists, ArtifactMismatch, CorruptArtifact
+
+#: Version of the on-disk formats written by this code.
+FORMAT_VERSION = 1
+
+#: Keys of a robot manifest that must agree between artifacts used together.
+ROBOT_KEYS = ('robot', 'urdf_sha256', 'base_frame', 'tip_frame', 'joint_names')
+
+
+def library_versions() -> dict:
+    """Versions of the libraries that shape an artifact's content."""
+    import numpy
+    import pinocchio
+    versions = {'numpy': numpy.__version__, 'pinocchio': pinocchio.__version__}
+    try:
+        import torch
+        versions['torch'] = str(torch.__version__)
+    except ImportError:  # pragma: no cover - torch is a hard dependency
+        pass
+    from sik_ros import __version__
+    versions['sik_ros'] = __version__
+    return versions
+
+
+def write_json_atomic(path: Path, data: Mapping) -> None:
+    """Write JSON to ``path`` through a temporary file and a rename."""
+    path = Path(path)
+    fd, tmp = tempfile.mkstemp(prefix=f'.{path.name}.', suffix='.tmp', dir=path.parent)
+    try:
+        with os.fdopen(fd, 'w') as f:
+            json.dump(data, f, indent=2, sort_keys=True)
+            f.write('\n')
+        os.replace(tmp, path)
+    except BaseException:
+        with contextlib.suppress(FileNotFoundError):
+            os.unlink(tmp)
+        raise
+
+
+def read_json(path: Path, what: str) -> dict:
+    """Read a JSON manifest, turning a missing or unreadable file into :class:`CorruptArtifact`."""
+    path = Path(path)
+    if not path.is_file():
+        raise CorruptArtifact(f'{what}: {path} is missing (incomplete or not a sik_ros artifact)')
+    try:
+        return json.loads(path.read_text())
+    except (OSError, ValueError) as exc:
+        raise CorruptArtifact(f'{what}: cannot read {path}: {exc}') from exc
+
+
+@contextlib.contextmanager
+def atomic_directory(out: Path, force: bool = False) -> Iterator[Path]:
+    """Build a directory under a temporary name, then rename it to ``out``.
+
+    Args:
+        out: final directory path.
+        force: replace an existing ``out``; otherwise an existing ``out`` is refused.
+
+    Yields:
+        the temporary directory to fill.
+
+    Raises:
+        ArtifactExists: ``out`` exists and ``force`` is false.
+    """
+    out = Path(out)
+    if out.exists() and not force:
+        raise ArtifactExists(f'{out} already exists (use --force to replace it)')
+    out.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f'.{out.name}.', suffix='.partial', dir=out.parent))
+    try:
+        yield tmp
+        if out.exists():
+            old = out.with_name(f'.{out.name}.old-{os.getpid()}')
+            os.replace(out, old)
+            os.replace(tmp, out)
+            shutil.rmtree(old, ignore_errors=True)
+        else:
+            os.replace(tmp, out)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+
+
+def check_robot_manifest(what: str, expected: Mapping, found: Mapping) -> None:
+    """Refuse an artifact whose robot identity differs from the expected one.
+
+    Raises:
+        ArtifactMismatch: naming the first key that differs.
+    """
+    for key in ROBOT_KEYS:
+        if key in expected and expected.get(key) != found.get(key):
+            raise ArtifactMismatch(f'{what}: {key}', expected.get(key), found.get(key))

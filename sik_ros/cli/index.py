@@ -1,0 +1,72 @@
+"""``sik-index``: build the posture-index table of a trained model from a dataset."""
+
+import argparse
+import time
+from typing import List, Optional
+
+from tqdm import tqdm
+
+from sik_ros.bundle import add_to_bundle
+from sik_ros.cli import argv_or_default, run_cli
+from sik_ros.dataset import Dataset
+from sik_ros.errors import ArtifactExists, InvalidArgument
+from sik_ros.index_table import encode_dataset, IndexTable, model_signature, TableConfig
+from sik_ros.kinematics import load_robot
+from sik_ros.training import dataset_summary, load_checkpoint, model_from_checkpoint
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The argument parser of sik-index."""
+    p = argparse.ArgumentParser(prog='sik-index', description='Encode a dataset with a trained '
+                                'SIK/PSIK model and keep the distinct posture indices per cell.')
+    p.add_argument('--model', required=True, help='model or checkpoint (.pt) from sik-train')
+    p.add_argument('--dataset', required=True, help='dataset directory (sik-collect --out)')
+    p.add_argument('--out', required=True, help='output table (.npz)')
+    p.add_argument('--cell', type=float, default=TableConfig.cell, help='cell edge [m]')
+    p.add_argument('--dedup', type=float, default=TableConfig.dedup,
+                   help='indices closer than this per element are duplicates')
+    p.add_argument('--max-per-cell', type=int, default=TableConfig.max_per_cell)
+    p.add_argument('--bundle', help='also add model and table to this bundle directory')
+    p.add_argument('--force', action='store_true', help='replace an existing --out')
+    p.add_argument('--quiet', action='store_true', help='no progress bar')
+    return p
+
+
+def main(argv: Optional[List[str]] = None) -> int:
+    """Entry point of sik-index."""
+    args = build_parser().parse_args(argv_or_default(argv))
+
+    def body() -> int:
+        from pathlib import Path
+        out = Path(args.out)
+        if out.exists() and not args.force:
+            raise ArtifactExists(f'{out} already exists (use --force to replace it)')
+        if out.suffix != '.npz':
+            raise InvalidArgument(f'--out must end in .npz; got {out}')
+        cfg = TableConfig(args.cell, args.dedup, args.max_per_cell)
+        ckpt = load_checkpoint(args.model)
+        model, mcfg, norm = model_from_checkpoint(ckpt)
+        if mcfg.kind not in ('sik', 'psik'):
+            raise InvalidArgument(f'{args.model} is a {mcfg.kind} model; tables need sik/psik')
+        rm = ckpt['robot']
+        robot = load_robot(rm['robot'], None, rm['base_frame'], rm['tip_frame'])
+        ds = Dataset.load(args.dataset, robot)
+        t0 = time.perf_counter()
+        with tqdm(total=len(ds), unit='rows', unit_scale=True, disable=args.quiet,
+                  desc='encode') as bar:
+            z = encode_dataset(model, mcfg, norm, ds, progress=bar.update)
+        manifest = {'robot': robot.manifest(), 'model': model_signature(ckpt),
+                    'dataset': dataset_summary(ds), 'goal': mcfg.goal}
+        table = IndexTable.build(z, ds.position, cfg, manifest)
+        table.save(out)
+        print(f'{table.manifest["cells"]} cells, {table.manifest["entries"]} indices '
+              f'({out.stat().st_size / 1e6:.2f} MB) in {time.perf_counter() - t0:.1f} s')
+        if args.bundle:
+            add_to_bundle(Path(args.bundle), robot.manifest(), mcfg.goal, Path(args.model), out)
+            print(f'added to bundle {args.bundle}')
+        return 0
+    return run_cli('sik-index', body)
+
+
+if __name__ == '__main__':
+    raise SystemExit(main())

@@ -1,0 +1,108 @@
+"""``sik-train``: train a SIK, PSIK, FCN or ANFIS model on a dataset, resumably."""
+
+import argparse
+import json
+from pathlib import Path
+from typing import List, Optional
+
+from tqdm import tqdm
+
+from sik_ros.cli import argv_or_default, run_cli
+from sik_ros.dataset import Dataset
+from sik_ros.errors import ArtifactExists, InvalidArgument
+from sik_ros.kinematics import load_robot
+from sik_ros.models import DEFAULT_LATENT, ModelConfig, PRESETS
+from sik_ros.training import (export_model, load_checkpoint, TrainConfig, Trainer,
+                              with_overrides)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The argument parser of sik-train."""
+    p = argparse.ArgumentParser(prog='sik-train', description='Train an IK model on a dataset '
+                                'written by sik-collect; checkpoints go to --out/last.pt.')
+    p.add_argument('--dataset', required=True, help='dataset directory (sik-collect --out)')
+    p.add_argument('--out', required=True, help='run directory for checkpoints and history')
+    p.add_argument('--model', choices=('sik', 'psik', 'fcn', 'anfis'), default='sik')
+    p.add_argument('--goal', choices=('position', 'pose'), default='position')
+    p.add_argument('--latent-dim', type=int, help='posture index size (default: 4 position, '
+                   '1 pose)')
+    p.add_argument('--preset', choices=sorted(PRESETS), default='default',
+                   help='layer widths (paper: the paper\'s sizes)')
+    p.add_argument('--steps', type=int, help='optimiser steps (PSO iterations for ANFIS)')
+    p.add_argument('--batch-size', type=int)
+    p.add_argument('--lr', type=float)
+    p.add_argument('--fk-weight', type=float, help='FK consistency weight (0: paper\'s loss)')
+    p.add_argument('--kl-weight', type=float, help='KL weight (PSIK)')
+    p.add_argument('--uni-position', action='store_true',
+                   help='one row per distinct position (the paper\'s uni-position dataset)')
+    p.add_argument('--eval-every', type=int)
+    p.add_argument('--checkpoint-every', type=int)
+    p.add_argument('--seed', type=int)
+    p.add_argument('--threads', type=int)
+    p.add_argument('--device', choices=('cpu', 'cuda'))
+    p.add_argument('--max-time', type=float, help='stop cleanly after this many seconds')
+    p.add_argument('--resume', action='store_true', help='continue from --out/last.pt')
+    p.add_argument('--export', help='also write the inference model (no optimiser) here')
+    p.add_argument('--quiet', action='store_true', help='no progress bar')
+    return p
+
+
+def main(argv: Optional[List[str]] = None) -> int:
+    """Entry point of sik-train."""
+    args = build_parser().parse_args(argv_or_default(argv))
+
+    def body() -> int:
+        out = Path(args.out)
+        if args.max_time is not None and args.max_time <= 0:
+            raise InvalidArgument(f'--max-time must be positive; got {args.max_time}')
+        ckpt = None
+        if args.resume:
+            ckpt = load_checkpoint(out / 'last.pt')
+            model_cfg = ModelConfig.from_dict(ckpt['model_config'])
+            train_cfg = TrainConfig(**ckpt['train_config'])
+            if args.steps:
+                train_cfg = with_overrides(train_cfg, steps=args.steps)
+        else:
+            if (out / 'last.pt').exists():
+                raise ArtifactExists(f'{out}/last.pt exists: use --resume, or another --out')
+            latent = args.latent_dim or DEFAULT_LATENT[args.goal]
+            enc, dec = PRESETS[args.preset]
+            model_cfg = ModelConfig(kind=args.model, goal=args.goal, dof=7,
+                                    latent_dim=latent, encoder=enc, decoder=dec)
+            train_cfg = with_overrides(
+                TrainConfig(), steps=args.steps, batch_size=args.batch_size, lr=args.lr,
+                fk_weight=args.fk_weight, kl_weight=args.kl_weight,
+                eval_every=args.eval_every, checkpoint_every=args.checkpoint_every,
+                seed=args.seed, threads=args.threads, device=args.device,
+                uni_position=args.uni_position or None)
+            if args.model in ('fcn', 'anfis') and args.fk_weight is None:
+                train_cfg = with_overrides(train_cfg, fk_weight=0.0)
+        manifest = Dataset.load(args.dataset).manifest['robot']
+        robot = load_robot(manifest['robot'])
+        if model_cfg.dof != robot.dof:
+            model_cfg = ModelConfig(**{**model_cfg.__dict__, 'dof': robot.dof})
+        ds = Dataset.load(args.dataset, robot)
+        trainer = Trainer(robot, ds, model_cfg, train_cfg, out)
+        if ckpt is not None:
+            trainer.restore(ckpt)
+        bar = tqdm(total=train_cfg.steps, initial=trainer.step, disable=args.quiet,
+                   desc=f'train {model_cfg.kind}/{model_cfg.goal}', mininterval=2.0)
+
+        def progress(step, rec):
+            bar.update(step - bar.n)
+            if 'val_dist_mean_m' in rec:
+                bar.set_postfix(loss=f"{rec['loss']:.4g}",
+                                val_cm=f"{rec['val_dist_mean_m'] * 100:.2f}")
+        last = trainer.run(max_time=args.max_time, progress=progress)
+        bar.close()
+        (out / 'history.json').write_text(json.dumps(trainer.history, indent=1))
+        if args.export:
+            export_model(trainer.checkpoint(), Path(args.export))
+        print(json.dumps({'step': trainer.step, 'elapsed_s': round(trainer.elapsed, 1),
+                          **{k: v for k, v in last.items() if k.startswith('val')}}))
+        return 0
+    return run_cli('sik-train', body)
+
+
+if __name__ == '__main__':
+    raise SystemExit(main())

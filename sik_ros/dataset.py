@@ -1,0 +1,276 @@
+"""Automated dataset collection (the paper's Algorithm 1) and dataset files.
+
+A dataset is a directory of memory-mappable ``.npy`` arrays (``q``: joint positions [rad],
+``position``: tip positions [m], ``quaternion``: tip orientations x y z w, all float64, one row per
+configuration), a ``manifest.json`` and a human-readable ``stats.txt``.
+"""
+
+from dataclasses import dataclass
+import math
+from pathlib import Path
+from typing import Callable, Iterator, List, Optional, Tuple
+
+import numpy as np
+
+from sik_ros.artifacts import (atomic_directory, check_robot_manifest, FORMAT_VERSION,
+                               library_versions, read_json, write_json_atomic)
+from sik_ros.errors import CorruptArtifact, InvalidArgument
+from sik_ros.kinematics import chain_forward, Robot, rotation_to_quaternion
+
+ARRAYS = {'q': None, 'position': 3, 'quaternion': 4}
+#: Edge of the cells used to report positions per cell in ``stats.txt`` [m].
+STATS_CELL = 0.05
+
+
+def grid_values(lower: np.ndarray, upper: np.ndarray, interval_deg: float) -> List[np.ndarray]:
+    """Joint values of Algorithm 1: from each lower limit in steps while at or below the upper.
+
+    Args:
+        lower, upper: joint limits [rad].
+        interval_deg: step [deg].
+
+    Raises:
+        InvalidArgument: a step that is not positive or larger than a joint's range.
+    """
+    if not math.isfinite(interval_deg) or interval_deg <= 0:
+        raise InvalidArgument(f'interval must be a positive number of degrees; got {interval_deg}')
+    step = math.radians(interval_deg)
+    ranges = np.asarray(upper) - np.asarray(lower)
+    too_big = [i for i, r in enumerate(ranges) if step > r + 1e-12]
+    if too_big:
+        i = too_big[0]
+        raise InvalidArgument(
+            f'interval {interval_deg} deg is larger than the range of joint {i + 1} '
+            f'({math.degrees(ranges[i]):.2f} deg)')
+    counts = np.floor(ranges / step + 1e-9).astype(int) + 1
+    return [lo + step * np.arange(c) for lo, c in zip(lower, counts)]
+
+
+def grid_count(lower: np.ndarray, upper: np.ndarray, interval_deg: float) -> int:
+    """Number of configurations of the Algorithm 1 grid, without materialising it."""
+    return int(np.prod([len(v) for v in grid_values(lower, upper, interval_deg)], dtype=np.int64))
+
+
+def _cartesian(values: List[np.ndarray]) -> np.ndarray:
+    """All combinations of per-joint values, first joint slowest, as (N, len(values))."""
+    if not values:
+        return np.zeros((1, 0))
+    mesh = np.meshgrid(*values, indexing='ij')
+    return np.stack([m.reshape(-1) for m in mesh], axis=1)
+
+
+Chunk = Tuple[np.ndarray, np.ndarray, np.ndarray]
+
+
+def iter_grid(robot: Robot, interval_deg: float, chunk: int = 1 << 18) -> Iterator[Chunk]:
+    """Yield ``(q, position, quaternion)`` chunks of the grid, in row order.
+
+    The transforms of the leading joints are shared by many rows, so they are computed once per
+    prefix and only the last two joints are evaluated per row.
+    """
+    values = grid_values(robot.lower, robot.upper, interval_deg)
+    n_tail = min(2, robot.dof)
+    head, tail = values[:robot.dof - n_tail], values[robot.dof - n_tail:]
+    q_head = _cartesian(head)
+    q_tail = _cartesian(tail)
+    if head:
+        head_p, head_r = chain_forward(robot.chain, q_head, tip=False)
+    else:
+        head_p = np.broadcast_to(robot.chain.base_translation, (1, 3))
+        head_r = np.broadcast_to(robot.chain.base_rotation, (1, 3, 3))
+    per = max(1, chunk // len(q_tail))
+    for s in range(0, len(q_head), per):
+        e = min(s + per, len(q_head))
+        m = e - s
+        start = (np.repeat(head_p[s:e], len(q_tail), axis=0),
+                 np.repeat(head_r[s:e], len(q_tail), axis=0))
+        qt = np.tile(q_tail, (m, 1))
+        p, r = chain_forward(robot.chain, qt, first=robot.dof - n_tail, start=start)
+        q = np.concatenate([np.repeat(q_head[s:e], len(q_tail), axis=0), qt], axis=1)
+        yield q, p, rotation_to_quaternion(r)
+
+
+def iter_uniform(robot: Robot, samples: int, seed: int, chunk: int = 1 << 18) -> Iterator[Chunk]:
+    """Yield chunks of configurations drawn uniformly within the joint limits."""
+    if samples < 1:
+        raise InvalidArgument(f'samples must be at least 1; got {samples}')
+    rng = np.random.default_rng(seed)
+    for s in range(0, samples, chunk):
+        q = rng.uniform(robot.lower, robot.upper, size=(min(chunk, samples - s), robot.dof))
+        p, quat = robot.fk_batch(q)
+        yield q, p, quat
+
+
+@dataclass
+class Dataset:
+    """A loaded dataset: memory-mapped arrays and their manifest."""
+
+    path: Path
+    manifest: dict
+    q: np.ndarray
+    position: np.ndarray
+    quaternion: np.ndarray
+
+    def __len__(self) -> int:
+        """Number of rows."""
+        return len(self.q)
+
+    @classmethod
+    def load(cls, path: Path, robot: Optional[Robot] = None, mmap: bool = True) -> 'Dataset':
+        """Open a dataset directory, checking its manifest and arrays.
+
+        Args:
+            path: dataset directory written by :func:`collect`.
+            robot: when given, the dataset must have been collected on this robot.
+            mmap: memory-map the arrays instead of reading them.
+
+        Raises:
+            CorruptArtifact: missing manifest, missing or truncated arrays, wrong sizes.
+            ArtifactMismatch: a dataset of another robot, URDF or frames.
+        """
+        path = Path(path)
+        manifest = read_json(path / 'manifest.json', f'dataset {path}')
+        if manifest.get('kind') != 'dataset':
+            raise CorruptArtifact(f'{path} is not a sik_ros dataset (kind={manifest.get("kind")})')
+        if robot is not None:
+            check_robot_manifest(f'dataset {path}', robot.manifest(), manifest['robot'])
+        count = manifest['count']
+        dof = len(manifest['robot']['joint_names'])
+        arrays = {}
+        for name, cols in ARRAYS.items():
+            file = path / f'{name}.npy'
+            try:
+                arr = np.load(file, mmap_mode='r' if mmap else None)
+            except (OSError, ValueError) as exc:
+                raise CorruptArtifact(f'dataset {path}: cannot read {file.name}: {exc}') from exc
+            shape = (count, cols if cols else dof)
+            if arr.shape != shape:
+                raise CorruptArtifact(
+                    f'dataset {path}: {file.name} has shape {arr.shape}, manifest says {shape}')
+            arrays[name] = arr
+        return cls(path, manifest, **arrays)
+
+
+def collect(robot: Robot, out: Path, sampler: str = 'grid', interval_deg: float = 30.0,
+            samples: int = 0, seed: int = 0, force: bool = False,
+            progress: Optional[Callable[[int], None]] = None, chunk: int = 1 << 18) -> Dataset:
+    """Collect a dataset of tip poses and write it atomically to ``out``.
+
+    Args:
+        robot: the arm.
+        out: output directory (must not exist unless ``force``).
+        sampler: ``grid`` (Algorithm 1) or ``uniform``.
+        interval_deg: grid step [deg].
+        samples: number of uniform samples.
+        seed: random seed of the uniform sampler.
+        force: replace an existing ``out``.
+        progress: called with the number of rows written after each chunk.
+        chunk: rows computed at a time.
+
+    Returns:
+        the dataset, loaded from its final location.
+    """
+    if sampler == 'grid':
+        count = grid_count(robot.lower, robot.upper, interval_deg)
+        chunks = iter_grid(robot, interval_deg, chunk)
+        params = {'interval_deg': interval_deg}
+    elif sampler == 'uniform':
+        if samples < 1:
+            raise InvalidArgument(f'--samples must be at least 1; got {samples}')
+        count = samples
+        chunks = iter_uniform(robot, samples, seed, chunk)
+        params = {'samples': samples, 'seed': seed}
+    else:
+        raise InvalidArgument(f'unknown sampler {sampler!r}; use grid or uniform')
+    with atomic_directory(out, force=force) as tmp:
+        arrays = {
+            name: np.lib.format.open_memmap(tmp / f'{name}.npy', mode='w+', dtype=np.float64,
+                                            shape=(count, cols if cols else robot.dof))
+            for name, cols in ARRAYS.items()}
+        row = 0
+        for q, p, quat in chunks:
+            n = len(q)
+            arrays['q'][row:row + n] = q
+            arrays['position'][row:row + n] = p
+            arrays['quaternion'][row:row + n] = quat
+            row += n
+            if progress:
+                progress(n)
+        if row != count:
+            raise CorruptArtifact(f'internal error: wrote {row} rows, expected {count}')
+        _sanity_check(robot, arrays['q'])
+        stats = dataset_stats(robot, arrays['q'], arrays['position'])
+        for arr in arrays.values():
+            arr.flush()
+        del arrays
+        manifest = {
+            'kind': 'dataset', 'format_version': FORMAT_VERSION, 'robot': robot.manifest(),
+            'sampler': sampler, 'params': params, 'count': count, 'seed': seed,
+            'dtype': 'float64', 'arrays': {k: f'{k}.npy' for k in ARRAYS},
+            'versions': library_versions(), 'stats': stats,
+        }
+        (tmp / 'stats.txt').write_text(format_stats(robot, manifest))
+        write_json_atomic(tmp / 'manifest.json', manifest)
+    return Dataset.load(out, robot)
+
+
+def _sanity_check(robot: Robot, q: np.ndarray, block: int = 1 << 20) -> None:
+    """Refuse data outside the joint limits or with a joint that never moves."""
+    lo = np.full(robot.dof, np.inf)
+    hi = np.full(robot.dof, -np.inf)
+    for s in range(0, len(q), block):
+        lo = np.minimum(lo, q[s:s + block].min(axis=0))
+        hi = np.maximum(hi, q[s:s + block].max(axis=0))
+    eps = 1e-9
+    if np.any(lo < robot.lower - eps) or np.any(hi > robot.upper + eps):
+        raise CorruptArtifact('collected joint values fall outside the joint limits')
+    if len(q) > 1 and np.any(hi - lo <= 0):
+        stuck = [robot.joint_names[i] for i in np.flatnonzero(hi - lo <= 0)]
+        raise CorruptArtifact(f'degenerate dataset: joints {stuck} never move')
+
+
+def dataset_stats(robot: Robot, q: np.ndarray, position: np.ndarray) -> dict:
+    """Ranges, reach, distinct positions and positions per cell of a dataset."""
+    pos = np.asarray(position)
+    reach = np.linalg.norm(pos, axis=1)
+    key_um = np.round(pos * 1e5).astype(np.int64) + (1 << 20)
+    keys = (key_um[:, 0] << 42) | (key_um[:, 1] << 21) | key_um[:, 2]
+    distinct = int(len(np.unique(keys)))
+    cells = np.floor(pos / STATS_CELL).astype(np.int64) + (1 << 20)
+    cell_keys = (cells[:, 0] << 42) | (cells[:, 1] << 21) | cells[:, 2]
+    _, per_cell = np.unique(cell_keys, return_counts=True)
+    return {
+        'rows': int(len(pos)),
+        'q_min': np.asarray(q).min(axis=0).tolist(),
+        'q_max': np.asarray(q).max(axis=0).tolist(),
+        'position_min': pos.min(axis=0).tolist(),
+        'position_max': pos.max(axis=0).tolist(),
+        'reach_max': float(reach.max()),
+        'reach_mean': float(reach.mean()),
+        'distinct_positions_10um': distinct,
+        'cell_size': STATS_CELL,
+        'occupied_cells': int(len(per_cell)),
+        'rows_per_cell': {'min': int(per_cell.min()), 'median': float(np.median(per_cell)),
+                          'max': int(per_cell.max())},
+    }
+
+
+def format_stats(robot: Robot, manifest: dict) -> str:
+    """The human-readable ``stats.txt`` of a dataset."""
+    st = manifest['stats']
+    lines = [f"sik_ros dataset: {manifest['robot']['robot']} "
+             f"({manifest['robot']['base_frame']} -> {manifest['robot']['tip_frame']})",
+             f"sampler: {manifest['sampler']} {manifest['params']}",
+             f"rows: {st['rows']}",
+             f"distinct tip positions (10 um): {st['distinct_positions_10um']}",
+             f"reach: max {st['reach_max']:.4f} m, mean {st['reach_mean']:.4f} m",
+             'position range [m]: ' + ', '.join(
+                 f'{a} {lo:+.3f}..{hi:+.3f}' for a, lo, hi in
+                 zip('xyz', st['position_min'], st['position_max'])),
+             f"rows per {st['cell_size'] * 100:.0f} cm cell: min {st['rows_per_cell']['min']}, "
+             f"median {st['rows_per_cell']['median']:.0f}, max {st['rows_per_cell']['max']} "
+             f"({st['occupied_cells']} cells)",
+             'joint ranges [rad]:']
+    for name, lo, hi in zip(robot.joint_names, st['q_min'], st['q_max']):
+        lines.append(f'  {name}: {lo:+.4f} .. {hi:+.4f}')
+    return '\n'.join(lines) + '\n'

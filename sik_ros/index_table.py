@@ -1,0 +1,207 @@
+"""The posture-index table: distinct posture indices per workspace cell, with a KD-tree.
+
+After training, every dataset row is encoded to its posture index. Rows are grouped into cubic
+cells of the tip position; per cell only indices that differ are kept (near-duplicates dropped,
+then a far-apart subset when too many remain). A KD-tree over the cells' mean positions finds the
+cells near a goal, and their indices are the candidates the decoder turns into joint solutions.
+"""
+
+from dataclasses import dataclass
+import hashlib
+import json
+import os
+from pathlib import Path
+from typing import Callable, Dict, Optional
+
+import numpy as np
+from scipy.spatial import cKDTree
+import torch
+
+from sik_ros.artifacts import check_robot_manifest, FORMAT_VERSION
+from sik_ros.dataset import Dataset
+from sik_ros.errors import ArtifactMismatch, CorruptArtifact, InvalidArgument
+from sik_ros.models import make_goal, ModelConfig, Normalizer
+
+TABLE_KEYS = ('centers', 'offsets', 'indices', 'manifest')
+
+
+@dataclass(frozen=True)
+class TableConfig:
+    """How a table is built.
+
+    Attributes:
+        cell: edge of the position cells [m].
+        dedup: indices closer than this (per element, in index units) count as one.
+        max_per_cell: most indices kept per cell (a far-apart subset).
+    """
+
+    cell: float = 0.05
+    dedup: float = 0.05
+    max_per_cell: int = 24
+
+    def __post_init__(self):
+        """Validate the fields."""
+        if not (self.cell > 0 and self.dedup > 0 and self.max_per_cell >= 1):
+            raise InvalidArgument(f'invalid table config {self}')
+
+
+def farthest_point_subset(points: np.ndarray, k: int, first: int = 0) -> np.ndarray:
+    """Indices of ``k`` rows of ``points`` chosen greedily far apart (farthest-point sampling)."""
+    n = len(points)
+    if n <= k:
+        return np.arange(n)
+    chosen = [first]
+    dist = np.linalg.norm(points - points[first], axis=1)
+    for _ in range(k - 1):
+        i = int(np.argmax(dist))
+        chosen.append(i)
+        dist = np.minimum(dist, np.linalg.norm(points - points[i], axis=1))
+    return np.array(chosen)
+
+
+def model_signature(ckpt: Dict) -> Dict:
+    """What ties a table to the model that encoded it."""
+    digest = hashlib.sha256()
+    for name, tensor in sorted(ckpt['model_state'].items()):
+        digest.update(name.encode())
+        digest.update(tensor.detach().cpu().contiguous().numpy().tobytes())
+    sig = {'model_config': ckpt['model_config'], 'step': int(ckpt.get('step', 0)),
+           'weights_sha256': digest.hexdigest()}
+    return json.loads(json.dumps(sig))
+
+
+@torch.no_grad()
+def encode_dataset(model, cfg: ModelConfig, norm: Normalizer, ds: Dataset,
+                   batch: int = 65536, progress: Optional[Callable[[int], None]] = None):
+    """Posture index of every dataset row, (N, latent) float32."""
+    from scipy.spatial.transform import Rotation
+    out = np.empty((len(ds), cfg.latent_dim), dtype=np.float32)
+    for s in range(0, len(ds), batch):
+        pos = np.asarray(ds.position[s:s + batch])
+        rot = Rotation.from_quat(np.asarray(ds.quaternion[s:s + batch])).as_matrix() \
+            if cfg.goal == 'pose' else None
+        goal = torch.from_numpy(make_goal(cfg.goal, pos, rot).astype(np.float32))
+        q = torch.from_numpy(np.asarray(ds.q[s:s + batch], dtype=np.float32))
+        z, _ = model.encode(norm.goal_to_net(goal), norm.q_to_net(q))
+        out[s:s + batch] = z.numpy()
+        if progress:
+            progress(len(q))
+    return out
+
+
+class IndexTable:
+    """Cells of tip positions, each with its distinct posture indices."""
+
+    def __init__(self, centers: np.ndarray, offsets: np.ndarray, indices: np.ndarray,
+                 manifest: Dict):
+        self.centers = np.asarray(centers, dtype=np.float64)
+        self.offsets = np.asarray(offsets, dtype=np.int64)
+        self.indices = np.asarray(indices, dtype=np.float32)
+        self.manifest = manifest
+        self.tree = cKDTree(self.centers)
+        self.cell = float(manifest['table_config']['cell'])
+        self.latent_dim = self.indices.shape[1]
+
+    def __len__(self) -> int:
+        """Number of cells."""
+        return len(self.centers)
+
+    def candidates(self, position: np.ndarray, k_cells: int = 8) -> np.ndarray:
+        """Posture indices of the ``k_cells`` cells nearest a position [m], (M, latent)."""
+        k = min(k_cells, len(self.centers))
+        _, cells = self.tree.query(np.asarray(position, dtype=float), k=k)
+        cells = np.atleast_1d(cells)
+        parts = [self.indices[self.offsets[c]:self.offsets[c + 1]] for c in cells]
+        return np.concatenate(parts, axis=0)
+
+    def distance_to_data(self, position: np.ndarray) -> float:
+        """Distance from a position to the nearest cell centre [m]."""
+        d, _ = self.tree.query(np.asarray(position, dtype=float), k=1)
+        return float(d)
+
+    @property
+    def index_bounds(self):
+        """Element-wise (min, max) of the stored indices."""
+        return self.indices.min(axis=0), self.indices.max(axis=0)
+
+    # -- building and files -----------------------------------------------------------------
+
+    @classmethod
+    def build(cls, z: np.ndarray, position: np.ndarray, cfg: TableConfig,
+              manifest: Dict) -> 'IndexTable':
+        """Group encoded rows into cells and keep distinct, far-apart indices per cell."""
+        position = np.asarray(position)
+        cell_idx = np.floor(position / cfg.cell).astype(np.int64) + (1 << 20)
+        keys = (cell_idx[:, 0] << 42) | (cell_idx[:, 1] << 21) | cell_idx[:, 2]
+        quant = np.round(z / cfg.dedup).astype(np.int64)
+        # sort by cell, then by quantised index, to drop duplicates per cell in one pass
+        order = np.lexsort(tuple(quant[:, j] for j in reversed(range(quant.shape[1]))) + (keys,))
+        keys_s, quant_s = keys[order], quant[order]
+        new = np.ones(len(order), dtype=bool)
+        new[1:] = (keys_s[1:] != keys_s[:-1]) | np.any(quant_s[1:] != quant_s[:-1], axis=1)
+        rows = order[new]
+        keys_u = keys_s[new]
+        starts = np.flatnonzero(np.r_[True, keys_u[1:] != keys_u[:-1]])
+        ends = np.r_[starts[1:], len(rows)]
+        sums = np.zeros((len(starts), 3))
+        counts = np.zeros(len(starts))
+        cell_of_row = np.searchsorted(np.unique(keys), keys)
+        np.add.at(sums, cell_of_row, position)
+        np.add.at(counts, cell_of_row, 1)
+        centers = sums / counts[:, None]
+        kept, offsets = [], [0]
+        for s, e in zip(starts, ends):
+            zs = z[rows[s:e]]
+            if len(zs) > cfg.max_per_cell:
+                zs = zs[farthest_point_subset(zs, cfg.max_per_cell)]
+            kept.append(zs)
+            offsets.append(offsets[-1] + len(zs))
+        indices = np.concatenate(kept).astype(np.float32)
+        manifest = dict(manifest, table_config={'cell': cfg.cell, 'dedup': cfg.dedup,
+                                                'max_per_cell': cfg.max_per_cell},
+                        cells=int(len(centers)), entries=int(len(indices)),
+                        kind='sik_index_table', format_version=FORMAT_VERSION)
+        return cls(centers, np.array(offsets), indices, manifest)
+
+    def save(self, path: Path) -> Path:
+        """Write the table atomically as a compressed ``.npz`` (indices stored as float16)."""
+        path = Path(path)
+        tmp = path.with_name(f'.{path.name}.{os.getpid()}.tmp.npz')
+        np.savez_compressed(tmp, centers=self.centers.astype(np.float32), offsets=self.offsets,
+                            indices=self.indices.astype(np.float16),
+                            manifest=np.array(json.dumps(self.manifest, sort_keys=True)))
+        os.replace(tmp, path)
+        return path
+
+    @classmethod
+    def load(cls, path: Path, robot_manifest: Optional[Dict] = None,
+             signature: Optional[Dict] = None) -> 'IndexTable':
+        """Read a table, checking it against a robot and the model it was built with.
+
+        Raises:
+            CorruptArtifact: unreadable or inconsistent file.
+            ArtifactMismatch: a table of another robot or another model.
+        """
+        path = Path(path)
+        try:
+            with np.load(path, allow_pickle=False) as f:
+                if any(k not in f for k in TABLE_KEYS):
+                    raise CorruptArtifact(f'index table {path} lacks arrays {TABLE_KEYS}')
+                centers, offsets = f['centers'], f['offsets']
+                indices = f['indices'].astype(np.float32)
+                manifest = json.loads(str(f['manifest']))
+        except CorruptArtifact:
+            raise
+        except (OSError, ValueError, KeyError, EOFError) as exc:
+            raise CorruptArtifact(f'cannot read index table {path}: {exc}') from exc
+        if manifest.get('kind') != 'sik_index_table':
+            raise CorruptArtifact(f'{path} is not a sik_ros index table')
+        if (len(offsets) != len(centers) + 1 or offsets[-1] != len(indices)
+                or len(centers) != manifest.get('cells')):
+            raise CorruptArtifact(f'index table {path}: sizes disagree with its manifest')
+        if robot_manifest is not None:
+            check_robot_manifest(f'index table {path}', robot_manifest, manifest['robot'])
+        if signature is not None and manifest.get('model') != signature:
+            raise ArtifactMismatch(f'index table {path}: model', signature,
+                                   manifest.get('model'))
+        return cls(centers, offsets, indices, manifest)

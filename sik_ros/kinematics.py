@@ -1,0 +1,399 @@
+"""Robot models on Pinocchio: arm reduction, batched forward kinematics and Jacobians.
+
+A :class:`Robot` is a serial chain of revolute joints from a fixed base frame to a tip frame,
+extracted from a Pinocchio model (example-robot-data or a URDF). Joints off the base-to-tip path
+(the Panda's fingers) are locked. Batched forward kinematics is vectorised over configurations and
+written once for NumPy and PyTorch (:func:`chain_forward`); it is tested against Pinocchio's own
+frame placements.
+"""
+
+from dataclasses import dataclass
+import functools
+import hashlib
+from pathlib import Path
+from typing import Any, Optional, Sequence, Tuple
+
+import numpy as np
+import pinocchio as pin
+from scipy.spatial.transform import Rotation
+
+from sik_ros.errors import FrameNotFound, InvalidArgument, InvalidModel, RobotNotFound
+
+#: Default base and tip frames of the robots sik_ros knows by name.
+KNOWN_FRAMES = {
+    'panda': ('panda_link0', 'panda_hand_tcp'),
+}
+#: Simplified collision geometry (capsules, spheres) used for a named robot when available.
+COLLISION_VARIANTS = {
+    'panda': 'panda_collision',
+}
+
+_REVOLUTE_AXES = {
+    'JointModelRX': (1.0, 0.0, 0.0),
+    'JointModelRY': (0.0, 1.0, 0.0),
+    'JointModelRZ': (0.0, 0.0, 1.0),
+}
+
+
+@dataclass(frozen=True)
+class SerialChain:
+    """Constant geometry of a revolute serial chain [m, rad].
+
+    Attributes:
+        joint_rotations: (n, 3, 3) rotation of each joint frame in its parent joint frame; the
+            frames are turned so that every joint rotates about its own z axis.
+        joint_translations: (n, 3) translation of each joint frame in its parent [m].
+        axes: (n, 3) the joints' axes as the URDF gives them (for reference).
+        base_rotation: (3, 3) rotation of the world in the base frame.
+        base_translation: (3,) translation of the world in the base frame [m].
+        tip_rotation: (3, 3) rotation of the tip in the last joint frame.
+        tip_translation: (3,) translation of the tip in the last joint frame [m].
+    """
+
+    joint_rotations: np.ndarray
+    joint_translations: np.ndarray
+    axes: np.ndarray
+    base_rotation: np.ndarray
+    base_translation: np.ndarray
+    tip_rotation: np.ndarray
+    tip_translation: np.ndarray
+
+    @property
+    def dof(self) -> int:
+        """Number of joints."""
+        return len(self.axes)
+
+
+def chain_forward(chain: Any, q: Any, xp: Any = np, frames: bool = False, first: int = 0,
+                  start: Optional[Tuple[Any, Any]] = None, tip: bool = True):
+    """Forward kinematics of a serial chain for a batch of configurations.
+
+    Every joint of a :class:`SerialChain` turns about its own z axis (the extraction rotates
+    joint frames so that this holds), so a joint's rotation only mixes two columns. Works for
+    NumPy arrays (``xp=numpy``) and torch tensors (``xp=torch``, with the chain's arrays as
+    tensors), so the training loss and the solver share it.
+
+    Args:
+        chain: a :class:`SerialChain` (or an object with the same array attributes).
+        q: (N, n) joint positions [rad].
+        xp: the array module, ``numpy`` or ``torch``.
+        frames: also return every joint's world position and axis.
+        first: index of the joint that ``q[:, 0]`` drives (to continue a partial chain).
+        start: ``(positions, rotations)`` of joint ``first - 1``'s frame; the base if None.
+        tip: apply the tip offset; else return the frame of the last joint computed.
+
+    Returns:
+        ``(p, R)``: tip positions (N, 3) [m] and rotations (N, 3, 3) in the base frame; with
+        ``frames=True`` also joint origins (N, n, 3) and world axes (N, n, 3).
+    """
+    c = xp.cos(q)
+    s = xp.sin(q)
+    if start is None:
+        rot = chain.base_rotation
+        pos = chain.base_translation + 0 * q[:, :1]
+    else:
+        pos, rot = start
+    origins, axes_world = [], []
+    for col in range(q.shape[1]):
+        i = first + col
+        pos = pos + rot @ chain.joint_translations[i]
+        a = rot @ chain.joint_rotations[i]
+        ci, si = c[:, col, None], s[:, col, None]
+        a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
+        rot = xp.stack([ci * a0 + si * a1, ci * a1 - si * a0, a2 + 0 * ci], -1)
+        if frames:
+            origins.append(pos)
+            axes_world.append(a2 + 0 * ci)
+    if tip:
+        pos, rot = pos + rot @ chain.tip_translation, rot @ chain.tip_rotation
+    if frames:
+        return pos, rot, xp.stack(origins, 1), xp.stack(axes_world, 1)
+    return pos, rot
+
+
+def _z_to_axis(axis: np.ndarray) -> np.ndarray:
+    """A rotation that maps the z axis onto a unit ``axis``."""
+    z = np.array([0.0, 0.0, 1.0])
+    v = np.cross(z, axis)
+    sin, cos = np.linalg.norm(v), float(z @ axis)
+    if sin < 1e-12:
+        return np.eye(3) if cos > 0 else np.diag([1.0, -1.0, -1.0])
+    return Rotation.from_rotvec(v / sin * np.arctan2(sin, cos)).as_matrix()
+
+
+def rotation_to_quaternion(rot: np.ndarray) -> np.ndarray:
+    """Rotation matrices (N, 3, 3) to unit quaternions (N, 4), x y z w, w >= 0."""
+    quat = Rotation.from_matrix(rot).as_quat()
+    return np.where(quat[:, 3:4] < 0, -quat, quat)
+
+
+def sha256_file(path: Path) -> str:
+    """Hex SHA-256 of a file's bytes."""
+    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+
+
+class Robot:
+    """A robot arm as a revolute serial chain from ``base_frame`` to ``tip_frame``.
+
+    Attributes:
+        name: robot name (example-robot-data name, or the URDF's robot name).
+        urdf_path: the URDF file the model was built from.
+        urdf_sha256: SHA-256 of that file.
+        model: the reduced Pinocchio model (arm joints only).
+        joint_names: names of the arm joints, in chain order.
+        lower, upper: joint limits (n,) [rad].
+        chain: the chain geometry used by the batched kinematics.
+    """
+
+    def __init__(self, name: str, urdf_path: Path, full_model: pin.Model, base_frame: str,
+                 tip_frame: str, package_dirs: Sequence[str] = (),
+                 collision_urdf: Optional[Path] = None, srdf_path: Optional[Path] = None):
+        self.name = name
+        self.urdf_path = Path(urdf_path)
+        self.urdf_sha256 = sha256_file(self.urdf_path)
+        self.base_frame = base_frame
+        self.tip_frame = tip_frame
+        self._package_dirs = list(package_dirs)
+        self._collision_urdf = Path(collision_urdf) if collision_urdf else self.urdf_path
+        self._srdf_path = srdf_path
+        frame_names = [f.name for f in full_model.frames]
+        for frame in (base_frame, tip_frame):
+            if not full_model.existFrame(frame):
+                raise FrameNotFound(frame, frame_names)
+        tip_joint = full_model.frames[full_model.getFrameId(tip_frame)].parentJoint
+        path = []
+        j = tip_joint
+        while j > 0:
+            path.append(j)
+            j = full_model.parents[j]
+        path.reverse()
+        if not path:
+            raise InvalidModel(f'tip frame {tip_frame!r} is not moved by any joint')
+        lock = [j for j in range(1, full_model.njoints) if j not in path]
+        q_ref = pin.neutral(full_model)
+        self._locked = lock
+        self._q_ref_full = q_ref
+        self.model = pin.buildReducedModel(full_model, lock, q_ref) if lock else full_model
+        self._full_model = full_model
+        self.joint_names = [self.model.names[j] for j in range(1, self.model.njoints)]
+        self.lower = np.array(self.model.lowerPositionLimit, dtype=float)
+        self.upper = np.array(self.model.upperPositionLimit, dtype=float)
+        if not (np.all(np.isfinite(self.lower)) and np.all(np.isfinite(self.upper))
+                and np.all(self.upper > self.lower)):
+            raise InvalidModel(
+                f'{name}: every arm joint needs finite limits with lower < upper; got '
+                f'lower={self.lower.tolist()}, upper={self.upper.tolist()}')
+        self.chain = self._extract_chain()
+        self.data = self.model.createData()
+        self._collision = None
+
+    # -- construction --------------------------------------------------------------------------
+
+    def _extract_chain(self) -> SerialChain:
+        m = self.model
+        rots, trans, axes = [], [], []
+        for j in range(1, m.njoints):
+            if m.parents[j] != j - 1:
+                raise InvalidModel(f'{self.name}: the reduced model is not a serial chain')
+            joint = m.joints[j]
+            kind = joint.shortname()
+            if kind in _REVOLUTE_AXES:
+                axis = np.array(_REVOLUTE_AXES[kind])
+            elif kind == 'JointModelRevoluteUnaligned':
+                axis = np.array(joint.extract().axis, dtype=float)
+            else:
+                raise InvalidModel(
+                    f'{self.name}: joint {m.names[j]!r} is {kind}; only revolute joints with '
+                    f'limits are supported')
+            placement = m.jointPlacements[j]
+            rots.append(placement.rotation.copy())
+            trans.append(placement.translation.copy())
+            axes.append(axis / np.linalg.norm(axis))
+        # turn every joint about its own z axis: R_i <- A_{i-1}^T R_i A_i, t_i <- A_{i-1}^T t_i
+        align = [_z_to_axis(a) for a in axes]
+        prev = np.eye(3)
+        for i, al in enumerate(align):
+            rots[i] = prev.T @ rots[i] @ al
+            trans[i] = prev.T @ trans[i]
+            prev = al
+        base = m.frames[m.getFrameId(self.base_frame)]
+        if base.parentJoint != 0:
+            raise InvalidModel(f'base frame {self.base_frame!r} must be fixed to the world')
+        base_inv = base.placement.inverse()
+        tip = m.frames[m.getFrameId(self.tip_frame)]
+        if tip.parentJoint != m.njoints - 1:
+            raise InvalidModel(f'tip frame {self.tip_frame!r} is not on the last arm joint')
+        return SerialChain(
+            joint_rotations=np.array(rots), joint_translations=np.array(trans),
+            axes=np.array(axes), base_rotation=base_inv.rotation.copy(),
+            base_translation=base_inv.translation.copy(),
+            tip_rotation=prev.T @ tip.placement.rotation,
+            tip_translation=prev.T @ tip.placement.translation)
+
+    # -- kinematics ----------------------------------------------------------------------------
+
+    @property
+    def dof(self) -> int:
+        """Number of arm joints."""
+        return len(self.joint_names)
+
+    def fk_batch(self, q: np.ndarray, chunk: int = 1 << 16) -> Tuple[np.ndarray, np.ndarray]:
+        """Tip poses of many configurations.
+
+        Args:
+            q: (N, n) joint positions [rad].
+            chunk: configurations computed at a time (bounds the temporary memory).
+
+        Returns:
+            positions (N, 3) [m] and quaternions (N, 4) x y z w, in the base frame.
+        """
+        q = self._check_q(q)
+        pos = np.empty((len(q), 3))
+        quat = np.empty((len(q), 4))
+        for start in range(0, len(q), chunk):
+            p, r = chain_forward(self.chain, q[start:start + chunk])
+            pos[start:start + chunk] = p
+            quat[start:start + chunk] = rotation_to_quaternion(r)
+        return pos, quat
+
+    def fk_rot(self, q: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
+        """Tip positions (N, 3) [m] and rotation matrices (N, 3, 3) of configurations (N, n)."""
+        return chain_forward(self.chain, self._check_q(q))
+
+    def fk(self, q: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
+        """Tip position (3,) [m] and quaternion (4,) x y z w of one configuration (n,)."""
+        pos, quat = self.fk_batch(np.asarray(q, dtype=float).reshape(1, -1))
+        return pos[0], quat[0]
+
+    def jacobian_batch(self, q: np.ndarray) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Tip poses and geometric Jacobians of many configurations.
+
+        The Jacobian maps joint velocities to the tip's linear velocity [m/s] and angular
+        velocity [rad/s] in the base frame, both taken at the tip (Pinocchio's
+        ``LOCAL_WORLD_ALIGNED``).
+
+        Returns:
+            positions (N, 3), rotations (N, 3, 3), Jacobians (N, 6, n).
+        """
+        q = self._check_q(q)
+        p, r, origins, axes = chain_forward(self.chain, q, frames=True)
+        lin = np.cross(axes, p[:, None, :] - origins)
+        jac = np.concatenate([lin, axes], axis=2).transpose(0, 2, 1)
+        return p, r, jac
+
+    def pin_placement(self, q: np.ndarray) -> pin.SE3:
+        """Tip placement in the base frame computed by Pinocchio itself (reference)."""
+        q = np.asarray(q, dtype=float)
+        pin.framesForwardKinematics(self.model, self.data, q)
+        base = self.data.oMf[self.model.getFrameId(self.base_frame)]
+        tip = self.data.oMf[self.model.getFrameId(self.tip_frame)]
+        return base.actInv(tip)
+
+    def pin_jacobian(self, q: np.ndarray) -> np.ndarray:
+        """Tip Jacobian (6, n) from Pinocchio, LOCAL_WORLD_ALIGNED, base frame = world."""
+        q = np.asarray(q, dtype=float)
+        return pin.computeFrameJacobian(self.model, self.data, q,
+                                        self.model.getFrameId(self.tip_frame),
+                                        pin.LOCAL_WORLD_ALIGNED)
+
+    def _check_q(self, q: np.ndarray) -> np.ndarray:
+        q = np.asarray(q, dtype=float)
+        if q.ndim != 2 or q.shape[1] != self.dof:
+            raise InvalidArgument(
+                f'joint array must have shape (N, {self.dof}); got {q.shape}')
+        return q
+
+    # -- geometry ------------------------------------------------------------------------------
+
+    @property
+    def collision_model(self) -> pin.GeometryModel:
+        """The arm's collision geometry (coal), reduced like the kinematic model; loaded lazily."""
+        if self._collision is None:
+            full_geom = pin.buildGeomFromUrdf(self._full_model, str(self._collision_urdf),
+                                              pin.GeometryType.COLLISION,
+                                              package_dirs=self._package_dirs)
+            if self._locked:
+                _, geom = pin.buildReducedModel(self._full_model, full_geom, self._locked,
+                                                self._q_ref_full)
+            else:
+                geom = full_geom
+            self._collision = geom
+        return self._collision
+
+    @property
+    def srdf_path(self) -> Optional[Path]:
+        """SRDF with the robot's disabled collision pairs, when known."""
+        return self._srdf_path
+
+    def manifest(self) -> dict:
+        """What identifies this robot in an artifact's manifest."""
+        return {
+            'robot': self.name,
+            'urdf_sha256': self.urdf_sha256,
+            'base_frame': self.base_frame,
+            'tip_frame': self.tip_frame,
+            'joint_names': list(self.joint_names),
+            'lower': self.lower.tolist(),
+            'upper': self.upper.tolist(),
+        }
+
+
+def available_robots() -> list:
+    """Names of the robots example-robot-data can load."""
+    from example_robot_data.robots_loader import ROBOTS
+    return sorted(ROBOTS)
+
+
+@functools.lru_cache(maxsize=8)
+def load_robot(name: str = 'panda', urdf: Optional[str] = None, base: Optional[str] = None,
+               tip: Optional[str] = None) -> Robot:
+    """Load a robot arm by example-robot-data name or from a URDF file.
+
+    Args:
+        name: example-robot-data robot name (ignored for the model when ``urdf`` is given).
+        urdf: path to a URDF file; then ``base`` and ``tip`` are required.
+        base: base frame name (default for known robots: see :data:`KNOWN_FRAMES`).
+        tip: tip frame name.
+
+    Raises:
+        RobotNotFound: unknown robot name (the message lists the available ones).
+        FrameNotFound: a base or tip frame that is not in the model (the message lists frames).
+        InvalidModel: a chain sik_ros cannot handle.
+    """
+    if urdf is not None:
+        path = Path(urdf)
+        if not path.is_file():
+            raise InvalidArgument(f'URDF file not found: {path}')
+        if base is None or tip is None:
+            raise InvalidArgument('a URDF needs --base and --tip frames')
+        try:
+            model = pin.buildModelFromUrdf(str(path))
+        except (RuntimeError, ValueError) as exc:
+            raise InvalidModel(f'cannot parse URDF {path}: {exc}') from exc
+        robot_name = model.name or path.stem
+        return Robot(robot_name, path, model, base, tip, package_dirs=[str(path.parent)])
+    robots = available_robots()
+    if name not in robots:
+        raise RobotNotFound(name, robots)
+    import example_robot_data as erd
+    from example_robot_data.robots_loader import ROBOTS
+    loaded = erd.load(name)
+    default_base, default_tip = KNOWN_FRAMES.get(name, (None, None))
+    base = base or default_base
+    tip = tip or default_tip
+    if base is None or tip is None:
+        raise InvalidArgument(f'robot {name!r} has no default frames: give base and tip')
+    urdf_path = Path(loaded.urdf)
+    share = urdf_path.parents[3] if len(urdf_path.parents) > 3 else urdf_path.parent
+    collision_urdf, srdf = urdf_path, None
+    variant = COLLISION_VARIANTS.get(name)
+    if variant in ROBOTS:
+        collision_urdf = Path(erd.load(variant).urdf)
+    loader = ROBOTS[name]
+    srdf_candidate = urdf_path.parent.parent / 'srdf' / f'{loader.srdf_filename}' \
+        if getattr(loader, 'srdf_filename', None) else None
+    if srdf_candidate is not None and srdf_candidate.is_file():
+        srdf = srdf_candidate
+    return Robot(name, urdf_path, loaded.model, base, tip,
+                 package_dirs=[str(share.parent), str(share)],
+                 collision_urdf=collision_urdf, srdf_path=srdf)

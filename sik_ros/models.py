@@ -1,0 +1,266 @@
+"""Neural models: SIK (auto-encoder), PSIK (conditional VAE), and the paper's FCN and ANFIS.
+
+Joint angles are normalised to [-1, 1] by their limits; goal positions are divided by a workspace
+scale. A ``pose`` goal is the position plus the first two columns of the tip rotation matrix (a
+continuous 6-d orientation representation).
+"""
+
+from dataclasses import asdict, dataclass, field
+from typing import Dict, Optional, Tuple
+
+import numpy as np
+import torch
+from torch import nn
+
+from sik_ros.errors import InvalidArgument
+from sik_ros.kinematics import chain_forward, SerialChain
+
+MODEL_KINDS = ('sik', 'psik', 'fcn', 'anfis')
+GOAL_KINDS = ('position', 'pose')
+DEFAULT_LATENT = {'position': 4, 'pose': 1}
+
+#: Layer-width presets: (encoder hidden widths, decoder hidden widths).
+PRESETS = {
+    'paper': ((2048, 2048, 1024, 512), (512, 1024, 1024, 512)),
+    'default': ((256, 256, 256), (512, 512, 512, 512)),
+    'small': ((128, 128), (256, 256, 256)),
+    'tiny': ((32, 32), (64, 64)),
+}
+
+
+@dataclass(frozen=True)
+class ModelConfig:
+    """Architecture of a model; saved inside every checkpoint.
+
+    Attributes:
+        kind: ``sik``, ``psik``, ``fcn`` or ``anfis``.
+        goal: ``position`` (3-d goal) or ``pose`` (position + orientation, 9-d goal).
+        dof: number of joints.
+        latent_dim: size of the posture index (SIK/PSIK).
+        encoder: hidden widths of the encoder.
+        decoder: hidden widths of the decoder (and of the FCN).
+        anfis_mfs: membership functions per input (ANFIS).
+    """
+
+    kind: str = 'sik'
+    goal: str = 'position'
+    dof: int = 7
+    latent_dim: int = 4
+    encoder: Tuple[int, ...] = PRESETS['default'][0]
+    decoder: Tuple[int, ...] = PRESETS['default'][1]
+    anfis_mfs: int = 2
+
+    def __post_init__(self):
+        """Validate the fields."""
+        if self.kind not in MODEL_KINDS:
+            raise InvalidArgument(f'model kind must be one of {MODEL_KINDS}; got {self.kind!r}')
+        if self.goal not in GOAL_KINDS:
+            raise InvalidArgument(f'goal must be one of {GOAL_KINDS}; got {self.goal!r}')
+        if not 1 <= self.latent_dim <= 7:
+            raise InvalidArgument(f'latent dimension must be 1 to 7; got {self.latent_dim}')
+        if self.dof < 1:
+            raise InvalidArgument(f'dof must be positive; got {self.dof}')
+
+    @property
+    def goal_dim(self) -> int:
+        """Size of the goal vector."""
+        return 3 if self.goal == 'position' else 9
+
+    @classmethod
+    def from_dict(cls, d: Dict) -> 'ModelConfig':
+        """Rebuild from :func:`dataclasses.asdict` output."""
+        d = dict(d)
+        d['encoder'] = tuple(d['encoder'])
+        d['decoder'] = tuple(d['decoder'])
+        return cls(**d)
+
+
+@dataclass(frozen=True)
+class Normalizer:
+    """Maps joints and goals to and from the networks' normalised units."""
+
+    lower: Tuple[float, ...]
+    upper: Tuple[float, ...]
+    position_center: Tuple[float, ...] = (0.0, 0.0, 0.0)
+    position_scale: float = 1.0
+    extra: Dict = field(default_factory=dict)
+
+    def q_to_net(self, q: torch.Tensor) -> torch.Tensor:
+        """Joint positions [rad] to [-1, 1]."""
+        lo, hi = self._limits(q)
+        return (q - (lo + hi) / 2) / ((hi - lo) / 2)
+
+    def q_from_net(self, x: torch.Tensor) -> torch.Tensor:
+        """Normalised joints back to [rad]."""
+        lo, hi = self._limits(x)
+        return x * ((hi - lo) / 2) + (lo + hi) / 2
+
+    def goal_to_net(self, goal: torch.Tensor) -> torch.Tensor:
+        """A goal (position [m], optionally followed by 6 rotation entries) to network units."""
+        c = torch.as_tensor(self.position_center, dtype=goal.dtype, device=goal.device)
+        pos = (goal[:, :3] - c) / self.position_scale
+        return torch.cat([pos, goal[:, 3:]], dim=1)
+
+    def _limits(self, like: torch.Tensor):
+        lo = torch.as_tensor(self.lower, dtype=like.dtype, device=like.device)
+        hi = torch.as_tensor(self.upper, dtype=like.dtype, device=like.device)
+        return lo, hi
+
+
+def rotation_goal(rot: np.ndarray) -> np.ndarray:
+    """The 6-d orientation representation: first two columns of (N, 3, 3) rotations, (N, 6)."""
+    return np.concatenate([rot[:, :, 0], rot[:, :, 1]], axis=1)
+
+
+def make_goal(goal_kind: str, position: np.ndarray, rot: Optional[np.ndarray]) -> np.ndarray:
+    """Goal vectors (N, 3) or (N, 9) from positions [m] and rotation matrices."""
+    if goal_kind == 'position':
+        return np.asarray(position, dtype=float)
+    return np.concatenate([position, rotation_goal(rot)], axis=1)
+
+
+def mlp(sizes, out: int) -> nn.Sequential:
+    """Fully connected layers with ELU after every layer but the output."""
+    layers = []
+    for a, b in zip(sizes[:-1], sizes[1:]):
+        layers += [nn.Linear(a, b), nn.ELU()]
+    layers.append(nn.Linear(sizes[-1], out))
+    return nn.Sequential(*layers)
+
+
+class TorchChain(nn.Module):
+    """Differentiable forward kinematics of a :class:`SerialChain` in torch."""
+
+    def __init__(self, chain: SerialChain, dtype: torch.dtype = torch.float32):
+        super().__init__()
+        for name in ('joint_rotations', 'joint_translations', 'axes', 'base_rotation',
+                     'base_translation', 'tip_rotation', 'tip_translation'):
+            self.register_buffer(name, torch.as_tensor(getattr(chain, name), dtype=dtype),
+                                 persistent=False)
+
+    def forward(self, q: torch.Tensor) -> Tuple[torch.Tensor, torch.Tensor]:
+        """Tip positions (N, 3) [m] and rotations (N, 3, 3) of joint positions (N, n) [rad]."""
+        return chain_forward(self, q, xp=torch)
+
+
+class SIK(nn.Module):
+    """Selective IK: encoder (goal, q) -> posture index; decoder (goal, index) -> q.
+
+    With ``variational`` (PSIK) the encoder outputs a mean and a log-variance and the index is
+    sampled with the reparameterisation trick while training.
+    """
+
+    def __init__(self, cfg: ModelConfig):
+        super().__init__()
+        self.cfg = cfg
+        self.variational = cfg.kind == 'psik'
+        out = cfg.latent_dim * (2 if self.variational else 1)
+        self.encoder = mlp((cfg.goal_dim + cfg.dof,) + cfg.encoder, out)
+        self.decoder = mlp((cfg.goal_dim + cfg.latent_dim,) + cfg.decoder, cfg.dof)
+
+    def encode(self, goal: torch.Tensor, x: torch.Tensor):
+        """Posture index (mean) and log-variance (None for SIK) of normalised (goal, joints)."""
+        h = self.encoder(torch.cat([goal, x], dim=1))
+        if self.variational:
+            mu, logvar = h.chunk(2, dim=1)
+            return mu, logvar.clamp(-12.0, 8.0)
+        return h, None
+
+    def decode(self, goal: torch.Tensor, z: torch.Tensor) -> torch.Tensor:
+        """Normalised joints from a normalised goal and a posture index."""
+        return self.decoder(torch.cat([goal, z], dim=1))
+
+    def forward(self, goal: torch.Tensor, x: torch.Tensor):
+        """Reconstruction, index, and log-variance (None for SIK)."""
+        mu, logvar = self.encode(goal, x)
+        z = mu
+        if self.variational and self.training:
+            z = mu + torch.randn_like(mu) * torch.exp(0.5 * logvar)
+        return self.decode(goal, z), mu, logvar
+
+
+def kl_normal(mu: torch.Tensor, logvar: torch.Tensor) -> torch.Tensor:
+    """KL(N(mu, exp(logvar)) || N(0, I)) per sample, closed form, summed over dimensions."""
+    return -0.5 * torch.sum(1 + logvar - mu.pow(2) - logvar.exp(), dim=1)
+
+
+class FCN(nn.Module):
+    """The paper's baseline: a fully connected net goal -> joints, shaped like the decoder."""
+
+    def __init__(self, cfg: ModelConfig):
+        super().__init__()
+        self.cfg = cfg
+        self.net = mlp((cfg.goal_dim,) + cfg.decoder, cfg.dof)
+
+    def forward(self, goal: torch.Tensor) -> torch.Tensor:
+        """Normalised joints from a normalised goal."""
+        return self.net(goal)
+
+
+class ANFIS(nn.Module):
+    """First-order Sugeno fuzzy inference, ``anfis_mfs`` generalised-bell MFs per input.
+
+    Parameters are kept in one flat vector so a particle swarm can optimise them
+    (:func:`anfis_forward` evaluates many parameter vectors at once).
+    """
+
+    def __init__(self, cfg: ModelConfig):
+        super().__init__()
+        self.cfg = cfg
+        self.params_flat = nn.Parameter(anfis_initial(cfg))
+
+    def forward(self, goal: torch.Tensor) -> torch.Tensor:
+        """Normalised joints from a normalised goal."""
+        return anfis_forward(self.cfg, self.params_flat[None], goal)[0]
+
+
+def anfis_sizes(cfg: ModelConfig) -> Tuple[int, int, int]:
+    """(inputs, rules, parameter count) of an ANFIS."""
+    d, m = cfg.goal_dim, cfg.anfis_mfs
+    rules = m ** d
+    return d, rules, d * m * 3 + rules * (d + 1) * cfg.dof
+
+
+def anfis_initial(cfg: ModelConfig) -> torch.Tensor:
+    """Evenly spread bell MFs over [-1, 1] and zero consequents."""
+    d, rules, total = anfis_sizes(cfg)
+    m = cfg.anfis_mfs
+    centers = torch.linspace(-1, 1, m).repeat(d)
+    widths = torch.full((d * m,), 2.0 / m)
+    slopes = torch.full((d * m,), 2.0)
+    return torch.cat([centers, widths, slopes, torch.zeros(rules * (d + 1) * cfg.dof)])
+
+
+def anfis_forward(cfg: ModelConfig, params: torch.Tensor, goal: torch.Tensor) -> torch.Tensor:
+    """Evaluate P parameter vectors (P, K) on goals (N, d): outputs (P, N, dof)."""
+    d, rules, _ = anfis_sizes(cfg)
+    m = cfg.anfis_mfs
+    p = params.shape[0]
+    c = params[:, :d * m].reshape(p, d, m)
+    a = params[:, d * m:2 * d * m].reshape(p, d, m).abs() + 1e-3
+    b = params[:, 2 * d * m:3 * d * m].reshape(p, d, m)
+    coef = params[:, 3 * d * m:].reshape(p, rules, d + 1, cfg.dof)
+    x = goal[None, :, :, None]                                          # (1, N, d, 1)
+    mu = 1.0 / (1.0 + ((x - c[:, None]) / a[:, None]).abs().pow(2 * b[:, None].abs()))
+    idx = torch.cartesian_prod(*[torch.arange(m)] * d).reshape(rules, d)  # rule -> MF per input
+    w = torch.ones(p, goal.shape[0], rules, dtype=goal.dtype, device=goal.device)
+    for k in range(d):
+        w = w * mu[:, :, k, idx[:, k]]
+    w = w / (w.sum(dim=2, keepdim=True) + 1e-12)
+    xa = torch.cat([goal, torch.ones_like(goal[:, :1])], dim=1)         # (N, d+1)
+    f = torch.einsum('nd,prdo->pnro', xa, coef)                         # (P, N, R, dof)
+    return torch.einsum('pnr,pnro->pno', w, f)
+
+
+def build_model(cfg: ModelConfig) -> nn.Module:
+    """The module for a model config."""
+    if cfg.kind in ('sik', 'psik'):
+        return SIK(cfg)
+    if cfg.kind == 'fcn':
+        return FCN(cfg)
+    return ANFIS(cfg)
+
+
+def config_dict(cfg) -> Dict:
+    """A frozen config dataclass as a plain dict (for checkpoints and manifests)."""
+    return asdict(cfg)

@@ -1,0 +1,511 @@
+"""SelectiveIK: several distinct, exact, ranked joint solutions per target.
+
+Pipeline per call: posture indices from the table near the goal (plus the seed's own index),
+a far-apart subset, one batched decode, clipping to the joint limits, batched damped least squares
+refinement on the chain's Jacobians, verification by FK, removal of near-duplicate postures,
+collision checks and ranking. See the paper's "Posture index selection" and Algorithm 2.
+"""
+
+from dataclasses import dataclass, field, replace
+import json
+from pathlib import Path
+import threading
+import time
+from typing import Dict, List, Optional, Sequence, Union
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+import torch
+
+from sik_ros.artifacts import check_robot_manifest, read_json
+from sik_ros.errors import (ArtifactMismatch, CorruptArtifact, InvalidArgument, InvalidGoal,
+                            InvalidSeed, JointLimitViolation)
+from sik_ros.index_table import farthest_point_subset, IndexTable, model_signature
+from sik_ros.kinematics import load_robot, Robot
+from sik_ros.models import make_goal
+from sik_ros.objectives import (CollisionChecker, JointLimitMargin, Objective, Obstacle,
+                                SeedDistance)
+from sik_ros.training import load_checkpoint, model_from_checkpoint
+
+BUNDLES = Path(__file__).resolve().parent / 'models'
+
+
+@dataclass(frozen=True)
+class SolverConfig:
+    """Tuning of the solver.
+
+    Attributes:
+        position_tolerance: a solution is exact when its position error is below this [m].
+        orientation_tolerance: ... and its orientation error below this [rad] (pose goals).
+        max_solutions_cap: largest ``num_solutions`` accepted.
+        k_cells: table cells pooled around the goal.
+        num_candidates: posture indices decoded per call.
+        refine_iterations: most damped least squares iterations.
+        damping: damping of the least squares steps.
+        max_step: largest joint change per iteration [rad].
+        distinct_threshold: solutions closer than this (L2 over the joints that move the tool
+            centre point for position goals) are duplicates [rad].
+        adjust_budget: decodes Algorithm 2 may spend adjusting an index.
+    """
+
+    position_tolerance: float = 1e-4
+    orientation_tolerance: float = 1e-3
+    max_solutions_cap: int = 64
+    k_cells: int = 8
+    num_candidates: int = 48
+    refine_iterations: int = 40
+    damping: float = 1e-3
+    max_step: float = 0.4
+    distinct_threshold: float = 0.5
+    adjust_budget: int = 24
+
+
+@dataclass
+class Solution:
+    """One joint solution.
+
+    Attributes:
+        q: joint positions (n,) [rad], within the limits.
+        position_error: distance from the tip to the target [m].
+        orientation_error: angle between tip and target orientation [rad] (0 for position goals).
+        posture_index: the posture index that produced it.
+        score: ranking score, lower is better.
+        min_obstacle_distance: clearance from the obstacles [m] (+inf without obstacles).
+        self_collision: whether the posture collides with itself.
+        converged: whether it meets the tolerances.
+    """
+
+    q: np.ndarray
+    position_error: float
+    orientation_error: float
+    posture_index: np.ndarray
+    score: float = 0.0
+    min_obstacle_distance: float = float('inf')
+    self_collision: bool = False
+    converged: bool = False
+
+    @property
+    def in_collision(self) -> bool:
+        """Whether it touches an obstacle or itself."""
+        return self.self_collision or self.min_obstacle_distance <= 0.0
+
+
+@dataclass
+class IKResult:
+    """The answer to one target: ranked solutions, best first."""
+
+    success: bool
+    solutions: List[Solution] = field(default_factory=list)
+    goal: str = 'position'
+    timed_out: bool = False
+    elapsed: float = 0.0
+    message: str = ''
+
+
+@dataclass
+class _GoalModel:
+    model: torch.nn.Module
+    cfg: object
+    norm: object
+    table: IndexTable
+
+
+class SelectiveIK:
+    """Multi-solution IK from trained SIK models and their posture-index tables.
+
+    Not thread-safe per instance (Pinocchio data); :meth:`clone` gives an instance sharing the
+    models and tables for another thread. Calls on one instance are serialised by a lock.
+    """
+
+    def __init__(self, robot: Robot, models: Dict[str, _GoalModel],
+                 config: Optional[SolverConfig] = None, bundle: Optional[Path] = None):
+        self.robot = robot
+        self.models = models
+        self.config = config or SolverConfig()
+        self.bundle = bundle
+        self.checker = CollisionChecker(robot)
+        self._lock = threading.Lock()
+
+    # -- loading ---------------------------------------------------------------------------------
+
+    @classmethod
+    def load(cls, bundle: Union[str, Path] = 'panda',
+             config: Optional[SolverConfig] = None) -> 'SelectiveIK':
+        """Load a bundle: a name of the bundled models (``panda``) or a bundle directory.
+
+        Raises:
+            CorruptArtifact: a missing or damaged file.
+            ArtifactMismatch: files made for another robot or model.
+        """
+        path = Path(bundle)
+        if not path.is_dir():
+            if (BUNDLES / str(bundle)).is_dir():
+                path = BUNDLES / str(bundle)
+            else:
+                known = sorted(p.name for p in BUNDLES.iterdir() if p.is_dir()) \
+                    if BUNDLES.is_dir() else []
+                raise CorruptArtifact(f'no bundle {bundle!r}: not a directory, and the bundled '
+                                      f'models are {known}')
+        manifest = read_json(path / 'bundle.json', f'bundle {path}')
+        if manifest.get('kind') != 'sik_bundle':
+            raise CorruptArtifact(f'{path}/bundle.json is not a sik_ros bundle manifest')
+        rm = manifest['robot']
+        robot = load_robot(rm['robot'], rm.get('urdf'), rm['base_frame'], rm['tip_frame'])
+        check_robot_manifest(f'bundle {path}', robot.manifest(), rm)
+        models = {}
+        for goal, files in manifest['models'].items():
+            ckpt = load_checkpoint(path / files['model'])
+            check_robot_manifest(f'model {files["model"]}', robot.manifest(), ckpt['robot'])
+            model, cfg, norm = model_from_checkpoint(ckpt)
+            if cfg.goal != goal or cfg.kind not in ('sik', 'psik'):
+                raise ArtifactMismatch(f'bundle {path}: model for {goal} goals', goal,
+                                       f'{cfg.kind}/{cfg.goal}')
+            table = IndexTable.load(path / files['table'], robot.manifest(),
+                                    model_signature(ckpt))
+            models[goal] = _GoalModel(model, cfg, norm, table)
+        if not models:
+            raise CorruptArtifact(f'bundle {path} lists no models')
+        return cls(robot, models, config, path)
+
+    def clone(self) -> 'SelectiveIK':
+        """An instance sharing models and tables, with its own Pinocchio/coal data."""
+        return SelectiveIK(self.robot, self.models, self.config, self.bundle)
+
+    def with_config(self, **changes) -> 'SelectiveIK':
+        """An instance with some :class:`SolverConfig` fields changed."""
+        return SelectiveIK(self.robot, self.models, replace(self.config, **changes), self.bundle)
+
+    # -- public helpers --------------------------------------------------------------------------
+
+    @property
+    def joint_names(self) -> List[str]:
+        """Arm joint names, in the order of every ``q``."""
+        return list(self.robot.joint_names)
+
+    @property
+    def goals(self) -> List[str]:
+        """Goal kinds this bundle answers (``position``, ``pose``)."""
+        return sorted(self.models)
+
+    def fk(self, q: np.ndarray):
+        """Tip position (3,) [m] and quaternion (4,) x y z w of a configuration (n,)."""
+        q = np.asarray(q, dtype=float)
+        if q.shape != (self.robot.dof,):
+            raise InvalidArgument(f'q must have shape ({self.robot.dof},); got {q.shape}')
+        return self.robot.fk(q)
+
+    # -- validation ------------------------------------------------------------------------------
+
+    def _check_inputs(self, position, orientation, num_solutions, seed):
+        try:
+            pos = np.asarray(position, dtype=float)
+        except (TypeError, ValueError) as exc:
+            raise InvalidGoal(f'position must be 3 numbers; got {position!r}') from exc
+        if pos.shape != (3,):
+            raise InvalidGoal(f'position must have 3 elements; got shape {pos.shape}')
+        if not np.all(np.isfinite(pos)):
+            raise InvalidGoal(f'position must be finite; got {pos.tolist()}')
+        rot = None
+        if orientation is not None:
+            try:
+                quat = np.asarray(orientation, dtype=float)
+            except (TypeError, ValueError) as exc:
+                raise InvalidGoal(f'orientation must be a quaternion; got {orientation!r}') \
+                    from exc
+            if quat.shape != (4,):
+                raise InvalidGoal(f'orientation must be a quaternion (x, y, z, w); got shape '
+                                  f'{quat.shape}')
+            if not np.all(np.isfinite(quat)):
+                raise InvalidGoal(f'orientation must be finite; got {quat.tolist()}')
+            norm = np.linalg.norm(quat)
+            if norm < 1e-9:
+                raise InvalidGoal('orientation quaternion is zero')
+            rot = Rotation.from_quat(quat / norm).as_matrix()
+        goal = 'position' if rot is None else 'pose'
+        if goal not in self.models:
+            raise InvalidGoal(f'this bundle has no model for {goal} goals (it has {self.goals})')
+        if isinstance(num_solutions, bool) or not isinstance(num_solutions, (int, np.integer)):
+            raise InvalidArgument(f'num_solutions must be an integer; got {num_solutions!r}')
+        cap = self.config.max_solutions_cap
+        if not 1 <= num_solutions <= cap:
+            raise InvalidArgument(f'num_solutions must be between 1 and {cap}; got '
+                                  f'{num_solutions}')
+        q_seed = None
+        if seed is not None:
+            q_seed = self.check_seed(seed)
+        return pos, rot, goal, q_seed
+
+    def check_seed(self, seed) -> np.ndarray:
+        """A seed as a (n,) array, or :class:`InvalidSeed` saying what is wrong with it."""
+        try:
+            q = np.asarray(seed, dtype=float)
+        except (TypeError, ValueError) as exc:
+            raise InvalidSeed(f'seed must be {self.robot.dof} numbers; got {seed!r}') from exc
+        if q.shape != (self.robot.dof,):
+            raise InvalidSeed(f'seed must have {self.robot.dof} joint values '
+                              f'({", ".join(self.joint_names)}); got shape {q.shape}')
+        if not np.all(np.isfinite(q)):
+            raise InvalidSeed(f'seed must be finite; got {q.tolist()}')
+        eps = 1e-6
+        for name, v, lo, hi in zip(self.joint_names, q, self.robot.lower, self.robot.upper):
+            if v < lo - eps or v > hi + eps:
+                raise JointLimitViolation(name, float(v), float(lo), float(hi))
+        return np.clip(q, self.robot.lower, self.robot.upper)
+
+    # -- solving ---------------------------------------------------------------------------------
+
+    def solve(self, position, orientation=None, num_solutions: int = 16, seed=None,
+              obstacles: Sequence[Obstacle] = (), refine: bool = True,
+              objective: Optional[Objective] = None, timeout: Optional[float] = None
+              ) -> IKResult:
+        """Ranked joint solutions for one target.
+
+        Args:
+            position: target tip position in the base frame (3,) [m].
+            orientation: None for a position goal; else a quaternion (x, y, z, w).
+            num_solutions: most solutions returned (1 to ``max_solutions_cap``).
+            seed: current joint configuration (n,) [rad]: its posture index is tried first and
+                ranking prefers solutions near it.
+            obstacles: :class:`Obstacle` list; colliding solutions never rank above free ones.
+            refine: refine the decoded solutions numerically (False: raw decoder output).
+            objective: custom ranking cost (lower is better); default: distance to the seed
+                if given, else closeness to the joint limits.
+            timeout: give up refining after this many seconds [s].
+
+        Raises:
+            InvalidGoal, InvalidSeed, InvalidArgument: bad input (see INTERFACES.md).
+        """
+        t0 = time.perf_counter()
+        pos, rot, goal, q_seed = self._check_inputs(position, orientation, num_solutions, seed)
+        obstacles = [o if isinstance(o, Obstacle) else Obstacle(**o) for o in obstacles]
+        with self._lock:
+            result = self._solve(pos, rot, goal, num_solutions, q_seed, obstacles, refine,
+                                 objective, timeout, t0)
+        result.elapsed = time.perf_counter() - t0
+        return result
+
+    def solve_batch(self, positions, orientations=None, **kw) -> List[IKResult]:
+        """:meth:`solve` for many targets: positions (N, 3), orientations (N, 4) or None."""
+        positions = np.asarray(positions, dtype=float)
+        if positions.ndim != 2 or positions.shape[1] != 3:
+            raise InvalidGoal(f'positions must have shape (N, 3); got {positions.shape}')
+        if orientations is not None:
+            orientations = np.asarray(orientations, dtype=float)
+            if orientations.shape != (len(positions), 4):
+                raise InvalidGoal(f'orientations must have shape ({len(positions)}, 4); got '
+                                  f'{orientations.shape}')
+        return [self.solve(p, None if orientations is None else orientations[i], **kw)
+                for i, p in enumerate(positions)]
+
+    def candidate_indices(self, goal: str, pos: np.ndarray, rot, q_seed) -> np.ndarray:
+        """Posture indices to decode: the seed's own index first, then far-apart table ones."""
+        gm = self.models[goal]
+        pool = gm.table.candidates(pos, self.config.k_cells)
+        if q_seed is not None:
+            z_seed = self.encode(goal, pos, rot, q_seed[None])[0]
+            pool = np.concatenate([z_seed[None], pool])
+        return pool[farthest_point_subset(pool, self.config.num_candidates)]
+
+    @torch.no_grad()
+    def decode(self, goal: str, pos: np.ndarray, rot, z: np.ndarray) -> np.ndarray:
+        """Joint solutions (M, n) [rad] decoded from posture indices (M, latent), clipped."""
+        gm = self.models[goal]
+        g = make_goal(goal, np.repeat(pos[None], len(z), 0),
+                      None if rot is None else np.repeat(rot[None], len(z), 0))
+        g = gm.norm.goal_to_net(torch.from_numpy(g.astype(np.float32)))
+        x = gm.model.decode(g, torch.from_numpy(np.asarray(z, dtype=np.float32)))
+        q = gm.norm.q_from_net(x).double().numpy()
+        return np.clip(q, self.robot.lower, self.robot.upper)
+
+    @torch.no_grad()
+    def encode(self, goal: str, pos: np.ndarray, rot, q: np.ndarray) -> np.ndarray:
+        """Posture indices (M, latent) of configurations (M, n) for a goal."""
+        gm = self.models[goal]
+        g = make_goal(goal, np.repeat(pos[None], len(q), 0),
+                      None if rot is None else np.repeat(rot[None], len(q), 0))
+        g = gm.norm.goal_to_net(torch.from_numpy(g.astype(np.float32)))
+        z, _ = gm.model.encode(g, gm.norm.q_to_net(torch.from_numpy(q.astype(np.float32))))
+        return z.numpy().astype(np.float64)
+
+    def errors(self, q: np.ndarray, pos: np.ndarray, rot) -> tuple:
+        """Position errors [m] and orientation errors [rad] (zeros without ``rot``), (M,)."""
+        p, r = self.robot.fk_rot(q)
+        perr = np.linalg.norm(p - pos, axis=1)
+        if rot is None:
+            return perr, np.zeros(len(q))
+        cos = (np.einsum('ij,nij->n', rot, r) - 1) / 2
+        return perr, np.arccos(np.clip(cos, -1.0, 1.0))
+
+    def refine(self, q: np.ndarray, pos: np.ndarray, rot, deadline: Optional[float] = None):
+        """Batched damped least squares towards the goal, within the joint limits.
+
+        Returns:
+            refined configurations (M, n), position errors [m], orientation errors [rad].
+        """
+        cfg = self.config
+        q = q.copy()
+        rows = 3 if rot is None else 6
+        lam2 = cfg.damping ** 2
+        eye = np.eye(rows)
+        active = np.ones(len(q), dtype=bool)
+        for _ in range(cfg.refine_iterations):
+            idx = np.flatnonzero(active)
+            if len(idx) == 0 or (deadline is not None and time.perf_counter() > deadline):
+                break
+            p, r, jac = self.robot.jacobian_batch(q[idx])
+            err = pos - p
+            done = np.linalg.norm(err, axis=1) < cfg.position_tolerance * 0.5
+            if rot is not None:
+                rot_err = Rotation.from_matrix(rot @ r.transpose(0, 2, 1)).as_rotvec()
+                err = np.concatenate([err, rot_err], axis=1)
+                done &= np.linalg.norm(rot_err, axis=1) < cfg.orientation_tolerance * 0.5
+            j = jac[:, :rows]
+            active[idx[done]] = False
+            jjt = j @ j.transpose(0, 2, 1) + lam2 * eye
+            dq = (j.transpose(0, 2, 1) @ np.linalg.solve(jjt, err[..., None]))[..., 0]
+            scale = np.maximum(1.0, np.abs(dq).max(axis=1) / cfg.max_step)
+            dq = dq / scale[:, None]
+            dq[done] = 0.0
+            q[idx] = np.clip(q[idx] + dq, self.robot.lower, self.robot.upper)
+        perr, oerr = self.errors(q, pos, rot)
+        return q, perr, oerr
+
+    def _converged(self, perr, oerr, goal):
+        ok = perr <= self.config.position_tolerance
+        if goal == 'pose':
+            ok &= oerr <= self.config.orientation_tolerance
+        return ok
+
+    def distinct_mask(self, q: np.ndarray, goal: str) -> np.ndarray:
+        """Greedy keep-mask of rows at least ``distinct_threshold`` apart, in row order."""
+        cols = slice(0, self.robot.dof - 1) if goal == 'position' else slice(None)
+        kept: List[int] = []
+        for i in range(len(q)):
+            if all(np.linalg.norm(q[i, cols] - q[k, cols]) >= self.config.distinct_threshold
+                   for k in kept):
+                kept.append(i)
+        mask = np.zeros(len(q), dtype=bool)
+        mask[kept] = True
+        return mask
+
+    def _solve(self, pos, rot, goal, num, q_seed, obstacles, refine, objective, timeout, t0):
+        deadline = None if timeout is None else t0 + timeout
+        z = self.candidate_indices(goal, pos, rot, q_seed)
+        q = self.decode(goal, pos, rot, z)
+        timed_out = False
+        if refine:
+            q, perr, oerr = self.refine(q, pos, rot, deadline)
+            timed_out = deadline is not None and time.perf_counter() > deadline
+        else:
+            perr, oerr = self.errors(q, pos, rot)
+        conv = self._converged(perr, oerr, goal)
+        # order: exact first, then by error; keep one solution per distinct posture
+        order = np.lexsort((perr + oerr * 0.1, ~conv))
+        q, z, perr, oerr, conv = q[order], z[order], perr[order], oerr[order], conv[order]
+        keep = self.distinct_mask(q, goal)
+        q, z, perr, oerr, conv = q[keep], z[keep], perr[keep], oerr[keep], conv[keep]
+        sols = self._rank(q, z, perr, oerr, conv, q_seed, obstacles, objective)
+        if obstacles and refine and not any(s.converged and not s.in_collision for s in sols):
+            extra = self.adjust_index(goal, pos, rot, sols, obstacles, deadline)
+            if extra is not None:
+                sols = self._merge(sols, extra, goal, q_seed, obstacles, objective)
+        sols = sols[:num]
+        success = any(s.converged for s in sols)
+        msg = '' if success else (
+            'no solution within tolerance (best-effort solutions returned)' if sols else
+            'no solution')
+        return IKResult(success, sols, goal, timed_out, message=msg)
+
+    def _rank(self, q, z, perr, oerr, conv, q_seed, obstacles, objective) -> List[Solution]:
+        if len(q) == 0:
+            return []
+        clear = self.checker.clearance(q, obstacles)
+        selfc = self.checker.self_collision(q)
+        if objective is None:
+            objective = SeedDistance(q_seed) if q_seed is not None else JointLimitMargin(
+                self.robot)
+        cost = np.asarray(objective(q), dtype=float)
+        collide = selfc | (clear <= 0.0)
+        # tiers: free & exact < free & inexact < colliding & exact < colliding & inexact
+        tier = 2.0 * collide + (~conv)
+        inexact_cost = np.where(conv, 0.0, (perr + oerr * 0.1) * 100.0)
+        score = tier * 1e3 + inexact_cost + np.where(conv, cost, 0.0)
+        order = np.argsort(score, kind='stable')
+        return [Solution(q[i].copy(), float(perr[i]), float(oerr[i]), z[i].astype(np.float32),
+                         float(score[i]), float(clear[i]), bool(selfc[i]), bool(conv[i]))
+                for i in order]
+
+    def _merge(self, sols, extra, goal, q_seed, obstacles, objective):
+        q = np.array([s.q for s in sols + extra])
+        z = np.array([s.posture_index for s in sols + extra])
+        perr = np.array([s.position_error for s in sols + extra])
+        oerr = np.array([s.orientation_error for s in sols + extra])
+        conv = np.array([s.converged for s in sols + extra])
+        order = np.lexsort((perr, ~conv))
+        keep = order[self.distinct_mask(q[order], goal)]
+        return self._rank(q[keep], z[keep], perr[keep], oerr[keep], conv[keep], q_seed,
+                          obstacles, objective)
+
+    def adjust_index(self, goal: str, pos: np.ndarray, rot, sols: List[Solution],
+                     obstacles: Sequence[Obstacle], deadline=None,
+                     step: float = 0.25) -> Optional[List[Solution]]:
+        """Algorithm 2: move posture indices element by element while clearance improves.
+
+        Starts from the best colliding solutions; each trial decodes and refines a neighbour
+        index; stops at a collision-free exact solution or when the budget is spent.
+        """
+        cfg = self.config
+        starts = [s for s in sols if s.converged][:3] or sols[:3]
+        budget = cfg.adjust_budget
+        found: List[Solution] = []
+        lo, hi = self.models[goal].table.index_bounds
+        for s in starts:
+            z = s.posture_index.astype(np.float64)
+            best = s.min_obstacle_distance
+            while budget > 0:
+                trials = []
+                for d in range(len(z)):
+                    for sign in (1.0, -1.0):
+                        t = z.copy()
+                        t[d] = np.clip(t[d] + sign * step * (hi[d] - lo[d]), lo[d], hi[d])
+                        trials.append(t)
+                trials = np.array(trials)
+                budget -= len(trials)
+                q, perr, oerr = self.refine(self.decode(goal, pos, rot, trials), pos, rot,
+                                            deadline)
+                conv = self._converged(perr, oerr, goal)
+                clear = self.checker.clearance(q, obstacles)
+                clear = np.where(self.checker.self_collision(q) | ~conv, -np.inf, clear)
+                i = int(np.argmax(clear))
+                if clear[i] <= best:
+                    break
+                best, z = clear[i], trials[i]
+                found.append(Solution(q[i], float(perr[i]), float(oerr[i]),
+                                      trials[i].astype(np.float32), 0.0, float(clear[i]),
+                                      False, True))
+                if best > 0:
+                    break
+            if found and found[-1].min_obstacle_distance > 0:
+                break
+        return found or None
+
+
+def result_to_dict(res: IKResult, joint_names: Sequence[str]) -> Dict:
+    """A JSON-ready view of a result (for ``sik-solve --json``)."""
+    return {
+        'success': res.success, 'goal': res.goal, 'timed_out': res.timed_out,
+        'elapsed_s': res.elapsed, 'message': res.message, 'joint_names': list(joint_names),
+        'solutions': [{
+            'q': s.q.tolist(), 'position_error': s.position_error,
+            'orientation_error': s.orientation_error,
+            'posture_index': [float(v) for v in s.posture_index], 'score': s.score,
+            'min_obstacle_distance': (None if not np.isfinite(s.min_obstacle_distance)
+                                      else s.min_obstacle_distance),
+            'self_collision': s.self_collision, 'converged': s.converged,
+        } for s in res.solutions],
+    }
+
+
+def dumps(res: IKResult, joint_names: Sequence[str]) -> str:
+    """:func:`result_to_dict` as a JSON string."""
+    return json.dumps(result_to_dict(res, joint_names), indent=2)

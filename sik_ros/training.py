@@ -1,0 +1,425 @@
+"""Training of SIK, PSIK, FCN and ANFIS models, with resumable checkpoints.
+
+A checkpoint holds the model state, the optimiser and scheduler state, the step count, the RNG
+states, both configs, the normaliser and the dataset manifest, so it rebuilds itself with nothing
+else and a resumed run continues exactly where it stopped.
+"""
+
+from dataclasses import asdict, dataclass, replace
+import math
+import os
+from pathlib import Path
+import time
+from typing import Callable, Dict, Optional
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+import torch
+
+from sik_ros.artifacts import check_robot_manifest, FORMAT_VERSION, library_versions
+from sik_ros.dataset import Dataset
+from sik_ros.errors import (ArtifactMismatch, CorruptArtifact, InvalidArgument,
+                            TrainingDiverged)
+from sik_ros.kinematics import Robot
+from sik_ros.models import (anfis_forward, build_model, kl_normal, make_goal, ModelConfig,
+                            Normalizer, TorchChain)
+
+
+@dataclass(frozen=True)
+class TrainConfig:
+    """How a model is trained; saved inside every checkpoint.
+
+    Attributes:
+        steps: optimiser steps (the learning-rate schedule spans them).
+        batch_size: samples per step.
+        lr: peak learning rate of Adam.
+        lr_min: final learning rate of the cosine schedule.
+        warmup: linear warm-up steps.
+        fk_weight: weight of the forward-kinematics consistency term (0 disables it).
+        fk_scale: distance that counts as one unit in the FK term [m].
+        rot_weight: weight of the orientation part of the FK term (pose goals).
+        kl_weight: weight of the KL term (PSIK).
+        val_rows: rows held out for validation.
+        eval_every: steps between validations.
+        checkpoint_every: steps between checkpoints.
+        seed: seed of initialisation, batches and validation split.
+        threads: torch intra-op threads.
+        device: ``cpu`` or ``cuda``.
+        uni_position: keep one row per distinct position (the paper's uni-position dataset).
+        pso_particles: particles of the swarm (ANFIS).
+        pso_batch: samples per swarm evaluation (ANFIS).
+    """
+
+    steps: int = 100_000
+    batch_size: int = 2048
+    lr: float = 1e-3
+    lr_min: float = 1e-5
+    warmup: int = 500
+    fk_weight: float = 1.0
+    fk_scale: float = 0.05
+    rot_weight: float = 1.0
+    kl_weight: float = 1e-3
+    val_rows: int = 20_000
+    eval_every: int = 1000
+    checkpoint_every: int = 2000
+    seed: int = 0
+    threads: int = 1
+    device: str = 'cpu'
+    uni_position: bool = False
+    pso_particles: int = 100
+    pso_batch: int = 4096
+
+    def __post_init__(self):
+        """Validate the fields."""
+        for name in ('steps', 'batch_size', 'eval_every', 'checkpoint_every', 'threads'):
+            if getattr(self, name) < 1:
+                raise InvalidArgument(f'{name} must be at least 1; got {getattr(self, name)}')
+        if not (self.lr > 0 and math.isfinite(self.lr)):
+            raise InvalidArgument(f'lr must be a positive number; got {self.lr}')
+        if self.device not in ('cpu', 'cuda'):
+            raise InvalidArgument(f'device must be cpu or cuda; got {self.device!r}')
+        if self.device == 'cuda' and not torch.cuda.is_available():
+            raise InvalidArgument('device cuda requested but no CUDA device is available')
+
+
+class TrainData:
+    """A dataset as float32 tensors: joints, goals, tip positions and rotations."""
+
+    def __init__(self, ds: Dataset, goal: str, uni_position: bool = False):
+        rows = np.arange(len(ds))
+        if uni_position:
+            key = np.round(np.asarray(ds.position) * 1e5).astype(np.int64) + (1 << 20)
+            keys = (key[:, 0] << 42) | (key[:, 1] << 21) | key[:, 2]
+            _, rows = np.unique(keys, return_index=True)
+        self.q = torch.from_numpy(np.asarray(ds.q)[rows].astype(np.float32))
+        pos = np.asarray(ds.position)[rows]
+        rot = Rotation.from_quat(np.asarray(ds.quaternion)[rows]).as_matrix()
+        self.position = torch.from_numpy(pos.astype(np.float32))
+        self.rot6 = torch.from_numpy(np.concatenate([rot[:, :, 0], rot[:, :, 1]], 1)
+                                     .astype(np.float32))
+        self.goal = torch.from_numpy(make_goal(goal, pos, rot).astype(np.float32))
+
+    def __len__(self) -> int:
+        """Number of rows."""
+        return len(self.q)
+
+
+def default_normalizer(robot: Robot, ds: Dataset) -> Normalizer:
+    """Joint limits and a workspace centre and scale taken from the dataset."""
+    pos = np.asarray(ds.position)
+    sub = pos[:: max(1, len(pos) // 200_000)]
+    center = sub.mean(axis=0)
+    scale = float(np.sqrt(((sub - center) ** 2).sum(axis=1).mean()))
+    return Normalizer(tuple(robot.lower.tolist()), tuple(robot.upper.tolist()),
+                      tuple(center.tolist()), scale)
+
+
+def _normalizer_from_dict(d: Dict) -> Normalizer:
+    return Normalizer(tuple(d['lower']), tuple(d['upper']), tuple(d['position_center']),
+                      float(d['position_scale']), dict(d.get('extra', {})))
+
+
+def lr_at(cfg: TrainConfig, step: int) -> float:
+    """Learning rate at a step: linear warm-up then cosine decay to ``lr_min``."""
+    if step < cfg.warmup:
+        return cfg.lr * (step + 1) / cfg.warmup
+    t = min(1.0, (step - cfg.warmup) / max(1, cfg.steps - cfg.warmup))
+    return cfg.lr_min + 0.5 * (cfg.lr - cfg.lr_min) * (1 + math.cos(math.pi * t))
+
+
+class Trainer:
+    """Trains one model on one dataset, with validation, checkpoints and resume."""
+
+    def __init__(self, robot: Robot, dataset: Dataset, model_cfg: ModelConfig,
+                 train_cfg: TrainConfig, out_dir: Path):
+        if model_cfg.dof != robot.dof:
+            raise InvalidArgument(f'model dof {model_cfg.dof} != robot dof {robot.dof}')
+        self.robot, self.dataset = robot, dataset
+        self.model_cfg, self.cfg = model_cfg, train_cfg
+        self.out_dir = Path(out_dir)
+        torch.set_num_threads(train_cfg.threads)
+        torch.manual_seed(train_cfg.seed)
+        self.device = torch.device(train_cfg.device)
+        self.norm = default_normalizer(robot, dataset)
+        self.data = TrainData(dataset, model_cfg.goal, train_cfg.uni_position)
+        gen = torch.Generator().manual_seed(train_cfg.seed)
+        perm = torch.randperm(len(self.data), generator=gen)
+        n_val = min(train_cfg.val_rows, max(1, len(self.data) // 10))
+        self.val_idx = perm[:n_val]
+        self.train_idx = perm[n_val:]
+        self.model = build_model(model_cfg).to(self.device)
+        self.fk = TorchChain(robot.chain).to(self.device)
+        self.opt = torch.optim.Adam(self.model.parameters(), lr=train_cfg.lr)
+        self.gen = torch.Generator().manual_seed(train_cfg.seed + 1)
+        self.step = 0
+        self.elapsed = 0.0
+        self.history = []
+
+    # -- losses ----------------------------------------------------------------------------------
+
+    def _batch(self, idx: torch.Tensor):
+        d = self.data
+        return tuple(t[idx].to(self.device) for t in (d.q, d.goal, d.position, d.rot6))
+
+    def losses(self, idx: torch.Tensor) -> Dict[str, torch.Tensor]:
+        """The loss terms of a batch of row indices."""
+        q, goal, pos, rot6 = self._batch(idx)
+        g = self.norm.goal_to_net(goal)
+        x = self.norm.q_to_net(q)
+        out = {}
+        if self.model_cfg.kind in ('sik', 'psik'):
+            x_hat, mu, logvar = self.model(g, x)
+            if logvar is not None:
+                out['kl'] = kl_normal(mu, logvar).mean()
+        else:
+            x_hat = self.model(g)
+        out['recon'] = torch.mean((x_hat - x) ** 2)
+        if self.cfg.fk_weight > 0:
+            p_hat, r_hat = self.fk(self.norm.q_from_net(x_hat))
+            out['fk'] = ((p_hat - pos) ** 2).sum(1).mean() / self.cfg.fk_scale ** 2
+            if self.model_cfg.goal == 'pose':
+                r6 = torch.cat([r_hat[:, :, 0], r_hat[:, :, 1]], 1)
+                out['fk'] = out['fk'] + self.cfg.rot_weight * ((r6 - rot6) ** 2).sum(1).mean()
+        total = out['recon'] + self.cfg.fk_weight * out.get('fk', 0.0)
+        if 'kl' in out:
+            total = total + self.cfg.kl_weight * out['kl']
+        out['loss'] = total
+        return out
+
+    @torch.no_grad()
+    def validate(self) -> Dict[str, float]:
+        """Distance error [m] (and orientation error [deg]) of decoded validation rows."""
+        self.model.eval()
+        errs, oerrs, losses = [], [], []
+        for s in range(0, len(self.val_idx), 8192):
+            idx = self.val_idx[s:s + 8192]
+            q, goal, pos, rot6 = self._batch(idx)
+            losses.append(float(self.losses(idx)['loss']) * len(idx))
+            q_hat = self.norm.q_from_net(self.predict_net(goal, q))
+            p_hat, r_hat = self.fk(q_hat)
+            errs.append(torch.linalg.norm(p_hat - pos, dim=1))
+            if self.model_cfg.goal == 'pose':
+                r = torch.stack([rot6[:, :3], rot6[:, 3:],
+                                 torch.linalg.cross(rot6[:, :3], rot6[:, 3:])], dim=2)
+                rel = r.transpose(1, 2) @ r_hat
+                cos = ((rel.diagonal(dim1=1, dim2=2).sum(1) - 1) / 2).clamp(-1, 1)
+                oerrs.append(torch.rad2deg(torch.arccos(cos)))
+        self.model.train()
+        err = torch.cat(errs)
+        res = {'val_loss': sum(losses) / len(self.val_idx),
+               'val_dist_mean_m': float(err.mean()), 'val_dist_median_m': float(err.median())}
+        if oerrs:
+            res['val_orient_mean_deg'] = float(torch.cat(oerrs).mean())
+        return res
+
+    def predict_net(self, goal: torch.Tensor, q: torch.Tensor) -> torch.Tensor:
+        """Normalised joints the model predicts (SIK/PSIK: index from the true joints)."""
+        g = self.norm.goal_to_net(goal)
+        if self.model_cfg.kind in ('sik', 'psik'):
+            mu, _ = self.model.encode(g, self.norm.q_to_net(q))
+            return self.model.decode(g, mu)
+        return self.model(g)
+
+    # -- loop --------------------------------------------------------------------------------
+
+    def run(self, max_time: Optional[float] = None,
+            progress: Optional[Callable[[int, Dict], None]] = None) -> Dict:
+        """Train until ``cfg.steps`` or ``max_time`` seconds of this call; checkpoint on exit."""
+        if self.model_cfg.kind == 'anfis':
+            return self._run_pso(max_time, progress)
+        t0 = time.perf_counter()
+        start_elapsed = self.elapsed
+        self.model.train()
+        last = {}
+        while self.step < self.cfg.steps:
+            for group in self.opt.param_groups:
+                group['lr'] = lr_at(self.cfg, self.step)
+            pick = torch.randint(len(self.train_idx), (self.cfg.batch_size,), generator=self.gen)
+            out = self.losses(self.train_idx[pick])
+            if not torch.isfinite(out['loss']):
+                bad = float(out['loss'].detach())
+                raise TrainingDiverged(
+                    f'loss became {bad} at step {self.step}; the last good '
+                    f'checkpoint is kept in {self.out_dir} (lower --lr or resume from it)')
+            self.opt.zero_grad(set_to_none=True)
+            out['loss'].backward()
+            self.opt.step()
+            self.step += 1
+            self.elapsed = start_elapsed + time.perf_counter() - t0
+            last = {k: float(v.detach()) if torch.is_tensor(v) else float(v)
+                    for k, v in out.items()}
+            if self.step % self.cfg.eval_every == 0 or self.step == self.cfg.steps:
+                rec = {'step': self.step, 'elapsed_s': round(self.elapsed, 1),
+                       'lr': lr_at(self.cfg, self.step - 1), **last, **self.validate()}
+                self.history.append(rec)
+                last = rec
+            if self.step % self.cfg.checkpoint_every == 0:
+                self.save()
+            if progress:
+                progress(self.step, last)
+            if max_time is not None and time.perf_counter() - t0 >= max_time:
+                break
+        self.save()
+        return last
+
+    def _run_pso(self, max_time, progress) -> Dict:
+        """Particle swarm optimisation of an ANFIS (the paper's solver)."""
+        cfg = self.cfg
+        gen = self.gen
+        flat = self.model.params_flat.detach()
+        n_par = cfg.pso_particles
+        state = getattr(self, '_pso', None)
+        if state is None:
+            spread = torch.ones_like(flat)
+            spread[3 * self.model_cfg.goal_dim * self.model_cfg.anfis_mfs:] = 1.0
+            pos = flat[None] + spread[None] * (torch.rand(n_par, len(flat), generator=gen) * 2 - 1)
+            pos[0] = flat
+            state = {'pos': pos, 'vel': torch.zeros_like(pos), 'best': pos.clone(),
+                     'best_f': torch.full((n_par,), float('inf')), 'gbest': flat.clone(),
+                     'gbest_f': torch.tensor(float('inf'))}
+            self._pso = state
+        t0 = time.perf_counter()
+        start_elapsed = self.elapsed
+        last = {}
+        with torch.no_grad():
+            while self.step < cfg.steps:
+                pick = torch.randint(len(self.train_idx), (cfg.pso_batch,), generator=gen)
+                q, goal, _, _ = self._batch(self.train_idx[pick])
+                x = self.norm.q_to_net(q)
+                g = self.norm.goal_to_net(goal)
+                f = ((anfis_forward(self.model_cfg, state['pos'], g) - x[None]) ** 2).mean((1, 2))
+                f = torch.nan_to_num(f, nan=float('inf'))
+                better = f < state['best_f']
+                state['best'][better] = state['pos'][better]
+                state['best_f'][better] = f[better]
+                i = int(torch.argmin(state['best_f']))
+                state['gbest'] = state['best'][i].clone()
+                state['gbest_f'] = state['best_f'][i].clone()
+                r1 = torch.rand(state['pos'].shape, generator=gen)
+                r2 = torch.rand(state['pos'].shape, generator=gen)
+                state['vel'] = (0.72 * state['vel'] + 1.49 * r1 * (state['best'] - state['pos'])
+                                + 1.49 * r2 * (state['gbest'][None] - state['pos']))
+                state['pos'] = (state['pos'] + state['vel']).clamp(-10.0, 10.0)
+                self.model.params_flat.copy_(state['gbest'])
+                self.step += 1
+                self.elapsed = start_elapsed + time.perf_counter() - t0
+                last = {'loss': float(state['gbest_f'])}
+                if self.step % cfg.eval_every == 0 or self.step == cfg.steps:
+                    rec = {'step': self.step, 'elapsed_s': round(self.elapsed, 1), **last,
+                           **self.validate()}
+                    self.history.append(rec)
+                    last = rec
+                if progress:
+                    progress(self.step, last)
+                if max_time is not None and time.perf_counter() - t0 >= max_time:
+                    break
+        self.save()
+        return last
+
+    # -- checkpoints -------------------------------------------------------------------------
+
+    def checkpoint(self) -> Dict:
+        """Everything needed to rebuild the model and resume training."""
+        ckpt = {
+            'kind': 'sik_checkpoint', 'format_version': FORMAT_VERSION,
+            'model_config': asdict(self.model_cfg), 'train_config': asdict(self.cfg),
+            'normalizer': asdict(self.norm), 'robot': self.robot.manifest(),
+            'dataset': dataset_summary(self.dataset),
+            'model_state': self.model.state_dict(), 'optimizer_state': self.opt.state_dict(),
+            'step': self.step, 'elapsed_s': self.elapsed, 'history': list(self.history),
+            'rng': {'torch': torch.get_rng_state(), 'batches': self.gen.get_state()},
+            'versions': library_versions(),
+        }
+        if getattr(self, '_pso', None) is not None:
+            ckpt['pso'] = {k: v.clone() for k, v in self._pso.items()}
+        return ckpt
+
+    def save(self) -> Path:
+        """Write ``last.pt`` atomically in the output directory."""
+        self.out_dir.mkdir(parents=True, exist_ok=True)
+        path = self.out_dir / 'last.pt'
+        tmp = self.out_dir / f'.last.pt.{os.getpid()}.tmp'
+        torch.save(self.checkpoint(), tmp)
+        os.replace(tmp, path)
+        return path
+
+    def restore(self, ckpt: Dict) -> None:
+        """Continue from a checkpoint of the same model on the same robot and dataset."""
+        found = ModelConfig.from_dict(ckpt['model_config'])
+        if found != self.model_cfg:
+            raise ArtifactMismatch('checkpoint model config', asdict(self.model_cfg),
+                                   ckpt['model_config'])
+        check_robot_manifest('checkpoint', self.robot.manifest(), ckpt['robot'])
+        if ckpt['dataset'] != dataset_summary(self.dataset):
+            raise ArtifactMismatch('checkpoint dataset', dataset_summary(self.dataset),
+                                   ckpt['dataset'])
+        self.model.load_state_dict(ckpt['model_state'])
+        self.opt.load_state_dict(ckpt['optimizer_state'])
+        self.step = int(ckpt['step'])
+        self.elapsed = float(ckpt['elapsed_s'])
+        self.history = list(ckpt['history'])
+        torch.set_rng_state(ckpt['rng']['torch'])
+        self.gen.set_state(ckpt['rng']['batches'])
+        if 'pso' in ckpt:
+            self._pso = {k: v.clone() for k, v in ckpt['pso'].items()}
+
+
+def dataset_summary(ds: Dataset) -> Dict:
+    """The parts of a dataset manifest a checkpoint records."""
+    m = ds.manifest
+    return {'sampler': m['sampler'], 'params': m['params'], 'count': m['count'],
+            'robot': m['robot']['robot'], 'urdf_sha256': m['robot']['urdf_sha256']}
+
+
+def load_checkpoint(path: Path) -> Dict:
+    """Read and check a checkpoint (or exported model) file.
+
+    Raises:
+        CorruptArtifact: unreadable, truncated, or not a sik_ros checkpoint.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise CorruptArtifact(f'checkpoint {path} does not exist')
+    try:
+        ckpt = torch.load(path, map_location='cpu', weights_only=True)
+    except Exception as exc:  # torch raises many types for a damaged file
+        raise CorruptArtifact(f'cannot read checkpoint {path}: {exc}') from exc
+    if not isinstance(ckpt, dict) or ckpt.get('kind') not in ('sik_checkpoint', 'sik_model'):
+        raise CorruptArtifact(f'{path} is not a sik_ros checkpoint')
+    if ckpt.get('format_version') != FORMAT_VERSION:
+        raise ArtifactMismatch(f'{path} format version', FORMAT_VERSION,
+                               ckpt.get('format_version'))
+    for key in ('model_config', 'normalizer', 'robot', 'model_state'):
+        if key not in ckpt:
+            raise CorruptArtifact(f'checkpoint {path} lacks {key!r}')
+    return ckpt
+
+
+def model_from_checkpoint(ckpt: Dict):
+    """Rebuild ``(module in eval mode, ModelConfig, Normalizer)`` from a checkpoint dict."""
+    cfg = ModelConfig.from_dict(ckpt['model_config'])
+    model = build_model(cfg)
+    try:
+        model.load_state_dict(ckpt['model_state'])
+    except RuntimeError as exc:
+        raise CorruptArtifact(f'checkpoint weights do not fit its config: {exc}') from exc
+    model.eval()
+    return model, cfg, _normalizer_from_dict(ckpt['normalizer'])
+
+
+def export_model(ckpt: Dict, path: Path) -> Path:
+    """Write the inference part of a checkpoint (no optimiser) atomically to ``path``."""
+    keep = ('model_config', 'train_config', 'normalizer', 'robot', 'dataset', 'model_state',
+            'step', 'elapsed_s', 'history', 'versions')
+    out = {k: ckpt[k] for k in keep if k in ckpt}
+    out.update(kind='sik_model', format_version=FORMAT_VERSION)
+    path = Path(path)
+    tmp = path.with_name(f'.{path.name}.{os.getpid()}.tmp')
+    torch.save(out, tmp)
+    os.replace(tmp, path)
+    return path
+
+
+def with_overrides(cfg: TrainConfig, **kw) -> TrainConfig:
+    """A copy of a config with some fields replaced (None values ignored)."""
+    return replace(cfg, **{k: v for k, v in kw.items() if v is not None})

@@ -1,0 +1,62 @@
+"""Shared fixtures: the Panda robot and small datasets, built once per session."""
+
+import os
+
+import pytest
+
+from sik_ros.dataset import collect
+from sik_ros.kinematics import load_robot
+
+os.environ.setdefault('OMP_NUM_THREADS', '1')
+
+
+@pytest.fixture(scope='session')
+def panda():
+    """The Panda arm (7 joints, panda_link0 -> panda_hand_tcp)."""
+    return load_robot('panda')
+
+
+@pytest.fixture(scope='session')
+def grid90(panda, tmp_path_factory):
+    """The Algorithm 1 grid of the Panda at 90 degrees (4,608 rows)."""
+    return collect(panda, tmp_path_factory.mktemp('ds') / 'grid90', interval_deg=90.0)
+
+
+@pytest.fixture(scope='session')
+def uniform_small(panda, tmp_path_factory):
+    """6,000 configurations drawn uniformly within the Panda's limits."""
+    return collect(panda, tmp_path_factory.mktemp('ds') / 'uniform', sampler='uniform',
+                   samples=6000, seed=3)
+
+
+def build_tiny_bundle(robot, dataset, out, steps=400):
+    """Train tiny SIK position and pose models on ``dataset`` and bundle them with their tables."""
+    from sik_ros.bundle import add_to_bundle
+    from sik_ros.index_table import encode_dataset, IndexTable, model_signature, TableConfig
+    from sik_ros.models import ModelConfig, PRESETS
+    from sik_ros.training import (dataset_summary, export_model, model_from_checkpoint,
+                                  TrainConfig, Trainer)
+    for goal, latent in (('position', 4), ('pose', 1)):
+        cfg = ModelConfig(goal=goal, latent_dim=latent, encoder=PRESETS['small'][0],
+                          decoder=PRESETS['small'][1])
+        trainer = Trainer(robot, dataset, cfg,
+                          TrainConfig(steps=steps, batch_size=512, lr=3e-3, warmup=10,
+                                      eval_every=steps, checkpoint_every=steps, val_rows=500,
+                                      threads=1), out / f'run_{goal}')
+        trainer.run()
+        ckpt = trainer.checkpoint()
+        model_path = export_model(ckpt, out / f'{goal}.pt')
+        model, mcfg, norm = model_from_checkpoint(ckpt)
+        z = encode_dataset(model, mcfg, norm, dataset)
+        table = IndexTable.build(z, dataset.position, TableConfig(cell=0.08),
+                                 {'robot': robot.manifest(), 'model': model_signature(ckpt),
+                                  'dataset': dataset_summary(dataset), 'goal': goal})
+        table_path = table.save(out / f'{goal}_table.npz')
+        add_to_bundle(out / 'bundle', robot.manifest(), goal, model_path, table_path)
+    return out / 'bundle'
+
+
+@pytest.fixture(scope='session')
+def tiny_bundle(panda, uniform_small, tmp_path_factory):
+    """A bundle of tiny SIK position and pose models trained for seconds (a real pipeline)."""
+    return build_tiny_bundle(panda, uniform_small, tmp_path_factory.mktemp('bundle'))

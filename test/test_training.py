@@ -1,0 +1,126 @@
+"""Training: a real drop in FK error, determinism, checkpoints, resume, refusal of bad files."""
+
+import subprocess
+import sys
+
+import pytest
+import torch
+
+from sik_ros.errors import ArtifactMismatch, CorruptArtifact, TrainingDiverged
+from sik_ros.models import ModelConfig, PRESETS
+from sik_ros.training import (export_model, load_checkpoint, model_from_checkpoint,
+                              TrainConfig, Trainer)
+
+TINY = ModelConfig(encoder=PRESETS['tiny'][0], decoder=PRESETS['tiny'][1])
+
+
+def trainer(panda, ds, out, model=TINY, **kw):
+    """A trainer with a tiny, fast config."""
+    cfg = TrainConfig(**{'steps': 60, 'batch_size': 256, 'lr': 3e-3, 'warmup': 5,
+                         'eval_every': 30, 'checkpoint_every': 30, 'val_rows': 500,
+                         'threads': 1, **kw})
+    return Trainer(panda, ds, model, cfg, out)
+
+
+def test_training_lowers_fk_distance_error(panda, uniform_small, tmp_path):
+    """A short run on a small dataset lowers the validation FK distance error clearly."""
+    t = trainer(panda, uniform_small, tmp_path, steps=300, eval_every=300)
+    before = t.validate()['val_dist_mean_m']
+    after = t.run()['val_dist_mean_m']
+    assert after < 0.6 * before, (before, after)
+
+
+def test_training_is_deterministic(panda, uniform_small, tmp_path):
+    """Two runs with the same seed on the CPU give identical weights."""
+    a = trainer(panda, uniform_small, tmp_path / 'a', steps=20)
+    b = trainer(panda, uniform_small, tmp_path / 'b', steps=20)
+    a.run()
+    b.run()
+    for k, v in a.model.state_dict().items():
+        assert torch.equal(v, b.model.state_dict()[k]), k
+
+
+def test_resume_continues_exactly(panda, uniform_small, tmp_path):
+    """Stopping after 30 steps and resuming gives the same weights as 60 steps in one go."""
+    whole = trainer(panda, uniform_small, tmp_path / 'whole')
+    whole.run()
+    first = trainer(panda, uniform_small, tmp_path / 'parts', steps=60)
+    first.run(max_time=0.0)  # stops after its first step and checkpoints
+    ckpt = load_checkpoint(tmp_path / 'parts' / 'last.pt')
+    assert ckpt['step'] == 1
+    second = trainer(panda, uniform_small, tmp_path / 'parts')
+    second.restore(ckpt)
+    second.run()
+    assert second.step == 60
+    for k, v in whole.model.state_dict().items():
+        assert torch.equal(v, second.model.state_dict()[k]), k
+
+
+def test_checkpoint_reloads_bit_for_bit(panda, uniform_small, tmp_path):
+    """An exported model rebuilds the same module, weight for weight."""
+    t = trainer(panda, uniform_small, tmp_path, steps=10)
+    t.run()
+    export_model(t.checkpoint(), tmp_path / 'model.pt')
+    model, cfg, norm = model_from_checkpoint(load_checkpoint(tmp_path / 'model.pt'))
+    assert cfg == TINY
+    for k, v in t.model.state_dict().items():
+        assert torch.equal(v, model.state_dict()[k])
+
+
+def test_corrupt_checkpoint_is_refused(panda, uniform_small, tmp_path):
+    """A truncated checkpoint file is refused with CorruptArtifact."""
+    t = trainer(panda, uniform_small, tmp_path, steps=5)
+    t.run()
+    path = tmp_path / 'last.pt'
+    path.write_bytes(path.read_bytes()[:1000])
+    with pytest.raises(CorruptArtifact):
+        load_checkpoint(path)
+
+
+def test_mismatched_checkpoint_is_refused(panda, uniform_small, grid90, tmp_path):
+    """Resuming with another dataset or another model config is refused."""
+    t = trainer(panda, uniform_small, tmp_path, steps=5)
+    t.run()
+    ckpt = load_checkpoint(tmp_path / 'last.pt')
+    with pytest.raises(ArtifactMismatch, match='dataset'):
+        trainer(panda, grid90, tmp_path / 'x').restore(ckpt)
+    other = ModelConfig(encoder=PRESETS['tiny'][0], decoder=PRESETS['tiny'][1], latent_dim=2)
+    with pytest.raises(ArtifactMismatch, match='model config'):
+        trainer(panda, uniform_small, tmp_path / 'y', model=other).restore(ckpt)
+
+
+def test_nan_loss_stops_with_clear_error(panda, uniform_small, tmp_path):
+    """A loss that becomes NaN stops the run with TrainingDiverged, keeping the checkpoint."""
+    t = trainer(panda, uniform_small, tmp_path, steps=40, checkpoint_every=10)
+    t.run(max_time=0.0)
+    good = (tmp_path / 'last.pt').read_bytes()
+    with torch.no_grad():
+        next(t.model.parameters()).fill_(float('nan'))
+    with pytest.raises(TrainingDiverged, match='last good checkpoint'):
+        t.run()
+    assert (tmp_path / 'last.pt').read_bytes() == good
+
+
+def test_psik_fcn_and_anfis_train(panda, uniform_small, tmp_path):
+    """PSIK (with KL), the FCN and ANFIS (particle swarm) all run and report errors."""
+    for kind in ('psik', 'fcn', 'anfis'):
+        cfg = ModelConfig(kind=kind, encoder=PRESETS['tiny'][0], decoder=PRESETS['tiny'][1])
+        t = trainer(panda, uniform_small, tmp_path / kind, model=cfg, steps=10, eval_every=10,
+                    pso_particles=10, pso_batch=256)
+        rec = t.run()
+        assert rec['val_dist_mean_m'] > 0 and 'loss' in rec
+
+
+@pytest.mark.parametrize('args,message', [
+    (['--model', 'gan'], 'invalid choice'),
+    (['--latent-dim', '9'], 'latent dimension'),
+    (['--max-time', '-1'], '--max-time'),
+    (['--resume'], 'does not exist'),
+])
+def test_cli_bad_arguments(uniform_small, tmp_path, args, message):
+    """sik-train refuses bad arguments with a short message and a non-zero exit."""
+    r = subprocess.run([sys.executable, '-m', 'sik_ros.cli.train', '--dataset',
+                        str(uniform_small.path), '--out', str(tmp_path / 'run'), '--quiet',
+                        '--steps', '2', *args], capture_output=True, text=True, timeout=120)
+    assert r.returncode != 0
+    assert message in r.stderr
