@@ -12,6 +12,7 @@ from pathlib import Path
 import threading
 import time
 from typing import Dict, List, Optional, Sequence, Union
+import zlib
 
 import numpy as np
 from scipy.spatial.transform import Rotation
@@ -361,14 +362,25 @@ class SelectiveIK:
                 done &= np.linalg.norm(rot_err, axis=1) < cfg.orientation_tolerance * 0.5
             j = jac[:, :rows]
             active[idx[done]] = False
-            jjt = j @ j.transpose(0, 2, 1) + lam2 * eye
-            dq = (j.transpose(0, 2, 1) @ np.linalg.solve(jjt, err[..., None]))[..., 0]
+            qa = q[idx]
+            dq = self._dls_step(j, err, lam2, eye)
+            # joints pushed against a limit leave the problem (active set), then re-solve
+            blocked = ((qa <= self.robot.lower + 1e-9) & (dq < 0)) | \
+                ((qa >= self.robot.upper - 1e-9) & (dq > 0))
+            if blocked.any():
+                dq = self._dls_step(j * ~blocked[:, None, :], err, lam2, eye)
             scale = np.maximum(1.0, np.abs(dq).max(axis=1) / cfg.max_step)
             dq = dq / scale[:, None]
             dq[done] = 0.0
-            q[idx] = np.clip(q[idx] + dq, self.robot.lower, self.robot.upper)
+            q[idx] = np.clip(qa + dq, self.robot.lower, self.robot.upper)
         perr, oerr = self.errors(q, pos, rot)
         return q, perr, oerr
+
+    @staticmethod
+    def _dls_step(j: np.ndarray, err: np.ndarray, lam2: float, eye: np.ndarray) -> np.ndarray:
+        """Damped least squares steps J^T (J J^T + lambda^2 I)^-1 e for a batch."""
+        jjt = j @ j.transpose(0, 2, 1) + lam2 * eye
+        return (j.transpose(0, 2, 1) @ np.linalg.solve(jjt, err[..., None]))[..., 0]
 
     def _converged(self, perr, oerr, goal):
         ok = perr <= self.config.position_tolerance
@@ -395,6 +407,8 @@ class SelectiveIK:
         timed_out = False
         if refine:
             q, perr, oerr = self.refine(q, pos, rot, deadline)
+            if not self._converged(perr, oerr, goal).any():
+                q, z, perr, oerr = self._retry(goal, q, z, perr, oerr, pos, rot, deadline)
             timed_out = deadline is not None and time.perf_counter() > deadline
         else:
             perr, oerr = self.errors(q, pos, rot)
@@ -415,6 +429,20 @@ class SelectiveIK:
             'no solution within tolerance (best-effort solutions returned)' if sols else
             'no solution')
         return IKResult(success, sols, goal, timed_out, message=msg)
+
+    def _retry(self, goal, q, z, perr, oerr, pos, rot, deadline, keep: int = 8):
+        """Second chance when no candidate converged: restart the best ones from perturbed
+        configurations (a fixed random stream per target, so answers stay deterministic)."""
+        best = np.argsort(perr + 0.1 * oerr)[:keep]
+        rng = np.random.default_rng(zlib.crc32(pos.tobytes()))
+        span = self.robot.upper - self.robot.lower
+        q2 = np.concatenate([q[best] + rng.normal(0, 0.15, (len(best), q.shape[1])) * span,
+                             rng.uniform(self.robot.lower, self.robot.upper, (keep, q.shape[1]))])
+        q2 = np.clip(q2, self.robot.lower, self.robot.upper)
+        q2, perr2, oerr2 = self.refine(q2, pos, rot, deadline)
+        z2 = np.concatenate([z[best], z[best]])
+        return (np.concatenate([q, q2]), np.concatenate([z, z2]),
+                np.concatenate([perr, perr2]), np.concatenate([oerr, oerr2]))
 
     def _rank(self, q, z, perr, oerr, conv, q_seed, obstacles, objective) -> List[Solution]:
         if len(q) == 0:

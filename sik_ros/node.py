@@ -1,0 +1,367 @@
+"""sik_node: the ROS 2 node over :class:`~sik_ros.solver.SelectiveIK`.
+
+Service ``~/solve_ik`` (``sik_interfaces/srv/SolveIK``), topics ``~/goal`` -> ``~/solutions``,
+``joint_states`` (optional seed) and ``~/markers`` (RViz). Run it with
+``sik_node --ros-args --params-file config/panda.yaml``. See INTERFACES.md, section 4.
+
+Concurrency: a :class:`MultiThreadedExecutor` runs the service and goal callbacks in a reentrant
+callback group; each callback borrows its own solver (a :meth:`SelectiveIK.clone`, with its own
+Pinocchio and coal data) from a pool, so parallel requests never share mutable state.
+"""
+
+from contextlib import contextmanager
+from dataclasses import dataclass, fields, replace
+import math
+import queue
+import traceback
+from typing import Iterator, List, Optional, Tuple
+
+from geometry_msgs.msg import PoseStamped
+import numpy as np
+from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
+import rclpy
+from rclpy.callback_groups import ReentrantCallbackGroup
+from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from rclpy.qos import qos_profile_sensor_data
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Header
+import torch
+from visualization_msgs.msg import MarkerArray
+
+from sik_interfaces.msg import IKSolutionArray
+from sik_interfaces.srv import SolveIK
+from sik_ros import ros_conversions as conv
+from sik_ros.errors import SikError
+from sik_ros.solver import IKResult, SelectiveIK
+
+NODE_NAME = 'sik_node'
+#: Executor threads, and solver instances in the pool (one per thread).
+WORKERS = 4
+Response = SolveIK.Response
+
+
+@dataclass(frozen=True)
+class NodeParams:
+    """The node's parameters (defaults as in ``config/panda.yaml``).
+
+    Attributes:
+        robot: bundled model to load when ``model_dir`` is empty; also the robot the bundle
+            must be made for.
+        model_dir: a bundle directory; empty for the bundled model named by ``robot``.
+        base_frame: frame of targets, obstacles and answers; must be the bundle's base frame.
+        tip_frame: the frame placed on the target; must be the bundle's tip frame.
+        num_solutions: solutions returned when a request asks for 0.
+        max_solutions_cap: most solutions returned; larger requests are clamped.
+        position_tolerance: a solution is exact within this position error [m].
+        orientation_tolerance: ... and this orientation error (pose goals) [rad].
+        refine: refine decoded solutions numerically.
+        timeout: time budget of a request that gives none [s].
+        use_joint_states: seed requests without a seed with the latest ``joint_states``.
+        goal_use_orientation: ``~/goal`` poses are pose goals (else position goals).
+        publish_markers: publish the ranked postures on ``~/markers``.
+    """
+
+    robot: str = 'panda'
+    model_dir: str = ''
+    base_frame: str = 'panda_link0'
+    tip_frame: str = 'panda_hand_tcp'
+    num_solutions: int = 16
+    max_solutions_cap: int = 64
+    position_tolerance: float = 1e-4
+    orientation_tolerance: float = 1e-3
+    refine: bool = True
+    timeout: float = 0.05
+    use_joint_states: bool = False
+    goal_use_orientation: bool = False
+    publish_markers: bool = True
+
+
+#: Parameter descriptions; read-only ones identify the loaded bundle (change them by restarting).
+DESCRIPTIONS = {
+    'robot': 'bundled model to load when model_dir is empty (read-only)',
+    'model_dir': 'bundle directory to load; empty: the bundled model of `robot` (read-only)',
+    'base_frame': 'frame of targets, obstacles and answers; the bundle\'s base (read-only)',
+    'tip_frame': 'frame placed on the target; the bundle\'s tip frame (read-only)',
+    'num_solutions': 'solutions returned when a request asks for 0; 1..max_solutions_cap',
+    'max_solutions_cap': 'most solutions per answer; larger requests are clamped; 1..1024',
+    'position_tolerance': 'a solution is exact within this position error [m]; (0, 0.1]',
+    'orientation_tolerance': 'and within this orientation error for pose goals [rad]; (0, pi]',
+    'refine': 'refine decoded solutions numerically (false: raw network output)',
+    'timeout': 'time budget of a request whose timeout is 0 [s]; (0, 60]',
+    'use_joint_states': 'seed requests that have no seed with the latest joint_states',
+    'goal_use_orientation': '~/goal poses are pose goals (false: position goals)',
+    'publish_markers': 'publish the ranked postures on ~/markers for RViz',
+}
+READ_ONLY = ('robot', 'model_dir', 'base_frame', 'tip_frame')
+
+
+class StartupError(SikError):
+    """The node cannot start: bad parameters or an unusable bundle."""
+
+
+def validate(p: NodeParams) -> Optional[str]:
+    """Why a set of parameter values is unusable, or None if it is fine."""
+    if not p.robot and not p.model_dir:
+        return 'robot and model_dir are both empty: name a bundled model or a bundle directory'
+    if not p.base_frame or not p.tip_frame:
+        return 'base_frame and tip_frame must not be empty'
+    if not 1 <= p.max_solutions_cap <= 1024:
+        return f'max_solutions_cap must be in 1..1024; got {p.max_solutions_cap}'
+    if not 1 <= p.num_solutions <= p.max_solutions_cap:
+        return (f'num_solutions must be in 1..max_solutions_cap ({p.max_solutions_cap}); got '
+                f'{p.num_solutions}')
+    checks = (('position_tolerance', p.position_tolerance, 0.1, 'm'),
+              ('orientation_tolerance', p.orientation_tolerance, math.pi, 'rad'),
+              ('timeout', p.timeout, 60.0, 's'))
+    for name, value, upper, unit in checks:
+        if not (math.isfinite(value) and 0.0 < value <= upper):
+            return f'{name} must be in (0, {upper:g}] {unit}; got {value}'
+    return None
+
+
+class SikNode(Node):
+    """The IK node: loads a bundle, answers ``~/solve_ik`` and ``~/goal``, publishes markers."""
+
+    def __init__(self, workers: int = WORKERS, **kwargs):
+        """Declare the parameters, load the bundle and create the ROS interfaces.
+
+        Args:
+            workers: solver instances (as many as the executor has threads).
+            **kwargs: passed to :class:`rclpy.node.Node` (e.g. ``parameter_overrides``).
+
+        Raises:
+            StartupError: bad parameter values, or a missing, corrupt or mismatched bundle.
+        """
+        super().__init__(NODE_NAME, **kwargs)
+        torch.set_num_threads(1)
+        self.workers = workers
+        self._declare_parameters()
+        self._params = self._read_parameters()
+        reason = validate(self._params)
+        if reason is not None:
+            raise StartupError(f'bad parameters: {reason}')
+        self._ik = self._load(self._params)
+        self._pool: 'queue.LifoQueue[SelectiveIK]' = queue.LifoQueue()
+        for _ in range(workers):
+            self._pool.put(self._ik.clone())
+        self._joint_state: Optional[JointState] = None
+        self._joint_state_sub = None
+        self.add_on_set_parameters_callback(self._on_set_parameters)
+        self.add_post_set_parameters_callback(self._after_set_parameters)
+
+        group = ReentrantCallbackGroup()
+        self._solutions_pub = self.create_publisher(IKSolutionArray, '~/solutions', 10)
+        self._markers_pub = self.create_publisher(MarkerArray, '~/markers', 5)
+        self.create_service(SolveIK, '~/solve_ik', self._on_solve_ik, callback_group=group)
+        self.create_subscription(PoseStamped, '~/goal', self._on_goal, 10, callback_group=group)
+        self._update_joint_state_subscription()
+        self.get_logger().info(
+            f'ready: bundle {self._ik.bundle} ({", ".join(self._ik.goals)} goals, '
+            f'{len(self._ik.joint_names)} joints {self._params.base_frame} -> '
+            f'{self._params.tip_frame}), {workers} workers')
+
+    # -- parameters ------------------------------------------------------------------------------
+
+    def _declare_parameters(self) -> None:
+        defaults = NodeParams()
+        self.declare_parameters('', [
+            (f.name, getattr(defaults, f.name),
+             ParameterDescriptor(description=DESCRIPTIONS[f.name],
+                                 read_only=f.name in READ_ONLY))
+            for f in fields(NodeParams)])
+
+    def _read_parameters(self) -> NodeParams:
+        return NodeParams(**{f.name: self.get_parameter(f.name).value
+                             for f in fields(NodeParams)})
+
+    def _on_set_parameters(self, changes: List[Parameter]) -> SetParametersResult:
+        """Accept a change only if the resulting set of values is valid."""
+        names = {f.name for f in fields(NodeParams)}
+        values = replace(self._params, **{c.name: c.value for c in changes if c.name in names})
+        reason = validate(values)
+        return SetParametersResult(successful=reason is None, reason=reason or '')
+
+    def _after_set_parameters(self, changes: List[Parameter]) -> None:
+        """Make accepted values take effect: solvers pick them up at their next request."""
+        self._params = self._read_parameters()
+        self._update_joint_state_subscription()
+        self.get_logger().info('parameters set: ' + ', '.join(
+            f'{c.name}={c.value!r}' for c in changes))
+
+    def _update_joint_state_subscription(self) -> None:
+        want = self._params.use_joint_states
+        if want and self._joint_state_sub is None:
+            self._joint_state_sub = self.create_subscription(
+                JointState, 'joint_states', self._on_joint_state, qos_profile_sensor_data)
+        elif not want and self._joint_state_sub is not None:
+            self.destroy_subscription(self._joint_state_sub)
+            self._joint_state_sub = None
+            self._joint_state = None
+
+    # -- solvers ---------------------------------------------------------------------------------
+
+    def _load(self, p: NodeParams) -> SelectiveIK:
+        bundle = p.model_dir or p.robot
+        try:
+            ik = SelectiveIK.load(bundle)
+        except SikError as exc:
+            raise StartupError(f'cannot load the IK bundle {bundle!r}: {exc}') from exc
+        robot = ik.robot
+        if p.model_dir and robot.name != p.robot:
+            raise StartupError(f'bundle {bundle!r} is for robot {robot.name!r}, but the '
+                               f'parameter robot is {p.robot!r}')
+        for name, value, actual in (('base_frame', p.base_frame, robot.base_frame),
+                                    ('tip_frame', p.tip_frame, robot.tip_frame)):
+            if value != actual:
+                raise StartupError(f'parameter {name} is {value!r} but bundle {bundle!r} was '
+                                   f'made for {actual!r}')
+        return ik.with_config(**self._solver_settings(p))
+
+    @staticmethod
+    def _solver_settings(p: NodeParams) -> dict:
+        return {'position_tolerance': p.position_tolerance,
+                'orientation_tolerance': p.orientation_tolerance,
+                'max_solutions_cap': p.max_solutions_cap}
+
+    @contextmanager
+    def _solver(self, p: NodeParams) -> Iterator[SelectiveIK]:
+        """Borrow a solver from the pool, with the settings of ``p``."""
+        ik = self._pool.get()
+        try:
+            settings = self._solver_settings(p)
+            if any(getattr(ik.config, k) != v for k, v in settings.items()):
+                ik = self._ik.with_config(**settings)
+            yield ik
+        finally:
+            self._pool.put(ik)
+
+    # -- requests --------------------------------------------------------------------------------
+
+    def _header(self, p: NodeParams) -> Header:
+        return Header(stamp=self.get_clock().now().to_msg(), frame_id=p.base_frame)
+
+    def _state_seed(self) -> Optional[np.ndarray]:
+        """The latest ``joint_states`` as a seed (clipped to the limits), or None."""
+        msg = self._joint_state
+        if msg is None:
+            return None
+        try:
+            q = conv.seed_from_joint_state(msg, self._ik.joint_names, strict=False)
+        except SikError as exc:
+            self.get_logger().warning(f'joint_states not used as a seed: {exc}',
+                                      throttle_duration_sec=5.0)
+            return None
+        if q is None or len(q) != len(self._ik.joint_names) or not np.all(np.isfinite(q)):
+            return None
+        return np.clip(q, self._ik.robot.lower, self._ik.robot.upper)
+
+    def _count(self, asked: int, p: NodeParams) -> Tuple[int, str]:
+        if asked == 0:
+            return p.num_solutions, ''
+        if asked > p.max_solutions_cap:
+            return p.max_solutions_cap, (f'max_solutions {asked} clamped to the cap '
+                                         f'max_solutions_cap={p.max_solutions_cap}')
+        return asked, ''
+
+    def _solve(self, request: SolveIK.Request, p: NodeParams
+               ) -> Tuple[int, str, Optional[IKResult]]:
+        """Error code, message and (when the goal was valid) the library's result."""
+        frame = request.target.header.frame_id.lstrip('/')
+        if frame not in ('', p.base_frame):
+            return (Response.INVALID_FRAME,
+                    f'target frame_id {request.target.header.frame_id!r} is not the base frame '
+                    f'{p.base_frame!r} (or empty); sik_node does not transform frames', None)
+        num, note = self._count(request.max_solutions, p)
+        try:
+            position, orientation = conv.goal_from_pose(request.target.pose,
+                                                        request.use_orientation)
+            seed = conv.seed_from_joint_state(request.seed, self._ik.joint_names)
+            if seed is None and p.use_joint_states:
+                seed = self._state_seed()
+            obstacles = conv.obstacles_from_msgs(request.obstacles, request.obstacle_poses)
+            timeout = conv.seconds_from_duration(request.timeout) or p.timeout
+            with self._solver(p) as ik:
+                result = ik.solve(position, orientation, num, seed=seed, obstacles=obstacles,
+                                  refine=p.refine, timeout=timeout)
+        except SikError as exc:
+            return conv.error_code_for(exc), str(exc), None
+        exact = sum(s.converged for s in result.solutions)
+        summary = (f'{len(result.solutions)} solutions, {exact} within tolerance, '
+                   f'{result.goal} goal, {result.elapsed * 1e3:.1f} ms')
+        if result.success:
+            code, text = Response.SUCCESS, summary
+        elif result.timed_out:
+            code, text = Response.TIMEOUT, (f'timed out after {timeout * 1e3:.0f} ms with no '
+                                            f'solution within tolerance ({summary})')
+        else:
+            code, text = Response.NO_SOLUTION, f'{result.message or "no solution"} ({summary})'
+        return code, '; '.join(t for t in (text, note) if t), result
+
+    def _answer(self, request: SolveIK.Request, where: str):
+        """Error code, message and IKSolution list for a request; never raises."""
+        p = self._params
+        header = self._header(p)
+        try:
+            code, message, result = self._solve(request, p)
+            solutions = [] if result is None else [
+                conv.solution_to_msg(s, self._ik.joint_names, header) for s in result.solutions]
+            if result is not None and p.publish_markers:
+                position, orientation = conv.goal_from_pose(request.target.pose,
+                                                            request.use_orientation)
+                self._markers_pub.publish(conv.posture_markers(
+                    self._ik.robot.chain, result.solutions, header, position, orientation))
+        except Exception as exc:  # the node answers every request, whatever fails
+            self.get_logger().error(f'{where}: unexpected {type(exc).__name__}: {exc}\n'
+                                    f'{traceback.format_exc()}')
+            return (Response.NO_SOLUTION, f'internal error: {type(exc).__name__}: {exc}',
+                    [], header)
+        if code != Response.SUCCESS:
+            self.get_logger().debug(f'{where}: {conv.ERROR_NAMES.get(code, code)}: {message}')
+        return code, message, solutions, header
+
+    def _on_solve_ik(self, request: SolveIK.Request, response: SolveIK.Response
+                     ) -> SolveIK.Response:
+        response.error_code, response.message, response.solutions, _ = self._answer(
+            request, 'solve_ik')
+        return response
+
+    def _on_goal(self, msg: PoseStamped) -> None:
+        request = SolveIK.Request(target=msg, use_orientation=self._params.goal_use_orientation)
+        code, message, solutions, header = self._answer(request, 'goal')
+        self._solutions_pub.publish(conv.solution_array(header, code, message, solutions))
+
+    def _on_joint_state(self, msg: JointState) -> None:
+        self._joint_state = msg
+
+
+def main(args: Optional[List[str]] = None) -> int:
+    """Run sik_node until SIGINT/SIGTERM; exit code 1 (one FATAL log line) if it cannot start."""
+    rclpy.init(args=args)
+    try:
+        node = SikNode()
+    except Exception as exc:  # one clear line instead of a traceback, whatever failed
+        interrupted = not rclpy.ok()  # SIGINT during start-up: not a failure
+        if not interrupted:
+            reason = ' '.join(str(exc).split())
+            if not isinstance(exc, SikError):
+                reason = f'{type(exc).__name__}: {reason}'
+            rclpy.logging.get_logger(NODE_NAME).fatal(f'cannot start: {reason}')
+        rclpy.try_shutdown()
+        return 0 if interrupted else 1
+    executor = MultiThreadedExecutor(num_threads=node.workers)
+    executor.add_node(node)
+    try:
+        executor.spin()
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        executor.shutdown()
+        node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == '__main__':
+    raise SystemExit(main())

@@ -1,0 +1,225 @@
+"""Conversions between ROS 2 messages and the sik_ros library (goals, seeds, obstacles, answers).
+
+With :mod:`sik_ros.node` the only module that imports ROS message types. Functions here are
+pure: they turn messages into arrays and :class:`~sik_ros.objectives.Obstacle` objects (raising
+:class:`~sik_ros.errors.SikError` subclasses on bad input, as the library does), and results
+back into ``sik_interfaces`` messages and RViz markers. Units are SI: metres, radians, seconds.
+"""
+
+from typing import Dict, List, Optional, Sequence, Tuple
+
+from builtin_interfaces.msg import Duration
+from geometry_msgs.msg import Point, Pose
+import numpy as np
+from sensor_msgs.msg import JointState
+from shape_msgs.msg import SolidPrimitive
+from std_msgs.msg import ColorRGBA, Header
+from visualization_msgs.msg import Marker, MarkerArray
+
+from sik_interfaces.msg import IKSolution, IKSolutionArray
+from sik_interfaces.srv import SolveIK
+from sik_ros.errors import InvalidArgument, InvalidGoal, InvalidSeed, SikError
+from sik_ros.kinematics import chain_forward
+from sik_ros.objectives import BOX, CYLINDER, Obstacle, SPHERE
+from sik_ros.solver import Solution
+
+#: Name of every SolveIK error code, by value (for logs and tables).
+ERROR_NAMES: Dict[int, str] = {
+    SolveIK.Response.SUCCESS: 'SUCCESS',
+    SolveIK.Response.NO_SOLUTION: 'NO_SOLUTION',
+    SolveIK.Response.INVALID_GOAL: 'INVALID_GOAL',
+    SolveIK.Response.INVALID_FRAME: 'INVALID_FRAME',
+    SolveIK.Response.INVALID_SEED: 'INVALID_SEED',
+    SolveIK.Response.TIMEOUT: 'TIMEOUT',
+}
+
+_SHAPES = {SolidPrimitive.BOX: BOX, SolidPrimitive.SPHERE: SPHERE,
+           SolidPrimitive.CYLINDER: CYLINDER}
+_SHAPE_NAMES = {SolidPrimitive.BOX: 'box', SolidPrimitive.SPHERE: 'sphere',
+                SolidPrimitive.CYLINDER: 'cylinder', SolidPrimitive.CONE: 'cone'}
+
+# RViz colours (r, g, b, a): the best posture stands out, the others are translucent.
+BEST_COLOR = (0.10, 0.80, 0.25, 1.0)
+OTHER_COLOR = (0.25, 0.45, 0.95, 0.35)
+COLLIDING_COLOR = (0.95, 0.45, 0.10, 0.35)
+TARGET_COLOR = (0.90, 0.10, 0.10, 0.9)
+
+
+def error_code_for(exc: SikError) -> int:
+    """The SolveIK error code for a library error: seeds, else goals (every other bad input)."""
+    if isinstance(exc, InvalidSeed):
+        return SolveIK.Response.INVALID_SEED
+    return SolveIK.Response.INVALID_GOAL
+
+
+def seconds_from_duration(duration: Duration) -> float:
+    """A ``builtin_interfaces/Duration`` in seconds [s].
+
+    Raises:
+        InvalidArgument: a negative duration.
+    """
+    seconds = duration.sec + duration.nanosec * 1e-9
+    if seconds < 0.0:
+        raise InvalidArgument(f'timeout must not be negative; got {seconds:g} s')
+    return seconds
+
+
+def goal_from_pose(pose: Pose, use_orientation: bool
+                   ) -> Tuple[np.ndarray, Optional[np.ndarray]]:
+    """Target position (3,) [m] and quaternion (4,) x y z w, or None for a position goal.
+
+    Values are passed on unchecked; :meth:`SelectiveIK.solve` rejects non-finite positions and
+    zero or non-finite quaternions with :class:`~sik_ros.errors.InvalidGoal`.
+    """
+    p, o = pose.position, pose.orientation
+    position = np.array([p.x, p.y, p.z], dtype=float)
+    orientation = np.array([o.x, o.y, o.z, o.w], dtype=float) if use_orientation else None
+    return position, orientation
+
+
+def seed_from_joint_state(msg: JointState, joint_names: Sequence[str],
+                          strict: bool = True) -> Optional[np.ndarray]:
+    """Arm joint positions (n,) [rad] in ``joint_names`` order from a JointState, or None if empty.
+
+    With names, values are matched by name (any order); without names they are taken in the
+    arm's joint order (the count and the limits are checked by the solver).
+
+    Args:
+        msg: the seed; ``name`` may be empty.
+        joint_names: the arm's joint names, in chain order.
+        strict: reject names that are not arm joints (a seed in a request); when False they are
+            ignored (a whole robot's ``joint_states``, fingers included).
+
+    Raises:
+        InvalidSeed: names and positions of different lengths, repeated or unknown names, or
+            missing arm joints.
+    """
+    names, positions = list(msg.name), np.asarray(msg.position, dtype=float)
+    if not names:
+        return positions if len(positions) else None
+    if len(names) != len(positions):
+        raise InvalidSeed(f'seed has {len(names)} joint names but {len(positions)} positions')
+    if len(set(names)) != len(names):
+        raise InvalidSeed(f'seed names a joint twice: {names}')
+    by_name = dict(zip(names, positions))
+    unknown = [n for n in names if n not in joint_names]
+    if strict and unknown:
+        raise InvalidSeed(f'seed names unknown joints {unknown}; the arm joints are '
+                          f'{list(joint_names)}')
+    missing = [n for n in joint_names if n not in by_name]
+    if missing:
+        raise InvalidSeed(f'seed lacks the arm joints {missing}')
+    return np.array([by_name[n] for n in joint_names], dtype=float)
+
+
+def obstacles_from_msgs(primitives: Sequence[SolidPrimitive],
+                        poses: Sequence[Pose]) -> List[Obstacle]:
+    """Obstacles in the base frame from SolidPrimitives and one Pose each.
+
+    Raises:
+        InvalidGoal: counts that differ, an unsupported shape (cone) or bad dimensions.
+    """
+    if len(primitives) != len(poses):
+        raise InvalidGoal(f'{len(primitives)} obstacles but {len(poses)} obstacle_poses: give '
+                          f'one pose per obstacle')
+    out = []
+    for k, (prim, pose) in enumerate(zip(primitives, poses)):
+        if prim.type not in _SHAPES:
+            name = _SHAPE_NAMES.get(prim.type, f'type {prim.type}')
+            raise InvalidGoal(f'obstacle {k}: {name} is not supported (box, sphere, cylinder)')
+        p, o = pose.position, pose.orientation
+        try:
+            out.append(Obstacle(_SHAPES[prim.type], tuple(float(d) for d in prim.dimensions),
+                                (p.x, p.y, p.z), (o.x, o.y, o.z, o.w)))
+        except InvalidArgument as exc:
+            raise InvalidGoal(f'obstacle {k}: {exc}') from exc
+    return out
+
+
+def solution_to_msg(solution: Solution, joint_names: Sequence[str], header: Header
+                    ) -> IKSolution:
+    """One ranked library solution as an ``IKSolution`` (joint state stamped with ``header``)."""
+    msg = IKSolution()
+    msg.joint_state.header = header
+    msg.joint_state.name = list(joint_names)
+    msg.joint_state.position = [float(v) for v in solution.q]
+    msg.posture_index = [float(v) for v in solution.posture_index]
+    msg.position_error = float(solution.position_error)
+    msg.orientation_error = float(solution.orientation_error)
+    msg.min_obstacle_distance = float(solution.min_obstacle_distance)
+    msg.score = float(solution.score)
+    return msg
+
+
+def solution_array(header: Header, error_code: int, message: str,
+                   solutions: Sequence[IKSolution]) -> IKSolutionArray:
+    """The ``~/solutions`` message for one answer."""
+    return IKSolutionArray(header=header, error_code=int(error_code), message=message,
+                           solutions=list(solutions))
+
+
+def _color(rgba: Tuple[float, float, float, float]) -> ColorRGBA:
+    return ColorRGBA(r=rgba[0], g=rgba[1], b=rgba[2], a=rgba[3])
+
+
+def _points(rows: np.ndarray) -> List[Point]:
+    return [Point(x=float(x), y=float(y), z=float(z)) for x, y, z in rows]
+
+
+def posture_markers(chain, solutions: Sequence[Solution], header: Header,
+                    target_position: Optional[np.ndarray] = None,
+                    target_orientation: Optional[np.ndarray] = None) -> MarkerArray:
+    """RViz markers of ranked postures: a DELETEALL, the target, then one namespace per rank.
+
+    Each rank ``rank_NN`` holds a LINE_STRIP from the base through every joint origin to the tip
+    (id 0) and a SPHERE_LIST at the joint origins (id 1). The best posture is opaque green,
+    the others translucent (blue, or orange when they touch an obstacle).
+
+    Args:
+        chain: the robot's :class:`~sik_ros.kinematics.SerialChain`.
+        solutions: ranked solutions, best first.
+        header: frame (the base frame) and stamp of every marker.
+        target_position: the goal position [m] (no target marker if None).
+        target_orientation: the goal quaternion x y z w (adds an arrow along the tool z axis).
+    """
+    markers = [Marker(header=header, action=Marker.DELETEALL)]
+    if target_position is not None and np.all(np.isfinite(target_position)):
+        target = Marker(header=header, ns='target', id=0, type=Marker.SPHERE,
+                        action=Marker.ADD, color=_color(TARGET_COLOR))
+        target.pose.position = _points(np.asarray(target_position)[None])[0]
+        target.scale.x = target.scale.y = target.scale.z = 0.03
+        markers.append(target)
+        if target_orientation is not None and np.all(np.isfinite(target_orientation)) \
+                and np.linalg.norm(target_orientation) > 1e-9:
+            quat = np.asarray(target_orientation, dtype=float)
+            x, y, z, w = quat / np.linalg.norm(quat)
+            axis_z = 2 * np.array([x * z + w * y, y * z - w * x, 0.5 - x * x - y * y])
+            axis_z /= np.linalg.norm(axis_z)
+            arrow = Marker(header=header, ns='target', id=1, type=Marker.ARROW,
+                           action=Marker.ADD, color=_color(TARGET_COLOR))
+            arrow.points = _points(np.stack([target_position - 0.1 * axis_z, target_position]))
+            arrow.scale.x, arrow.scale.y, arrow.scale.z = 0.01, 0.02, 0.02
+            markers.append(arrow)
+    if solutions:
+        q = np.array([s.q for s in solutions], dtype=float)
+        tip, _, origins, _ = chain_forward(chain, q, frames=True)
+        base = np.zeros((len(q), 1, 3))
+        strips = np.concatenate([base, origins, tip[:, None]], axis=1)
+        for rank, (sol, strip) in enumerate(zip(solutions, strips)):
+            if rank == 0:
+                rgba, width = BEST_COLOR, 0.02
+            else:
+                rgba = COLLIDING_COLOR if sol.in_collision else OTHER_COLOR
+                width = 0.01
+            ns = f'rank_{rank:02d}'
+            line = Marker(header=header, ns=ns, id=0, type=Marker.LINE_STRIP, action=Marker.ADD,
+                          color=_color(rgba), points=_points(strip))
+            line.pose.orientation.w = 1.0
+            line.scale.x = width
+            joints = Marker(header=header, ns=ns, id=1, type=Marker.SPHERE_LIST,
+                            action=Marker.ADD, color=_color(rgba),
+                            points=_points(strip[1:-1]))
+            joints.pose.orientation.w = 1.0
+            joints.scale.x = joints.scale.y = joints.scale.z = 2.5 * width
+            markers += [line, joints]
+    return MarkerArray(markers=markers)

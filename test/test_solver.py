@@ -1,0 +1,202 @@
+"""SelectiveIK: exact, distinct, ranked solutions verified by FK; seeds; obstacles; bad input."""
+
+import json
+import shutil
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from sik_ros.errors import ArtifactMismatch, InvalidArgument, InvalidGoal, InvalidSeed
+from sik_ros.kinematics import chain_forward
+from sik_ros.objectives import CollisionChecker, ElbowHeight, Obstacle
+from sik_ros.solver import SelectiveIK
+
+
+@pytest.fixture(scope='module')
+def ik(tiny_bundle):
+    """The solver on the tiny test bundle."""
+    return SelectiveIK.load(tiny_bundle)
+
+
+@pytest.fixture(scope='module')
+def targets(panda):
+    """Reachable targets: FK of random configurations, with the configurations."""
+    q = np.random.default_rng(7).uniform(panda.lower, panda.upper, size=(12, panda.dof))
+    pos, quat = panda.fk_batch(q)
+    return q, pos, quat
+
+
+def check_solutions(panda, ik, res, position, quat=None):
+    """Every solution is within limits and its reported errors are its true FK errors."""
+    for s in res.solutions:
+        assert np.all(s.q >= panda.lower) and np.all(s.q <= panda.upper)
+        p, q = panda.fk(s.q)
+        assert s.position_error == pytest.approx(np.linalg.norm(p - position), abs=1e-9)
+        if quat is not None:
+            angle = 2 * np.arccos(min(1.0, abs(float(np.dot(q, quat)))))
+            assert s.orientation_error == pytest.approx(angle, abs=1e-6)
+        if s.converged:
+            assert s.position_error <= ik.config.position_tolerance
+            if quat is not None:
+                assert s.orientation_error <= ik.config.orientation_tolerance
+
+
+def test_position_goals_give_exact_ranked_distinct_solutions(panda, ik, targets):
+    """Position goals: success, solutions verified by FK, scores ascending, all distinct."""
+    _, pos, _ = targets
+    for p in pos:
+        res = ik.solve(p, num_solutions=16)
+        assert res.success and 1 <= len(res.solutions) <= 16
+        check_solutions(panda, ik, res, p)
+        assert all(s.converged for s in res.solutions[:1])
+        scores = [s.score for s in res.solutions]
+        assert scores == sorted(scores)
+        qs = np.array([s.q[:6] for s in res.solutions])
+        for i in range(len(qs)):
+            for j in range(i):
+                assert np.linalg.norm(qs[i] - qs[j]) >= ik.config.distinct_threshold
+
+
+def test_pose_goals_are_verified_by_fk(panda, ik, targets):
+    """Pose goals: reported position and orientation errors are the true ones."""
+    _, pos, quat = targets
+    successes = 0
+    for p, q in zip(pos, quat):
+        res = ik.solve(p, q, num_solutions=8)
+        check_solutions(panda, ik, res, p, q)
+        successes += res.success
+    assert successes >= len(pos) // 2
+
+
+def test_raw_solutions_report_true_errors(panda, ik, targets):
+    """refine=False returns decoded solutions with their true (larger) errors."""
+    _, pos, _ = targets
+    res = ik.solve(pos[0], num_solutions=10, refine=False)
+    assert res.solutions
+    check_solutions(panda, ik, res, pos[0])
+    assert min(s.position_error for s in res.solutions) > 0
+
+
+def test_same_input_same_output(ik, targets):
+    """Solving twice gives identical solutions."""
+    _, pos, _ = targets
+    a, b = ik.solve(pos[1]), ik.solve(pos[1])
+    assert len(a.solutions) == len(b.solutions)
+    for x, y in zip(a.solutions, b.solutions):
+        np.testing.assert_array_equal(x.q, y.q)
+
+
+def test_seed_ranks_nearest_solution_first(panda, ik, targets):
+    """With a seed, the solution nearest the seed comes first among exact free solutions."""
+    q, pos, _ = targets
+    res = ik.solve(pos[2], num_solutions=16, seed=q[2])
+    assert res.success
+    exact = [s for s in res.solutions if s.converged and not s.in_collision]
+    dists = [np.linalg.norm(s.q - q[2]) for s in exact]
+    assert dists[0] == min(dists)
+    check_solutions(panda, ik, res, pos[2])
+
+
+def test_obstacle_ranking_and_clearance(panda, ik, targets):
+    """A box on the best posture's elbow: free solutions rank first, clearances are true."""
+    _, pos, _ = targets
+    target = pos[3]
+    best = ik.solve(target, num_solutions=16).solutions[0]
+    _, _, origins, _ = chain_forward(panda.chain, best.q[None], frames=True)
+    box = Obstacle('box', (0.12, 0.12, 0.12), tuple(origins[0, 3]))
+    checker = CollisionChecker(panda)
+    assert checker.clearance(best.q[None], [box])[0] <= 0.0  # the box hits that posture
+    res = ik.solve(target, num_solutions=16, obstacles=[box])
+    collide = [s.in_collision for s in res.solutions]
+    assert collide == sorted(collide)   # every free solution before any colliding one
+    for s in res.solutions:
+        # GJK distances agree to about a micron between calls
+        assert s.min_obstacle_distance == pytest.approx(
+            float(checker.clearance(s.q[None], [box])[0]), abs=1e-6)
+    if not collide[0]:
+        assert not np.allclose(res.solutions[0].q, best.q)
+
+
+def test_custom_objective_orders_exact_solutions(ik, targets):
+    """A custom objective (high elbow) orders the exact collision-free solutions."""
+    _, pos, _ = targets
+    obj = ElbowHeight(ik.robot)
+    res = ik.solve(pos[4], num_solutions=16, objective=obj)
+    exact = [s for s in res.solutions if s.converged and not s.in_collision]
+    costs = [float(obj(s.q[None])[0]) for s in exact]
+    assert costs == sorted(costs)
+
+
+def test_unreachable_target_is_not_an_error(ik):
+    """A target far outside the reach gives success=False with best-effort solutions."""
+    res = ik.solve((3.0, 3.0, 3.0), num_solutions=4)
+    assert not res.success
+    assert res.solutions and all(s.position_error > 1.0 for s in res.solutions)
+    assert 'no solution within tolerance' in res.message
+
+
+def test_solve_batch_matches_solve(ik, targets):
+    """solve_batch gives the same answers as solve, target by target."""
+    _, pos, quat = targets
+    batch = ik.solve_batch(pos[:3], quat[:3], num_solutions=4)
+    for p, q, res in zip(pos[:3], quat[:3], batch):
+        single = ik.solve(p, q, num_solutions=4)
+        assert [s.q.tolist() for s in single.solutions] == [s.q.tolist() for s in res.solutions]
+
+
+@pytest.mark.parametrize('kwargs,error,message', [
+    ({'position': (np.nan, 0, 0.5)}, InvalidGoal, 'finite'),
+    ({'position': (np.inf, 0, 0.5)}, InvalidGoal, 'finite'),
+    ({'position': (0.1, 0.2)}, InvalidGoal, '3 elements'),
+    ({'orientation': (0, 0, 0, 0)}, InvalidGoal, 'zero'),
+    ({'orientation': (0, 0, np.nan, 1)}, InvalidGoal, 'finite'),
+    ({'orientation': (0, 0, 1)}, InvalidGoal, 'quaternion'),
+    ({'num_solutions': 0}, InvalidArgument, 'between 1 and 64'),
+    ({'num_solutions': 65}, InvalidArgument, 'between 1 and 64'),
+    ({'num_solutions': 2.5}, InvalidArgument, 'integer'),
+    ({'seed': np.zeros(6)}, InvalidSeed, '7 joint values'),
+    ({'seed': np.full(7, np.nan)}, InvalidSeed, 'finite'),
+    ({'seed': np.zeros(7)}, InvalidSeed, 'panda_joint4'),
+])
+def test_bad_input_raises_clear_errors(ik, kwargs, error, message):
+    """Bad input raises a SikError subclass whose message names the problem."""
+    args = {'position': (0.4, 0.0, 0.4), **kwargs}
+    with pytest.raises(error, match=message):
+        ik.solve(**args)
+
+
+def test_batch_shape_is_checked(ik):
+    """solve_batch refuses arrays of the wrong shape."""
+    with pytest.raises(InvalidGoal, match=r'\(N, 3\)'):
+        ik.solve_batch(np.zeros((2, 4)))
+
+
+def test_table_of_another_model_is_refused(tiny_bundle, tmp_path):
+    """A bundle whose table was built from another model is refused at load."""
+    bad = tmp_path / 'bundle'
+    shutil.copytree(tiny_bundle, bad)
+    shutil.copyfile(bad / 'sik_position_table.npz', bad / 'sik_pose_table.npz')
+    with pytest.raises(ArtifactMismatch, match='model'):
+        SelectiveIK.load(bad)
+
+
+def test_sik_solve_cli_json(tiny_bundle, targets):
+    """sik-solve --json prints solutions whose errors match the library's."""
+    _, pos, _ = targets
+    r = subprocess.run([sys.executable, '-m', 'sik_ros.cli.solve', *map(str, pos[5]),
+                        '--bundle', str(tiny_bundle), '-n', '4', '--json'],
+                       capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0, r.stderr
+    out = json.loads(r.stdout)
+    assert out['success'] and 1 <= len(out['solutions']) <= 4
+    assert out['joint_names'][0] == 'panda_joint1'
+
+
+def test_sik_solve_cli_bad_input(tiny_bundle):
+    """sik-solve with a bad seed exits 2 with a one-line reason."""
+    r = subprocess.run([sys.executable, '-m', 'sik_ros.cli.solve', '0.4', '0', '0.4',
+                        '--bundle', str(tiny_bundle), '--seed', '1', '2'],
+                       capture_output=True, text=True, timeout=120)
+    assert r.returncode == 2 and 'seed must have 7' in r.stderr
