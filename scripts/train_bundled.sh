@@ -6,8 +6,9 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 PY=${PY:-.venv/bin/python}
 DATA=${DATA:-data/panda30}
-STEPS=${STEPS:-24000}
-MAX_TIME=${MAX_TIME:-6000}
+STEPS=${STEPS:-18000}
+MAX_TIME=${MAX_TIME:-5400}
+FK_WEIGHT=${FK_WEIGHT:-0.02}
 [ -d "$DATA" ] || $PY -m sik_ros.cli.collect --robot panda --interval 30 --out "$DATA"
 train() {  # name, then sik-train arguments
   local name=$1; shift
@@ -17,6 +18,6 @@ train() {  # name, then sik-train arguments
     --max-time "$MAX_TIME" --threads 1 --quiet --export "runs/$name/model.pt" \
     "${resume[@]}" "$@"
 }
-train sik_position --model sik --goal position --latent-dim 4 &
-train sik_pose --model sik --goal pose --latent-dim 1 &
+train sik_position --model sik --goal position --latent-dim 4 --fk-weight "$FK_WEIGHT" &
+train sik_pose --model sik --goal pose --latent-dim 1 --fk-weight "$FK_WEIGHT" &
 wait

@@ -288,8 +288,11 @@ class SikNode(Node):
         except SikError as exc:
             return conv.error_code_for(exc), str(exc), None
         exact = sum(s.converged for s in result.solutions)
-        summary = (f'{len(result.solutions)} solutions, {exact} within tolerance, '
-                   f'{result.goal} goal, {result.elapsed * 1e3:.1f} ms')
+        summary = f'{len(result.solutions)} solutions, {exact} within tolerance'
+        if obstacles:
+            free = sum(not s.in_collision for s in result.solutions)
+            summary += f', {free} collision-free'
+        summary += f', {result.goal} goal, {result.elapsed * 1e3:.1f} ms'
         if result.success:
             code, text = Response.SUCCESS, summary
         elif result.timed_out:

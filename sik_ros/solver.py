@@ -391,13 +391,11 @@ class SelectiveIK:
     def distinct_mask(self, q: np.ndarray, goal: str) -> np.ndarray:
         """Greedy keep-mask of rows at least ``distinct_threshold`` apart, in row order."""
         cols = slice(0, self.robot.dof - 1) if goal == 'position' else slice(None)
-        kept: List[int] = []
-        for i in range(len(q)):
-            if all(np.linalg.norm(q[i, cols] - q[k, cols]) >= self.config.distinct_threshold
-                   for k in kept):
-                kept.append(i)
+        x = q[:, cols]
+        near = np.linalg.norm(x[:, None] - x[None], axis=2) < self.config.distinct_threshold
         mask = np.zeros(len(q), dtype=bool)
-        mask[kept] = True
+        for i in range(len(q)):
+            mask[i] = not np.any(near[i, :i] & mask[:i])
         return mask
 
     def _solve(self, pos, rot, goal, num, q_seed, obstacles, refine, objective, timeout, t0):

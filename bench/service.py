@@ -1,0 +1,174 @@
+"""Benchmark of sik_node's ``~/solve_ik`` over loopback DDS (issue 5's targets).
+
+Measures, for position goals at FK of random configurations and 16 ranked refined solutions:
+
+- round-trip latency of sequential requests (p50, p99) [ms], beside the solver's own time for
+  the same targets measured in this process (``IKResult.elapsed``), so the ROS overhead shows;
+- throughput with several concurrent clients [requests/s];
+- resident memory (VmRSS) growth of the node over all the requests sent [MB].
+
+Usage: ``python bench/service.py [--quick] [--requests N] [--model-dir DIR]``. Prints a table; the
+figures are never asserted (see docs/benchmarks.md).
+"""
+
+import argparse
+import subprocess
+import threading
+import time
+from typing import List, Optional
+
+import numpy as np
+import rclpy
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.signals import SignalHandlerOptions
+import torch
+
+from sik_interfaces.srv import SolveIK
+from sik_ros import demo
+from sik_ros.kinematics import load_robot
+from sik_ros.solver import SelectiveIK
+
+NUM_SOLUTIONS = 16
+NODE_TIMEOUT = 0.05  # [s] config/panda.yaml
+SERVICE = '/sik_node/solve_ik'
+
+
+def vm_rss_mb(pid: int) -> float:
+    """Resident memory of a process [MB], from /proc/<pid>/status."""
+    with open(f'/proc/{pid}/status') as f:
+        for line in f:
+            if line.startswith('VmRSS:'):
+                return int(line.split()[1]) / 1024.0
+    raise RuntimeError(f'no VmRSS for pid {pid}')
+
+
+def targets(count: int, seed: int = 0) -> np.ndarray:
+    """Reachable tip positions (count, 3) [m]: FK of random valid configurations."""
+    robot = load_robot('panda')
+    q = np.random.default_rng(seed).uniform(robot.lower, robot.upper, (count, robot.dof))
+    return robot.fk_batch(q)[0]
+
+
+def percentiles(seconds: List[float]) -> str:
+    """'p50 / p99' in milliseconds."""
+    p50, p99 = np.percentile(np.asarray(seconds) * 1e3, [50, 99])
+    return f'{p50:.2f} / {p99:.2f}'
+
+
+def sequential(node, client, goals: np.ndarray):
+    """Round trips [s] and answer codes of one request per goal, one at a time."""
+    times, codes = [], []
+    for p in goals:
+        req = demo.pose_request(p, max_solutions=NUM_SOLUTIONS)
+        t0 = time.perf_counter()
+        answer = demo.call(node, client, req, timeout=10.0)
+        times.append(time.perf_counter() - t0)
+        codes.append(None if answer is None else answer.error_code)
+    return times, codes
+
+
+def concurrent(goals: np.ndarray, clients: int, duration: float):
+    """Requests answered by ``clients`` threads calling back to back for ``duration`` [s]."""
+    counts = [0] * clients
+    start = threading.Barrier(clients + 1)
+    stop = threading.Event()
+
+    def run(k):
+        node = rclpy.create_node(f'sik_bench_client_{k}')
+        executor = SingleThreadedExecutor()
+        executor.add_node(node)
+        cli = node.create_client(SolveIK, SERVICE)
+        cli.wait_for_service(timeout_sec=10.0)
+        start.wait()
+        i = k
+        while not stop.is_set():
+            future = cli.call_async(demo.pose_request(goals[i % len(goals)],
+                                                      max_solutions=NUM_SOLUTIONS))
+            executor.spin_until_future_complete(future, timeout_sec=10.0)
+            counts[k] += future.done() and future.result() is not None
+            i += clients
+        executor.shutdown()
+        node.destroy_node()
+
+    threads = [threading.Thread(target=run, args=(k,)) for k in range(clients)]
+    for t in threads:
+        t.start()
+    start.wait()
+    t0 = time.perf_counter()
+    time.sleep(duration)
+    stop.set()
+    for t in threads:
+        t.join()
+    return sum(counts), time.perf_counter() - t0
+
+
+def in_process(bundle: str, goals: np.ndarray) -> List[float]:
+    """The solver's own time [s] on the same goals, as the node runs it (one thread)."""
+    torch.set_num_threads(1)
+    ik = SelectiveIK.load(bundle).with_config(position_tolerance=1e-4,
+                                              orientation_tolerance=1e-3)
+    for p in goals[:10]:
+        ik.solve(p, num_solutions=NUM_SOLUTIONS, timeout=NODE_TIMEOUT)
+    return [ik.solve(p, num_solutions=NUM_SOLUTIONS, timeout=NODE_TIMEOUT).elapsed
+            for p in goals]
+
+
+def main(argv: Optional[List[str]] = None) -> int:
+    """Entry point."""
+    parser = argparse.ArgumentParser(description=__doc__.split('\n')[0])
+    parser.add_argument('--quick', action='store_true',
+                        help='a short run: 200 requests, 3 s of concurrent clients')
+    parser.add_argument('--requests', type=int,
+                        help='sequential requests for latency and memory (default 10000)')
+    parser.add_argument('--clients', type=int, default=4, help='concurrent clients')
+    parser.add_argument('--duration', type=float, help='concurrent phase [s] (default 20)')
+    parser.add_argument('--model-dir', help='bundle directory (default: the bundled panda)')
+    args = parser.parse_args(argv)
+    n = args.requests or (200 if args.quick else 10_000)
+    duration = args.duration or (3.0 if args.quick else 20.0)
+    bundle = args.model_dir or 'panda'
+    goals = targets(n)
+
+    env = demo.ros_env()
+    proc = demo.launch_node(args.model_dir, env=env, stdout=subprocess.DEVNULL,
+                            stderr=subprocess.STDOUT)
+    rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
+    try:
+        node = rclpy.create_node('sik_bench')
+        client = node.create_client(SolveIK, SERVICE)
+        if not demo.wait_for_service(node, client, proc, 90.0):
+            print(f'sik_node did not come up (exit code {proc.poll()})')
+            return 1
+        sequential(node, client, targets(20, seed=1))  # warm-up
+        rss0 = vm_rss_mb(proc.pid)
+        rtt, codes = sequential(node, client, goals)
+        answered, wall = concurrent(goals, args.clients, duration)
+        rss1 = vm_rss_mb(proc.pid)
+        node.destroy_node()
+    finally:
+        demo.stop_node(proc)
+        rclpy.try_shutdown()
+    solver = in_process(bundle, goals)
+    ok = sum(c == SolveIK.Response.SUCCESS for c in codes)
+    rows = [
+        ('round trip p50 / p99 [ms]', percentiles(rtt), '<= 5 / <= 20'),
+        ('solver alone p50 / p99 [ms] (in-process)', percentiles(solver), ''),
+        ('ROS overhead at p50 [ms]', f'{(np.median(rtt) - np.median(solver)) * 1e3:.2f}', ''),
+        (f'throughput, {args.clients} clients [req/s]', f'{answered / wall:.0f}', '>= 200'),
+        (f'node RSS growth over {n + answered} requests [MB]',
+         f'{rss1 - rss0:+.1f} ({rss0:.0f} -> {rss1:.0f})', '< 10 over 10,000'),
+        ('SUCCESS answers (sequential)', f'{ok}/{len(codes)}', ''),
+    ]
+    print(f'sik_node ~/solve_ik over loopback DDS: bundle {bundle}, position goals, '
+          f'{NUM_SOLUTIONS} ranked refined solutions, node timeout {NODE_TIMEOUT * 1e3:.0f} ms'
+          + (' (quick run)' if args.quick else ''))
+    width = max(len(r[0]) for r in rows)
+    print(f"| {'metric':<{width}} | {'measured':>22} | {'target':>16} |")
+    print(f"|{'-' * (width + 2)}|{'-' * 24}|{'-' * 18}|")
+    for name, value, goal in rows:
+        print(f'| {name:<{width}} | {value:>22} | {goal:>16} |')
+    return 0
+
+
+if __name__ == '__main__':
+    raise SystemExit(main())

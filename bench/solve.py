@@ -1,0 +1,222 @@
+"""Benchmark SelectiveIK against the solvers users loop over today, in the same run.
+
+Targets are drawn uniformly in joint space (FK of random configurations, seeded). For each
+target, our solver returns up to 16 ranked solutions; each peer is then called from random seeds
+until it has as many distinct solutions as ours (or an attempt cap), and the per-target time ratio
+ours / peer is reported. Peers: TRAC-IK (pytracik) for pose goals; damped least squares on
+Pinocchio Jacobians for position goals (TRAC-IK has no position-only mode; its full-pose figures
+are shown beside for reference). Also: raw (unrefined) decoder errors, and an obstacle case.
+
+    python bench/solve.py --targets 1000          # the full run (docs/benchmarks.md)
+    python bench/solve.py --targets 50 --quick    # a smoke run
+"""
+
+import argparse
+import os
+import platform
+import time
+
+os.environ.setdefault('OMP_NUM_THREADS', '1')
+
+import numpy as np  # noqa: E402
+import pinocchio as pin  # noqa: E402
+import pytracik  # noqa: E402
+import torch  # noqa: E402
+
+from sik_ros.objectives import CollisionChecker, Obstacle  # noqa: E402
+from sik_ros.solver import SelectiveIK  # noqa: E402
+
+DISTINCT = 0.5  # rad, L2 between joint vectors
+
+
+def distinct_count(qs, position_goal: bool) -> int:
+    """Greedy count of solutions at least DISTINCT apart (ignoring joint 7 for positions)."""
+    cols = slice(0, 6) if position_goal else slice(None)
+    kept = []
+    for q in qs:
+        if all(np.linalg.norm(q[cols] - k[cols]) >= DISTINCT for k in kept):
+            kept.append(q)
+    return len(kept)
+
+
+class PinocchioDLS:
+    """A single-solution damped least squares IK on Pinocchio, as users write it."""
+
+    def __init__(self, robot, tol=1e-4, iters=100, damping=1e-3, max_step=0.4):
+        self.robot, self.tol, self.iters = robot, tol, iters
+        self.damping, self.max_step = damping, max_step
+        self.model, self.data = robot.model, robot.model.createData()
+        self.fid = robot.model.getFrameId(robot.tip_frame)
+
+    def solve(self, target, q):
+        """One solve from ``q``; returns (converged, q)."""
+        for _ in range(self.iters):
+            pin.framesForwardKinematics(self.model, self.data, q)
+            err = target - self.data.oMf[self.fid].translation
+            if np.linalg.norm(err) < self.tol:
+                return True, q
+            jac = pin.computeFrameJacobian(self.model, self.data, q, self.fid,
+                                           pin.LOCAL_WORLD_ALIGNED)[:3]
+            dq = jac.T @ np.linalg.solve(jac @ jac.T + self.damping ** 2 * np.eye(3), err)
+            dq *= min(1.0, self.max_step / np.abs(dq).max())
+            q = np.clip(q + dq, self.robot.lower, self.robot.upper)
+        return False, q
+
+
+class TracIK:
+    """TRAC-IK through pytracik (5 ms timeout, eps 1e-5, Speed)."""
+
+    def __init__(self, robot, timeout=0.005):
+        self.robot = robot
+        self.solver = pytracik.TRAC_IK(robot.base_frame, robot.tip_frame,
+                                       robot.urdf_path.read_text(), timeout, 1e-5,
+                                       pytracik.SolveType.Speed)
+        pytracik.set_joint_limits(self.solver, list(robot.lower), list(robot.upper))
+
+    def solve(self, position, quat, q0):
+        """One solve from ``q0``; returns (converged, q)."""
+        out = pytracik.ik(self.solver, q0, *position, *quat)
+        q = np.asarray(out[1:], dtype=float)
+        ok = out[0] >= 0 and np.all(q >= self.robot.lower - 1e-9) and \
+            np.all(q <= self.robot.upper + 1e-9)
+        return bool(ok), q
+
+
+def peer_time_to(count, solve_once, rng, robot, position_goal, max_attempts):
+    """Seconds a peer needs to reach ``count`` distinct solutions from random seeds."""
+    found, attempts = [], 0
+    t0 = time.perf_counter()
+    while distinct_count(found, position_goal) < count and attempts < max_attempts:
+        ok, q = solve_once(rng.uniform(robot.lower, robot.upper))
+        attempts += 1
+        if ok:
+            found.append(q)
+    return time.perf_counter() - t0, distinct_count(found, position_goal), attempts
+
+
+def bench_goal(ik, goal, positions, quats, peers, args):
+    """Run ours and the peers on every target of one goal kind; print a table."""
+    robot = ik.robot
+    position_goal = goal == 'position'
+    rng = np.random.default_rng(11)
+    rows = {'ok': [], 'n': [], 't': [], 'raw': [], 'raw_o': [], 'raw_best': []}
+    peer_rows = {name: {'t': [], 'reached': [], 'ratio': []} for name in peers}
+    for i, p in enumerate(positions):
+        quat = None if position_goal else quats[i]
+        res = ik.solve(p, quat, num_solutions=16)
+        qs = [s.q for s in res.solutions if s.converged]
+        n = distinct_count(qs, position_goal)
+        rows['ok'].append(res.success)
+        rows['n'].append(n)
+        rows['t'].append(res.elapsed)
+        raw = ik.solve(p, quat, num_solutions=10, refine=False)
+        rows['raw'] += [s.position_error for s in raw.solutions]
+        rows['raw_o'] += [s.orientation_error for s in raw.solutions]
+        rows['raw_best'].append(raw.solutions[0].position_error)
+        for name, solve_once in peers.items():
+            if n == 0:
+                continue
+            t, reached, _ = peer_time_to(n, lambda q0: solve_once(p, quats[i], q0), rng, robot,
+                                         position_goal, args.max_attempts)
+            peer_rows[name]['t'].append(t)
+            peer_rows[name]['reached'].append(reached >= n)
+            peer_rows[name]['ratio'].append(res.elapsed / t)
+    t = np.array(rows['t']) * 1e3
+    print(f'\n## {goal} goals, {len(positions)} targets, num_solutions=16')
+    print(f'ours: success {100 * np.mean(rows["ok"]):.1f} %, distinct exact solutions median '
+          f'{np.median(rows["n"]):.0f} (p10 {np.percentile(rows["n"], 10):.0f}), time per '
+          f'call median {np.median(t):.2f} ms, p95 {np.percentile(t, 95):.2f} ms')
+    raw_line = (f'ours raw (refine=False, 10 per target): mean distance error '
+                f'{100 * np.mean(rows["raw"]):.2f} cm, best-ranked '
+                f'{100 * np.mean(rows["raw_best"]):.2f} cm')
+    if not position_goal:
+        raw_line += f', mean orientation error {np.degrees(np.mean(rows["raw_o"])):.2f} deg'
+    print(raw_line)
+    print('| peer (to the same number of distinct solutions) | median time [ms] | reached | '
+          'median ratio ours/peer | p90 ratio |')
+    print('|---|---|---|---|---|')
+    for name, pr in peer_rows.items():
+        if not pr['t']:
+            continue
+        print(f'| {name} | {1e3 * np.median(pr["t"]):.2f} | {100 * np.mean(pr["reached"]):.1f} % '
+              f'| {np.median(pr["ratio"]):.3f} | {np.percentile(pr["ratio"], 90):.3f} |')
+    return rows
+
+
+def single_solution_time(tracik, robot, positions, quats):
+    """TRAC-IK's time and success for one solution per target, from a random seed."""
+    rng = np.random.default_rng(5)
+    ts, ok = [], 0
+    for p, q in zip(positions, quats):
+        t0 = time.perf_counter()
+        good, _ = tracik.solve(p, q, rng.uniform(robot.lower, robot.upper))
+        ts.append(time.perf_counter() - t0)
+        ok += good
+    return 1e3 * np.median(ts), 1e3 * np.mean(ts), 100 * ok / len(positions)
+
+
+def obstacle_case(ik):
+    """A box in front of the arm that the best unconstrained solution hits."""
+    target = np.array([0.45, 0.0, 0.25])
+    free = ik.solve(target, num_solutions=16)
+    checker = CollisionChecker(ik.robot)
+    best = free.solutions[0]
+    # a box between the base and the target, at the height of the best posture's elbow
+    from sik_ros.kinematics import chain_forward
+    _, _, origins, _ = chain_forward(ik.robot.chain, best.q[None], frames=True)
+    elbow = origins[0, 3]
+    box = Obstacle('box', (0.15, 0.3, 0.15), tuple(float(v) for v in elbow))
+    before = float(checker.clearance(best.q[None], [box])[0])
+    res = ik.solve(target, num_solutions=16, obstacles=[box])
+    n_free = sum(1 for s in res.solutions if s.converged and not s.in_collision)
+    print('\n## obstacle case')
+    print(f'target {target.tolist()}, box 0.15 x 0.3 x 0.15 m at the unconstrained best '
+          f"solution's elbow {np.round(elbow, 3).tolist()}")
+    print(f'unconstrained best solution: clearance {before:+.3f} m (collides: {before <= 0})')
+    print(f'with the obstacle: {len(res.solutions)} solutions, {n_free} exact and '
+          f'collision-free; best clearance {res.solutions[0].min_obstacle_distance:+.3f} m, '
+          f'error {res.solutions[0].position_error * 1e3:.3f} mm, '
+          f'{res.elapsed * 1e3:.1f} ms')
+
+
+def main():
+    """Entry point."""
+    parser = argparse.ArgumentParser(description=__doc__.split('\n')[0])
+    parser.add_argument('--targets', type=int, default=1000)
+    parser.add_argument('--bundle', default='panda')
+    parser.add_argument('--max-attempts', type=int, default=300,
+                        help='peer attempts per target before giving up')
+    parser.add_argument('--goals', default='position,pose')
+    parser.add_argument('--quick', action='store_true', help='alias for --targets 50')
+    args = parser.parse_args()
+    if args.quick:
+        args.targets = min(args.targets, 50)
+    torch.set_num_threads(1)
+    ik = SelectiveIK.load(args.bundle)
+    robot = ik.robot
+    rng = np.random.default_rng(2024)
+    q = rng.uniform(robot.lower, robot.upper, size=(args.targets, robot.dof))
+    positions, quats = robot.fk_batch(q)
+    tracik = TracIK(robot)
+    dls = PinocchioDLS(robot)
+    print(f'# bench/solve.py: {platform.processor() or platform.machine()}, '
+          f'{os.cpu_count()} cores, torch threads 1, {args.targets} targets uniform in joint '
+          f'space (seed 2024), bundle {ik.bundle}')
+    med, mean, ok = single_solution_time(tracik, robot, positions, quats)
+    print(f'TRAC-IK single solution (pose, random seed): median {med:.3f} ms, mean {mean:.3f} '
+          f'ms, success {ok:.1f} %')
+    goals = args.goals.split(',')
+    if 'position' in goals and 'position' in ik.goals:
+        bench_goal(ik, 'position', positions, quats, {
+            'DLS on Pinocchio Jacobians (position)': lambda p, _q, q0: dls.solve(p, q0),
+            'TRAC-IK on the full pose (reference)': lambda p, qt, q0: tracik.solve(p, qt, q0),
+        }, args)
+    if 'pose' in goals and 'pose' in ik.goals:
+        bench_goal(ik, 'pose', positions, quats, {
+            'TRAC-IK (pose)': lambda p, qt, q0: tracik.solve(p, qt, q0),
+        }, args)
+    obstacle_case(ik)
+
+
+if __name__ == '__main__':
+    main()

@@ -1,0 +1,18 @@
+#!/usr/bin/env bash
+# Builds the bundled Panda artifacts (sik_ros/models/panda/) from the trained runs of
+# scripts/train_bundled.sh: encodes the 30-degree dataset with each model, keeps the distinct
+# posture indices per 5 cm cell, and writes model + table + bundle.json.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+PY=${PY:-.venv/bin/python}
+DATA=${DATA:-data/panda30}
+OUT=${OUT:-sik_ros/models/panda}
+for goal in position pose; do
+  run=runs/sik_$goal
+  [ -f "$run/model.pt" ] || $PY -c "
+from sik_ros.training import export_model, load_checkpoint
+export_model(load_checkpoint('$run/last.pt'), '$run/model.pt')"
+  $PY -m sik_ros.cli.index --model "$run/model.pt" --dataset "$DATA" \
+    --out "$run/table.npz" --force --bundle "$OUT"
+done
+du -ch "$OUT"/* | tail -1

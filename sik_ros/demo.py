@@ -1,0 +1,268 @@
+"""The README's main command (``make run``): sik_node answering IK requests, end to end.
+
+Starts ``sik_node`` as a subprocess on a fresh ROS domain, sends goals through the service
+``/sik_node/solve_ik`` (a position goal, a pose goal, one with a seed, one with a box obstacle)
+and one through the topic ``/sik_node/goal`` (answer on ``/sik_node/solutions``), prints each
+answer as a ranked table, then stops the node with SIGINT. Exit code 0 when every request was
+answered and the node shut down cleanly.
+
+The helpers (:func:`launch_node`, :func:`stop_node`, :func:`ros_env`, :func:`pose_request`,
+:func:`format_answer`) are shared by the end-to-end tests and ``bench/service.py``.
+"""
+
+import argparse
+import json
+import os
+from pathlib import Path
+import random
+import signal
+import subprocess
+import sys
+import time
+from typing import Dict, List, Optional, Sequence
+
+from geometry_msgs.msg import Pose, PoseStamped
+import numpy as np
+import rclpy
+from rclpy.node import Node
+from shape_msgs.msg import SolidPrimitive
+
+from sik_interfaces.msg import IKSolutionArray
+from sik_interfaces.srv import SolveIK
+from sik_ros.ros_conversions import ERROR_NAMES
+
+NODE = '/sik_node'
+REPO = Path(__file__).resolve().parents[1]
+#: Arm configurations whose tip poses serve as reachable demo targets [rad].
+READY = (0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785)
+REACH_LEFT = (0.5, -0.3, 0.2, -2.0, 0.1, 1.9, 0.6)
+REACH_LOW = (0.0, 0.4, 0.0, -2.0, 0.0, 2.4, 0.8)
+REACH_RIGHT = (-0.4, 0.3, 0.0, -1.9, 0.0, 2.2, 0.8)
+#: Codes that answer a valid request (a model may fail to solve a target; that is not a crash).
+ANSWERED = (SolveIK.Response.SUCCESS, SolveIK.Response.NO_SOLUTION, SolveIK.Response.TIMEOUT)
+
+
+def params_file() -> Path:
+    """``config/panda.yaml`` of the source tree, else of the installed package's share folder."""
+    local = REPO / 'config' / 'panda.yaml'
+    if local.is_file():
+        return local
+    from ament_index_python.packages import get_package_share_directory
+    return Path(get_package_share_directory('sik_ros')) / 'config' / 'panda.yaml'
+
+
+def ros_env(domain_id: Optional[int] = None) -> Dict[str, str]:
+    """Environment for an isolated ROS graph: a random (or given) domain, discovery on localhost.
+
+    Also exported into this process, so ``rclpy.init`` afterwards joins the same graph.
+    """
+    domain = domain_id if domain_id is not None else random.SystemRandom().randint(1, 100)
+    os.environ['ROS_DOMAIN_ID'] = str(domain)
+    os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
+    os.environ.setdefault('RMW_IMPLEMENTATION', 'rmw_fastrtps_cpp')
+    os.environ.setdefault('OMP_NUM_THREADS', '1')
+    return dict(os.environ)
+
+
+def launch_node(model_dir: Optional[str] = None, params: Sequence[str] = (),
+                env: Optional[Dict[str, str]] = None, **popen) -> subprocess.Popen:
+    """Start ``python -m sik_ros.node`` with ``config/panda.yaml`` and ``-p`` overrides.
+
+    Args:
+        model_dir: a bundle directory (None: the bundled model).
+        params: extra ``name:=value`` parameter overrides.
+        env: the process environment (see :func:`ros_env`).
+        **popen: passed to :class:`subprocess.Popen` (e.g. ``stdout``).
+    """
+    cmd = [sys.executable, '-m', 'sik_ros.node', '--ros-args', '--params-file',
+           str(params_file())]
+    overrides = ([f'model_dir:={model_dir}'] if model_dir else []) + list(params)
+    for item in overrides:
+        cmd += ['-p', item]
+    return subprocess.Popen(cmd, env=env, **popen)
+
+
+def stop_node(proc: subprocess.Popen, timeout: float = 15.0) -> int:
+    """SIGINT the node and wait for it [s]; kill it if it hangs. Returns its exit code."""
+    if proc.poll() is None:
+        proc.send_signal(signal.SIGINT)
+        try:
+            proc.wait(timeout)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait()
+    return proc.returncode
+
+
+def wait_for_service(node: Node, client, proc: subprocess.Popen, timeout: float) -> bool:
+    """Wait until the service is up [s]; False if the node died or the time ran out."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if proc.poll() is not None:
+            return False
+        if client.wait_for_service(timeout_sec=0.5):
+            return True
+    return False
+
+
+def pose_request(position: Sequence[float], orientation: Optional[Sequence[float]] = None,
+                 max_solutions: int = 0, frame_id: str = '') -> SolveIK.Request:
+    """A SolveIK request for a position goal, or a pose goal with a quaternion x y z w."""
+    req = SolveIK.Request(max_solutions=max_solutions)
+    req.target.header.frame_id = frame_id
+    p = req.target.pose.position
+    p.x, p.y, p.z = (float(v) for v in position)
+    if orientation is not None:
+        o = req.target.pose.orientation
+        o.x, o.y, o.z, o.w = (float(v) for v in orientation)
+        req.use_orientation = True
+    return req
+
+
+def box(center: Sequence[float], size: Sequence[float]):
+    """A box obstacle: (SolidPrimitive, Pose) centred at ``center`` [m], sides ``size`` [m]."""
+    pose = Pose()
+    pose.position.x, pose.position.y, pose.position.z = (float(v) for v in center)
+    return SolidPrimitive(type=SolidPrimitive.BOX, dimensions=[float(v) for v in size]), pose
+
+
+def call(node: Node, client, request: SolveIK.Request, timeout: float = 10.0):
+    """Send a request and wait for the answer [s]; None if none came."""
+    future = client.call_async(request)
+    rclpy.spin_until_future_complete(node, future, timeout_sec=timeout)
+    if not future.done():
+        client.remove_pending_request(future)
+        return None
+    return future.result()
+
+
+def format_answer(title: str, answer, seconds: Optional[float] = None, rows: int = 8) -> str:
+    """A readable ranked table of a SolveIK response or an IKSolutionArray."""
+    code = ERROR_NAMES.get(answer.error_code, str(answer.error_code))
+    took = '' if seconds is None else f', {seconds * 1e3:.1f} ms round trip'
+    lines = [f'== {title}: {code}{took}', f'   {answer.message}']
+    if not answer.solutions:
+        return '\n'.join(lines)
+    names = [n.split('_')[-1] for n in answer.solutions[0].joint_state.name]
+    lines.append(f"   {'rank':>4} {'pos err [mm]':>12} {'rot err [deg]':>13} "
+                 f"{'clearance [m]':>13} {'score':>8}  joints [rad] ({' '.join(names)})")
+    for rank, s in enumerate(answer.solutions[:rows], 1):
+        clear = '-' if not np.isfinite(s.min_obstacle_distance) else \
+            f'{s.min_obstacle_distance:.3f}'
+        lines.append(f'   {rank:>4} {s.position_error * 1e3:>12.4f} '
+                     f'{np.degrees(s.orientation_error):>13.4f} {clear:>13} {s.score:>8.3f}  '
+                     + ' '.join(f'{v:+.3f}' for v in s.joint_state.position))
+    if len(answer.solutions) > rows:
+        lines.append(f'   ... and {len(answer.solutions) - rows} more')
+    return '\n'.join(lines)
+
+
+def bundle_goals(model_dir: Optional[str]) -> List[str]:
+    """Goal kinds (``position``, ``pose``) a bundle has models for; empty if unreadable."""
+    path = Path(model_dir) if model_dir else Path(__file__).resolve().parent / 'models' / 'panda'
+    try:
+        return sorted(json.loads((path / 'bundle.json').read_text())['models'])
+    except (OSError, ValueError, KeyError, TypeError):
+        return []
+
+
+def topic_goal(node: Node, position: Sequence[float], timeout: float = 10.0):
+    """Publish a PoseStamped on ``~/goal``; the IKSolutionArray from ``~/solutions`` or None."""
+    got: List[IKSolutionArray] = []
+    sub = node.create_subscription(IKSolutionArray, f'{NODE}/solutions', got.append, 10)
+    pub = node.create_publisher(PoseStamped, f'{NODE}/goal', 10)
+    deadline = time.monotonic() + timeout
+    while (pub.get_subscription_count() == 0 or sub.get_publisher_count() == 0) \
+            and time.monotonic() < deadline:
+        rclpy.spin_once(node, timeout_sec=0.05)
+    msg = PoseStamped()
+    msg.pose.position.x, msg.pose.position.y, msg.pose.position.z = (float(v) for v in position)
+    pub.publish(msg)
+    while not got and time.monotonic() < deadline:
+        rclpy.spin_once(node, timeout_sec=0.05)
+    node.destroy_subscription(sub)
+    node.destroy_publisher(pub)
+    return got[0] if got else None
+
+
+def run_demo(node: Node, client, goals: List[str]) -> bool:
+    """Send the demo goals and print the answers; True if every request was answered."""
+    from sik_ros.kinematics import load_robot
+    robot = load_robot('panda')
+    fk = {name: robot.fk(np.array(q)) for name, q in
+          (('ready', READY), ('left', REACH_LEFT), ('low', REACH_LOW), ('right', REACH_RIGHT))}
+    requests = [('position goal (left)', pose_request(fk['left'][0]))]
+    if 'pose' in goals:
+        requests.append(('pose goal (ready pose, gripper down)',
+                         pose_request(fk['ready'][0], fk['ready'][1])))
+    else:
+        print('(the bundle has no pose model: the pose goal is skipped)')
+    seeded = pose_request(fk['right'][0])
+    seeded.seed.name = list(robot.joint_names)
+    seeded.seed.position = [float(v) for v in READY]
+    requests.append(('position goal (right) seeded with the ready posture', seeded))
+    blocked = pose_request(fk['low'][0])
+    shape, where = box((0.45, 0.0, 0.62), (0.12, 0.5, 0.12))
+    blocked.obstacles, blocked.obstacle_poses = [shape], [where]
+    requests.append(('position goal (low) with a box obstacle above the reach', blocked))
+    ok = True
+    for title, req in requests:
+        t0 = time.perf_counter()
+        answer = call(node, client, req)
+        took = time.perf_counter() - t0
+        p = req.target.pose.position
+        title = f'{title} at ({p.x:.3f}, {p.y:.3f}, {p.z:.3f}) m'
+        if answer is None:
+            print(f'== {title}: no answer')
+            ok = False
+            continue
+        print(format_answer(title, answer, took))
+        ok &= answer.error_code in ANSWERED
+    t0 = time.perf_counter()
+    answer = topic_goal(node, fk['ready'][0])
+    x, y, z = fk['ready'][0]
+    title = f'topic ~/goal -> ~/solutions: position goal (ready) at ({x:.3f}, {y:.3f}, {z:.3f}) m'
+    if answer is None:
+        print(f'== {title}: no message on ~/solutions')
+        return False
+    print(format_answer(title, answer, time.perf_counter() - t0))
+    return ok and answer.error_code in ANSWERED
+
+
+def main(argv: Optional[List[str]] = None) -> int:
+    """Entry point of ``python -m sik_ros.demo``."""
+    parser = argparse.ArgumentParser(prog='python -m sik_ros.demo', description=__doc__.split(
+        '\n')[0])
+    parser.add_argument('--model-dir', help='bundle directory (default: the bundled panda model)')
+    parser.add_argument('--domain-id', type=int, help='ROS_DOMAIN_ID (default: a random one)')
+    parser.add_argument('--startup-timeout', type=float, default=60.0,
+                        help='wait this long for the node [s]')
+    args = parser.parse_args(argv)
+    env = ros_env(args.domain_id)
+    print(f'starting sik_node (ROS_DOMAIN_ID={env["ROS_DOMAIN_ID"]}, bundle '
+          f'{args.model_dir or "panda"}) ...', flush=True)
+    proc = launch_node(args.model_dir, env=env)
+    rclpy.init()
+    ok = False
+    try:
+        node = rclpy.create_node('sik_demo')
+        client = node.create_client(SolveIK, f'{NODE}/solve_ik')
+        if not wait_for_service(node, client, proc, args.startup_timeout):
+            print('sik_node did not come up' + (f' (exit code {proc.returncode})'
+                                                if proc.poll() is not None else ''))
+        else:
+            ok = run_demo(node, client, bundle_goals(args.model_dir))
+        node.destroy_node()
+    except KeyboardInterrupt:
+        print('interrupted')
+    finally:
+        code = stop_node(proc)
+        rclpy.try_shutdown()
+    if code != 0:
+        print(f'sik_node exited with code {code}')
+    print('demo ' + ('done' if ok and code == 0 else 'FAILED'))
+    return 0 if ok and code == 0 else 1
+
+
+if __name__ == '__main__':
+    raise SystemExit(main())

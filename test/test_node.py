@@ -1,0 +1,500 @@
+"""End to end: a real sik_node subprocess answering over DDS (INTERFACES.md, section 4).
+
+One node per module, on a random ROS_DOMAIN_ID (discovery on localhost), pointed at the tiny test
+bundle with ``-p model_dir:=...``. A tiny model is not accurate, so answers are checked by FK of
+the returned joint values against the returned errors and the tolerance semantics, not by how
+well the model solves.
+"""
+
+import os
+from pathlib import Path
+import subprocess
+import sys
+import threading
+import time
+
+from geometry_msgs.msg import PoseStamped
+import numpy as np
+import pytest
+from rcl_interfaces.srv import SetParameters, SetParametersAtomically
+import rclpy
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.parameter import Parameter
+from rclpy.signals import SignalHandlerOptions
+from sensor_msgs.msg import JointState
+from visualization_msgs.msg import Marker, MarkerArray
+
+from sik_interfaces.msg import IKSolutionArray
+from sik_interfaces.srv import SolveIK
+from sik_ros import demo
+
+pytestmark = pytest.mark.timeout(120)
+
+R = SolveIK.Response
+POS_TOL, ROT_TOL = 1e-4, 1e-3        # config/panda.yaml
+BASE = 'panda_link0'
+ANSWERED = (R.SUCCESS, R.NO_SOLUTION, R.TIMEOUT)
+LONG = 5.0                            # request timeout that never cuts refinement short [s]
+
+
+# -- fixtures -----------------------------------------------------------------------------------
+
+@pytest.fixture(scope='module')
+def bundle_dir(request):
+    """The tiny test bundle (conftest's ``tiny_bundle``; else $SIK_TEST_BUNDLE)."""
+    try:
+        return str(request.getfixturevalue('tiny_bundle'))
+    except pytest.FixtureLookupError:
+        path = os.environ.get('SIK_TEST_BUNDLE')
+        if not path or not (Path(path) / 'bundle.json').is_file():
+            pytest.skip('no tiny_bundle fixture and no $SIK_TEST_BUNDLE')
+        return path
+
+
+@pytest.fixture(scope='module')
+def ros_domain():
+    """A random ROS_DOMAIN_ID for this module, for the node and this process alike."""
+    saved = {k: os.environ.get(k) for k in ('ROS_DOMAIN_ID', 'ROS_AUTOMATIC_DISCOVERY_RANGE')}
+    env = demo.ros_env()
+    yield env
+    for key, value in saved.items():
+        if value is None:
+            os.environ.pop(key, None)
+        else:
+            os.environ[key] = value
+
+
+@pytest.fixture(scope='module')
+def node_proc(bundle_dir, ros_domain, tmp_path_factory):
+    """The sik_node subprocess; its combined output goes to ``node_proc.log_path``."""
+    log_path = tmp_path_factory.mktemp('sik_node') / 'node.log'
+    with open(log_path, 'wb') as log:
+        proc = demo.launch_node(bundle_dir, env=ros_domain, stdout=log,
+                                stderr=subprocess.STDOUT)
+    proc.log_path = log_path
+    yield proc
+    demo.stop_node(proc)
+
+
+@pytest.fixture(scope='module')
+def ros(node_proc):
+    """An rclpy client node with a SolveIK client, once the service is up."""
+    rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
+    node = rclpy.create_node('sik_node_test')
+    client = node.create_client(SolveIK, '/sik_node/solve_ik')
+    if not demo.wait_for_service(node, client, node_proc, 90.0):
+        log = node_proc.log_path.read_text()
+        node.destroy_node()
+        rclpy.shutdown()
+        pytest.fail(f'sik_node did not come up:\n{log}')
+    node.solve_client = client
+    yield node
+    node.destroy_node()
+    rclpy.shutdown()
+
+
+@pytest.fixture(scope='module')
+def goals(bundle_dir):
+    """Goal kinds the bundle has models for."""
+    return demo.bundle_goals(bundle_dir)
+
+
+# -- helpers ------------------------------------------------------------------------------------
+
+def solve(node, request, timeout=20.0):
+    answer = demo.call(node, node.solve_client, request, timeout)
+    assert answer is not None, 'no answer from sik_node'
+    return answer
+
+
+def target(panda, seed):
+    """Joint values, tip position and quaternion of a random valid configuration."""
+    q = np.random.default_rng(seed).uniform(panda.lower, panda.upper)
+    p, quat = panda.fk(q)
+    return q, p, quat
+
+
+def request(position, orientation=None, max_solutions=0, timeout=LONG, frame_id=''):
+    req = demo.pose_request(position, orientation, max_solutions, frame_id)
+    req.timeout.sec, req.timeout.nanosec = int(timeout), int((timeout % 1) * 1e9)
+    return req
+
+
+def quat_angle(a, b):
+    """Angle between unit quaternions (N, 4) x y z w and (4,) [rad]."""
+    dot = np.abs(np.asarray(a) @ (np.asarray(b) / np.linalg.norm(b)))
+    return 2 * np.arccos(np.clip(dot, -1.0, 1.0))
+
+
+def check_answer(panda, answer, position, orientation=None):
+    """Errors reported equal errors by FK; SUCCESS iff some solution is within tolerance."""
+    assert answer.error_code in ANSWERED, answer.message
+    assert answer.message
+    within = []
+    for s in answer.solutions:
+        assert list(s.joint_state.name) == list(panda.joint_names)
+        assert s.joint_state.header.frame_id == BASE
+        q = np.array(s.joint_state.position)
+        assert np.all(q >= panda.lower - 1e-9) and np.all(q <= panda.upper + 1e-9)
+        p, quat = panda.fk_batch(q[None])
+        assert np.linalg.norm(p[0] - position) == pytest.approx(s.position_error, abs=1e-7)
+        ok = s.position_error <= POS_TOL
+        if orientation is None:
+            assert s.orientation_error == 0.0
+        else:
+            assert quat_angle(quat, orientation)[0] == pytest.approx(s.orientation_error,
+                                                                     abs=1e-5)
+            ok &= s.orientation_error <= ROT_TOL
+        assert len(s.posture_index) > 0
+        within.append(ok)
+    assert (answer.error_code == R.SUCCESS) == any(within), answer.message
+    if answer.error_code == R.SUCCESS:
+        assert within[0], 'the best-ranked solution must be within tolerance'
+
+
+def set_parameters(node, params, atomically=False):
+    """Results (successful, reason) of setting parameters on sik_node."""
+    kind = SetParametersAtomically if atomically else SetParameters
+    service = 'set_parameters_atomically' if atomically else 'set_parameters'
+    client = node.create_client(kind, f'/sik_node/{service}')
+    try:
+        assert client.wait_for_service(timeout_sec=10.0)
+        req = kind.Request(parameters=[Parameter(k, value=v).to_parameter_msg()
+                                       for k, v in params.items()])
+        future = client.call_async(req)
+        rclpy.spin_until_future_complete(node, future, timeout_sec=10.0)
+        result = future.result()
+        assert result is not None
+        results = [result.result] if atomically else list(result.results)
+        return [(r.successful, r.reason) for r in results]
+    finally:
+        node.destroy_client(client)
+
+
+def spin_until(node, predicate, timeout, step=None):
+    """Spin ``node`` until ``predicate()`` [s]; ``step()`` is called before each wait."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if step is not None:
+            step()
+        end = time.monotonic() + 0.5
+        while time.monotonic() < end:
+            if predicate():
+                return True
+            rclpy.spin_once(node, timeout_sec=0.05)
+    return predicate()
+
+
+# -- answers ------------------------------------------------------------------------------------
+
+def test_position_goals_verified_by_fk(ros, panda):
+    """Position goals at FK of random configurations: reported errors equal FK errors."""
+    codes = []
+    for seed in range(4):
+        _, p, _ = target(panda, seed)
+        answer = solve(ros, request(p))
+        check_answer(panda, answer, p)
+        codes.append(answer.error_code)
+    assert R.SUCCESS in codes, 'no reachable position goal was solved'
+
+
+def test_pose_goal_verified_by_fk(ros, panda, goals):
+    """A pose goal: position and orientation errors equal those of the solutions' FK."""
+    if 'pose' not in goals:
+        pytest.skip('the bundle has no pose model')
+    _, p, quat = target(panda, 10)
+    answer = solve(ros, request(p, quat))
+    check_answer(panda, answer, p, quat)
+
+
+def test_solutions_are_ranked(ros, panda):
+    """Scores are non-decreasing, at most max_solutions are returned, none repeated."""
+    _, p, _ = target(panda, 1)
+    answer = solve(ros, request(p, max_solutions=5))
+    scores = [s.score for s in answer.solutions]
+    assert 1 <= len(scores) <= 5
+    assert scores == sorted(scores)
+    q = np.array([s.joint_state.position for s in answer.solutions])
+    assert len({tuple(np.round(row, 9)) for row in q}) == len(q)
+    assert all(np.isinf(s.min_obstacle_distance) for s in answer.solutions)
+
+
+def test_seed_matched_by_name(ros, panda):
+    """A seed with shuffled joint names gives the same answer as the same seed in arm order."""
+    q0, p, _ = target(panda, 2)
+    order = np.random.default_rng(0).permutation(len(q0))
+    named = request(p)
+    named.seed.name = [panda.joint_names[i] for i in order]
+    named.seed.position = [float(q0[i]) for i in order]
+    plain = request(p)
+    plain.seed.position = [float(v) for v in q0]
+    a, b = solve(ros, named), solve(ros, plain)
+    check_answer(panda, a, p)
+    assert a.error_code == b.error_code
+    assert [list(s.joint_state.position) for s in a.solutions] == \
+        [list(s.joint_state.position) for s in b.solutions]
+    assert [s.score for s in a.solutions] == [s.score for s in b.solutions]
+
+
+def test_obstacles_report_clearance(ros, panda):
+    """With a box obstacle every solution reports a finite clearance and is verified by FK."""
+    _, p, _ = target(panda, 3)
+    req = request(p)
+    shape, pose = demo.box((0.5, 0.0, 0.3), (0.1, 0.1, 0.1))
+    req.obstacles, req.obstacle_poses = [shape], [pose]
+    answer = solve(ros, req)
+    check_answer(panda, answer, p)
+    assert answer.solutions and all(np.isfinite(s.min_obstacle_distance)
+                                    for s in answer.solutions)
+    assert 'collision-free' in answer.message
+
+
+def test_topic_goal_answered_on_solutions(ros, panda):
+    """A PoseStamped on ~/goal is answered on ~/solutions with FK-verified solutions."""
+    _, p, _ = target(panda, 4)
+    got = []
+    sub = ros.create_subscription(IKSolutionArray, '/sik_node/solutions', got.append, 10)
+    pub = ros.create_publisher(PoseStamped, '/sik_node/goal', 10)
+    msg = PoseStamped()
+    msg.header.frame_id = BASE
+    msg.pose.position.x, msg.pose.position.y, msg.pose.position.z = (float(v) for v in p)
+    try:
+        assert spin_until(ros, lambda: pub.get_subscription_count() > 0
+                          and sub.get_publisher_count() > 0, 10.0)
+        assert spin_until(ros, lambda: bool(got), 10.0, step=lambda: pub.publish(msg))
+    finally:
+        ros.destroy_subscription(sub)
+        ros.destroy_publisher(pub)
+    answer = got[0]
+    assert answer.header.frame_id == BASE
+    check_answer(panda, answer, p)
+
+
+def test_markers_published(ros, panda):
+    """~/markers: a DELETEALL, the target, and per ranked solution a line strip to its FK tip."""
+    _, p, _ = target(panda, 5)
+    got = []
+    sub = ros.create_subscription(MarkerArray, '/sik_node/markers', got.append, 10)
+    answers = []
+    try:
+        assert spin_until(ros, lambda: sub.get_publisher_count() > 0, 10.0)
+        assert spin_until(ros, lambda: bool(got), 10.0,
+                          step=lambda: answers.append(solve(ros, request(p))))
+    finally:
+        ros.destroy_subscription(sub)
+    answer, markers = answers[-1], got[-1].markers
+    assert markers[0].action == Marker.DELETEALL
+    assert any(m.ns == 'target' for m in markers)
+    strips = [m for m in markers if m.type == Marker.LINE_STRIP]
+    assert len(strips) == len(answer.solutions)
+    assert strips[0].ns == 'rank_00' and strips[0].color.a > strips[-1].color.a - 1e-9
+    for strip, s in zip(strips, answer.solutions):
+        assert strip.header.frame_id == BASE
+        assert len(strip.points) == len(panda.joint_names) + 2
+        tip = strip.points[-1]
+        fk_tip, _ = panda.fk(np.array(s.joint_state.position))
+        assert np.allclose([tip.x, tip.y, tip.z], fk_tip, atol=1e-9)
+
+
+# -- error codes --------------------------------------------------------------------------------
+
+def _bad_requests(panda):
+    _, p, quat = target(panda, 6)
+    q_mid = (panda.lower + panda.upper) / 2
+    cases = {}
+    req = request([float('nan'), 0.2, 0.3])
+    cases['nan position'] = (req, R.INVALID_GOAL)
+    req = request([0.3, float('inf'), 0.3])
+    cases['inf position'] = (req, R.INVALID_GOAL)
+    req = request(p, [0.0, 0.0, 0.0, 0.0])
+    cases['zero quaternion'] = (req, R.INVALID_GOAL)
+    req = request(p, frame_id='world')
+    cases['unknown frame'] = (req, R.INVALID_FRAME)
+    req = request(p)
+    req.seed.position = [0.0, 0.1, 0.2]
+    cases['seed of wrong length'] = (req, R.INVALID_SEED)
+    req = request(p)
+    req.seed.position = [float(v) for v in q_mid]
+    req.seed.position[3] = 0.5  # panda_joint4 is in [-3.07, -0.07]
+    cases['seed outside limits'] = (req, R.INVALID_SEED)
+    req = request(p)
+    req.seed.position = [float(v) for v in q_mid]
+    req.seed.position[0] = float('nan')
+    cases['non-finite seed'] = (req, R.INVALID_SEED)
+    req = request(p)
+    req.seed.name = list(panda.joint_names[:-1]) + ['elbow']
+    req.seed.position = [float(v) for v in q_mid]
+    cases['seed with an unknown joint'] = (req, R.INVALID_SEED)
+    req = request(p)
+    shape, _ = demo.box((0.5, 0, 0.3), (0.1, 0.1, 0.1))
+    req.obstacles = [shape]
+    cases['obstacle without pose'] = (req, R.INVALID_GOAL)
+    return cases
+
+
+@pytest.mark.parametrize('case', [
+    'nan position', 'inf position', 'zero quaternion', 'unknown frame', 'seed of wrong length',
+    'seed outside limits', 'non-finite seed', 'seed with an unknown joint',
+    'obstacle without pose'])
+def test_bad_request_gets_its_error_code(ros, panda, case):
+    """Each kind of bad request is answered with its error code, a reason and no solutions."""
+    req, code = _bad_requests(panda)[case]
+    answer = solve(ros, req)
+    assert answer.error_code == code, answer.message
+    assert answer.message and not answer.solutions
+
+
+def test_unreachable_target_is_no_solution(ros):
+    """(5, 5, 5) m is out of reach: NO_SOLUTION, quickly, with best-effort solutions listed."""
+    t0 = time.monotonic()
+    answer = solve(ros, request([5.0, 5.0, 5.0], timeout=2.0))
+    assert time.monotonic() - t0 < 2.0
+    assert answer.error_code == R.NO_SOLUTION, answer.message
+    assert answer.solutions and all(s.position_error > 1.0 for s in answer.solutions)
+
+
+def test_timeout_code(ros):
+    """A 1 ns budget for an unreachable target ends as TIMEOUT, not NO_SOLUTION."""
+    req = request([5.0, 5.0, 5.0])
+    req.timeout.sec, req.timeout.nanosec = 0, 1
+    answer = solve(ros, req)
+    assert answer.error_code == R.TIMEOUT, answer.message
+
+
+def test_huge_max_solutions_is_clamped(ros, panda):
+    """max_solutions above the cap is clamped to max_solutions_cap, and the message says so."""
+    _, p, _ = target(panda, 7)
+    answer = solve(ros, request(p, max_solutions=1_000_000))
+    assert answer.error_code in ANSWERED
+    assert 'clamped' in answer.message and '64' in answer.message
+    assert len(answer.solutions) <= 64
+
+
+def test_node_still_answers_after_bad_requests(ros, panda, node_proc):
+    """After every kind of bad request the node is alive and solves a valid goal."""
+    for req, _ in _bad_requests(panda).values():
+        solve(ros, req)
+    _, p, _ = target(panda, 8)
+    answer = solve(ros, request(p))
+    check_answer(panda, answer, p)
+    assert answer.solutions
+    assert node_proc.poll() is None
+
+
+# -- parameters ---------------------------------------------------------------------------------
+
+@pytest.mark.parametrize('name, value', [
+    ('num_solutions', 0), ('num_solutions', 65), ('max_solutions_cap', 0),
+    ('position_tolerance', -1.0), ('orientation_tolerance', float('nan')), ('timeout', 0.0),
+    ('model_dir', '/elsewhere'), ('num_solutions', 'many')])
+def test_bad_parameter_rejected_with_reason(ros, name, value):
+    """A bad parameter value (range, type, read-only) is rejected with a reason."""
+    [(ok, reason)] = set_parameters(ros, {name: value})
+    assert not ok and reason
+
+
+def test_parameters_take_effect(ros, panda):
+    """Accepted changes apply without a restart: the default count and the cap follow them."""
+    _, p, _ = target(panda, 9)
+    try:
+        assert set_parameters(ros, {'num_solutions': 1}) == [(True, '')]
+        assert len(solve(ros, request([5.0, 5.0, 5.0])).solutions) == 1
+        [(ok, reason)] = set_parameters(ros, {'num_solutions': 2, 'max_solutions_cap': 3},
+                                        atomically=True)
+        assert ok, reason
+        answer = solve(ros, request(p, max_solutions=10))
+        assert 'clamped' in answer.message and 'max_solutions_cap=3' in answer.message
+        assert len(answer.solutions) <= 3
+    finally:
+        [(ok, reason)] = set_parameters(ros, {'max_solutions_cap': 64, 'num_solutions': 16},
+                                        atomically=True)
+        assert ok, reason
+
+
+def test_joint_states_seed(ros, panda):
+    """With use_joint_states, the latest joint_states seeds a request that has no seed."""
+    q0, p, _ = target(panda, 11)
+    seeded = request(p)
+    seeded.seed.name = list(panda.joint_names)
+    seeded.seed.position = [float(v) for v in q0]
+    expected = solve(ros, seeded)
+    state = JointState(name=list(panda.joint_names) + ['panda_finger_joint1'],
+                       position=[float(v) for v in q0] + [0.02])
+    pub = ros.create_publisher(JointState, '/joint_states', 10)
+    try:
+        assert set_parameters(ros, {'use_joint_states': True}) == [(True, '')]
+        assert spin_until(ros, lambda: pub.get_subscription_count() > 0, 10.0)
+        answers = []
+
+        def step():
+            pub.publish(state)
+            rclpy.spin_once(ros, timeout_sec=0.1)
+            answers.append(solve(ros, request(p)))
+
+        def same():
+            return bool(answers) and [s.score for s in answers[-1].solutions] == \
+                [s.score for s in expected.solutions]
+        assert spin_until(ros, same, 10.0, step=step)
+    finally:
+        ros.destroy_publisher(pub)
+        assert set_parameters(ros, {'use_joint_states': False}) == [(True, '')]
+
+
+# -- concurrency and life cycle -----------------------------------------------------------------
+
+def test_concurrent_clients(ros, panda):
+    """Four clients calling at once each get correct answers for their own targets."""
+    errors, done = [], []
+
+    def client(k):
+        node = rclpy.create_node(f'sik_node_test_client_{k}')
+        executor = SingleThreadedExecutor()
+        executor.add_node(node)
+        try:
+            cli = node.create_client(SolveIK, '/sik_node/solve_ik')
+            assert cli.wait_for_service(timeout_sec=10.0)
+            for i in range(4):
+                _, p, _ = target(panda, 100 + 10 * k + i)
+                future = cli.call_async(request(p))
+                executor.spin_until_future_complete(future, timeout_sec=20.0)
+                answer = future.result()
+                assert answer is not None, 'no answer'
+                check_answer(panda, answer, p)
+                done.append(k)
+        except Exception as exc:  # collected and reported by the test thread
+            errors.append(f'client {k}: {exc!r}')
+        finally:
+            executor.shutdown()
+            node.destroy_node()
+
+    threads = [threading.Thread(target=client, args=(k,)) for k in range(4)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join(60.0)
+    assert not errors, errors
+    assert len(done) == 16
+
+
+def test_missing_model_dir_exits_with_one_line(ros_domain, tmp_path):
+    """A node pointed at a missing bundle exits non-zero with one FATAL line, no traceback."""
+    proc = demo.launch_node(str(tmp_path / 'no_such_bundle'), env=ros_domain,
+                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    out, _ = proc.communicate(timeout=90)
+    assert proc.returncode != 0
+    lines = [line for line in out.splitlines() if line.strip()]
+    assert len([line for line in lines if 'FATAL' in line]) == 1, out
+    assert 'Traceback' not in out
+    assert 'no_such_bundle' in out
+
+
+def test_sigint_exits_cleanly(ros, node_proc):
+    """SIGINT stops the node with exit code 0, and its log holds no traceback or error."""
+    assert node_proc.poll() is None
+    assert demo.stop_node(node_proc, timeout=20.0) == 0
+    log = node_proc.log_path.read_text()
+    assert 'Traceback' not in log and '[ERROR]' not in log, log
+
+
+if __name__ == '__main__':  # pragma: no cover
+    sys.exit(pytest.main([__file__, '-q']))
