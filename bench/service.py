@@ -55,20 +55,21 @@ def percentiles(seconds: List[float]) -> str:
     return f'{p50:.2f} / {p99:.2f}'
 
 
-def sequential(node, client, goals: np.ndarray):
+def sequential(executor, client, goals: np.ndarray):
     """Round trips [s] and answer codes of one request per goal, one at a time."""
     times, codes = [], []
     for p in goals:
         req = demo.pose_request(p, max_solutions=NUM_SOLUTIONS)
         t0 = time.perf_counter()
-        answer = demo.call(node, client, req, timeout=10.0)
+        future = client.call_async(req)
+        executor.spin_until_future_complete(future, timeout_sec=10.0)
         times.append(time.perf_counter() - t0)
-        codes.append(None if answer is None else answer.error_code)
+        codes.append(future.result().error_code if future.done() else None)
     return times, codes
 
 
 def concurrent(goals: np.ndarray, clients: int, duration: float):
-    """Requests answered by ``clients`` threads calling back to back for ``duration`` [s]."""
+    """Count requests answered to ``clients`` threads calling back to back for ``duration`` [s]."""
     counts = [0] * clients
     start = threading.Barrier(clients + 1)
     stop = threading.Event()
@@ -103,7 +104,7 @@ def concurrent(goals: np.ndarray, clients: int, duration: float):
 
 
 def in_process(bundle: str, goals: np.ndarray) -> List[float]:
-    """The solver's own time [s] on the same goals, as the node runs it (one thread)."""
+    """Time the solver alone [s] on the same goals, as the node runs it (one thread)."""
     torch.set_num_threads(1)
     ik = SelectiveIK.load(bundle).with_config(position_tolerance=1e-4,
                                               orientation_tolerance=1e-3)
@@ -139,11 +140,14 @@ def main(argv: Optional[List[str]] = None) -> int:
         if not demo.wait_for_service(node, client, proc, 90.0):
             print(f'sik_node did not come up (exit code {proc.poll()})')
             return 1
-        sequential(node, client, targets(20, seed=1))  # warm-up
+        executor = SingleThreadedExecutor()
+        executor.add_node(node)
+        sequential(executor, client, targets(20, seed=1))  # warm-up
         rss0 = vm_rss_mb(proc.pid)
-        rtt, codes = sequential(node, client, goals)
+        rtt, codes = sequential(executor, client, goals)
         answered, wall = concurrent(goals, args.clients, duration)
         rss1 = vm_rss_mb(proc.pid)
+        executor.shutdown()
         node.destroy_node()
     finally:
         demo.stop_node(proc)

@@ -6,18 +6,19 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 PY=${PY:-.venv/bin/python}
 DATA=${DATA:-data/panda30}
-STEPS=${STEPS:-18000}
-MAX_TIME=${MAX_TIME:-5400}
-FK_WEIGHT=${FK_WEIGHT:-0.02}
+MAX_TIME=${MAX_TIME:-4800}
+# the paper's joint loss first; the FK consistency term joins at FK_START (see docs/training.md)
+FK_WEIGHT=${FK_WEIGHT:-0.005}
+FK_START=${FK_START:-9000}
 [ -d "$DATA" ] || $PY -m sik_ros.cli.collect --robot panda --interval 30 --out "$DATA"
 train() {  # name, then sik-train arguments
   local name=$1; shift
   local resume=()
   [ -f "runs/$name/last.pt" ] && resume=(--resume)
-  $PY -m sik_ros.cli.train --dataset "$DATA" --out "runs/$name" --steps "$STEPS" \
-    --max-time "$MAX_TIME" --threads 1 --quiet --export "runs/$name/model.pt" \
+  $PY -m sik_ros.cli.train --dataset "$DATA" --out "runs/$name" \
+    --fk-weight "$FK_WEIGHT" --fk-start "$FK_START" --max-time "$MAX_TIME" --threads 1 --quiet --export "runs/$name/model.pt" \
     "${resume[@]}" "$@"
 }
-train sik_position --model sik --goal position --latent-dim 4 --fk-weight "$FK_WEIGHT" &
-train sik_pose --model sik --goal pose --latent-dim 1 --fk-weight "$FK_WEIGHT" &
+train sik_position --model sik --goal position --latent-dim 4 --steps 18000 &
+train sik_pose --model sik --goal pose --latent-dim 1 --steps 16000 &
 wait

@@ -107,7 +107,7 @@ def wait_for_service(node: Node, client, proc: subprocess.Popen, timeout: float)
 
 def pose_request(position: Sequence[float], orientation: Optional[Sequence[float]] = None,
                  max_solutions: int = 0, frame_id: str = '') -> SolveIK.Request:
-    """A SolveIK request for a position goal, or a pose goal with a quaternion x y z w."""
+    """Build a SolveIK request: a position goal, or a pose goal with a quaternion x y z w."""
     req = SolveIK.Request(max_solutions=max_solutions)
     req.target.header.frame_id = frame_id
     p = req.target.pose.position
@@ -120,7 +120,7 @@ def pose_request(position: Sequence[float], orientation: Optional[Sequence[float
 
 
 def box(center: Sequence[float], size: Sequence[float]):
-    """A box obstacle: (SolidPrimitive, Pose) centred at ``center`` [m], sides ``size`` [m]."""
+    """Make a box obstacle (SolidPrimitive, Pose) centred at ``center`` with sides ``size`` [m]."""
     pose = Pose()
     pose.position.x, pose.position.y, pose.position.z = (float(v) for v in center)
     return SolidPrimitive(type=SolidPrimitive.BOX, dimensions=[float(v) for v in size]), pose
@@ -137,7 +137,7 @@ def call(node: Node, client, request: SolveIK.Request, timeout: float = 10.0):
 
 
 def format_answer(title: str, answer, seconds: Optional[float] = None, rows: int = 8) -> str:
-    """A readable ranked table of a SolveIK response or an IKSolutionArray."""
+    """Format a SolveIK response or an IKSolutionArray as a readable ranked table."""
     code = ERROR_NAMES.get(answer.error_code, str(answer.error_code))
     took = '' if seconds is None else f', {seconds * 1e3:.1f} ms round trip'
     lines = [f'== {title}: {code}{took}', f'   {answer.message}']

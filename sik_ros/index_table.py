@@ -12,6 +12,7 @@ import json
 import os
 from pathlib import Path
 from typing import Callable, Dict, Optional
+import zipfile
 
 import numpy as np
 from scipy.spatial import cKDTree
@@ -50,12 +51,15 @@ def farthest_point_subset(points: np.ndarray, k: int, first: int = 0) -> np.ndar
     n = len(points)
     if n <= k:
         return np.arange(n)
+    pairwise = np.linalg.norm(points[:, None] - points[None], axis=2) if n <= 2048 else None
     chosen = [first]
-    dist = np.linalg.norm(points - points[first], axis=1)
+    dist = pairwise[first].copy() if pairwise is not None else \
+        np.linalg.norm(points - points[first], axis=1)
     for _ in range(k - 1):
         i = int(np.argmax(dist))
         chosen.append(i)
-        dist = np.minimum(dist, np.linalg.norm(points - points[i], axis=1))
+        row = pairwise[i] if pairwise is not None else np.linalg.norm(points - points[i], axis=1)
+        np.minimum(dist, row, out=dist)
     return np.array(chosen)
 
 
@@ -192,7 +196,7 @@ class IndexTable:
                 manifest = json.loads(str(f['manifest']))
         except CorruptArtifact:
             raise
-        except (OSError, ValueError, KeyError, EOFError) as exc:
+        except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile) as exc:
             raise CorruptArtifact(f'cannot read index table {path}: {exc}') from exc
         if manifest.get('kind') != 'sik_index_table':
             raise CorruptArtifact(f'{path} is not a sik_ros index table')

@@ -60,7 +60,7 @@ class NodeParams:
         timeout: time budget of a request that gives none [s].
         use_joint_states: seed requests without a seed with the latest ``joint_states``.
         goal_use_orientation: ``~/goal`` poses are pose goals (else position goals).
-        publish_markers: publish the ranked postures on ``~/markers``.
+        publish_markers: publish the ranked postures on ``~/markers`` (when subscribed).
     """
 
     robot: str = 'panda'
@@ -243,7 +243,7 @@ class SikNode(Node):
         return Header(stamp=self.get_clock().now().to_msg(), frame_id=p.base_frame)
 
     def _state_seed(self) -> Optional[np.ndarray]:
-        """The latest ``joint_states`` as a seed (clipped to the limits), or None."""
+        """Return the latest ``joint_states`` as a seed (clipped to the limits), or None."""
         msg = self._joint_state
         if msg is None:
             return None
@@ -310,7 +310,8 @@ class SikNode(Node):
             code, message, result = self._solve(request, p)
             solutions = [] if result is None else [
                 conv.solution_to_msg(s, self._ik.joint_names, header) for s in result.solutions]
-            if result is not None and p.publish_markers:
+            if result is not None and p.publish_markers \
+                    and self._markers_pub.get_subscription_count() > 0:
                 position, orientation = conv.goal_from_pose(request.target.pose,
                                                             request.use_orientation)
                 self._markers_pub.publish(conv.posture_markers(

@@ -46,14 +46,14 @@ TARGET_COLOR = (0.90, 0.10, 0.10, 0.9)
 
 
 def error_code_for(exc: SikError) -> int:
-    """The SolveIK error code for a library error: seeds, else goals (every other bad input)."""
+    """Return the SolveIK code of a library error: INVALID_SEED for seeds, else INVALID_GOAL."""
     if isinstance(exc, InvalidSeed):
         return SolveIK.Response.INVALID_SEED
     return SolveIK.Response.INVALID_GOAL
 
 
 def seconds_from_duration(duration: Duration) -> float:
-    """A ``builtin_interfaces/Duration`` in seconds [s].
+    """Convert a ``builtin_interfaces/Duration`` to seconds [s].
 
     Raises:
         InvalidArgument: a negative duration.
@@ -153,7 +153,7 @@ def solution_to_msg(solution: Solution, joint_names: Sequence[str], header: Head
 
 def solution_array(header: Header, error_code: int, message: str,
                    solutions: Sequence[IKSolution]) -> IKSolutionArray:
-    """The ``~/solutions`` message for one answer."""
+    """Build the ``~/solutions`` message of one answer."""
     return IKSolutionArray(header=header, error_code=int(error_code), message=message,
                            solutions=list(solutions))
 
@@ -169,7 +169,7 @@ def _points(rows: np.ndarray) -> List[Point]:
 def posture_markers(chain, solutions: Sequence[Solution], header: Header,
                     target_position: Optional[np.ndarray] = None,
                     target_orientation: Optional[np.ndarray] = None) -> MarkerArray:
-    """RViz markers of ranked postures: a DELETEALL, the target, then one namespace per rank.
+    """Draw ranked postures for RViz: a DELETEALL, the target, then one namespace per rank.
 
     Each rank ``rank_NN`` holds a LINE_STRIP from the base through every joint origin to the tip
     (id 0) and a SPHERE_LIST at the joint origins (id 1). The best posture is opaque green,

@@ -388,11 +388,13 @@ class SelectiveIK:
             ok &= oerr <= self.config.orientation_tolerance
         return ok
 
-    def distinct_mask(self, q: np.ndarray, goal: str) -> np.ndarray:
-        """Greedy keep-mask of rows at least ``distinct_threshold`` apart, in row order."""
+    def distinct_mask(self, q: np.ndarray, goal: str,
+                      threshold: Optional[float] = None) -> np.ndarray:
+        """Greedy keep-mask of rows at least ``threshold`` apart (default: the config's)."""
+        threshold = self.config.distinct_threshold if threshold is None else threshold
         cols = slice(0, self.robot.dof - 1) if goal == 'position' else slice(None)
         x = q[:, cols]
-        near = np.linalg.norm(x[:, None] - x[None], axis=2) < self.config.distinct_threshold
+        near = np.linalg.norm(x[:, None] - x[None], axis=2) < threshold
         mask = np.zeros(len(q), dtype=bool)
         for i in range(len(q)):
             mask[i] = not np.any(near[i, :i] & mask[:i])
@@ -404,6 +406,9 @@ class SelectiveIK:
         q = self.decode(goal, pos, rot, z)
         timed_out = False
         if refine:
+            # decoded postures that nearly coincide would refine to the same solution
+            near = self.distinct_mask(q, goal, self.config.distinct_threshold * 0.5)
+            q, z = q[near], z[near]
             q, perr, oerr = self.refine(q, pos, rot, deadline)
             if not self._converged(perr, oerr, goal).any():
                 q, z, perr, oerr = self._retry(goal, q, z, perr, oerr, pos, rot, deadline)

@@ -36,6 +36,7 @@ class TrainConfig:
         lr_min: final learning rate of the cosine schedule.
         warmup: linear warm-up steps.
         fk_weight: weight of the forward-kinematics consistency term (0 disables it).
+        fk_start: step from which the FK term is on (before it: the paper's joint loss only).
         fk_scale: distance that counts as one unit in the FK term [m].
         rot_weight: weight of the orientation part of the FK term (pose goals).
         kl_weight: weight of the KL term (PSIK).
@@ -56,6 +57,7 @@ class TrainConfig:
     lr_min: float = 1e-5
     warmup: int = 500
     fk_weight: float = 1.0
+    fk_start: int = 0
     fk_scale: float = 0.05
     rot_weight: float = 1.0
     kl_weight: float = 1e-3
@@ -180,7 +182,8 @@ class Trainer:
             if self.model_cfg.goal == 'pose':
                 r6 = torch.cat([r_hat[:, :, 0], r_hat[:, :, 1]], 1)
                 out['fk'] = out['fk'] + self.cfg.rot_weight * ((r6 - rot6) ** 2).sum(1).mean()
-        total = out['recon'] + self.cfg.fk_weight * out.get('fk', 0.0)
+        fk_weight = self.cfg.fk_weight if self.step >= self.cfg.fk_start else 0.0
+        total = out['recon'] + fk_weight * out.get('fk', 0.0)
         if 'kl' in out:
             total = total + self.cfg.kl_weight * out['kl']
         out['loss'] = total

@@ -8,6 +8,7 @@ well the model solves.
 
 import os
 from pathlib import Path
+import signal
 import subprocess
 import sys
 import threading
@@ -287,7 +288,8 @@ def test_markers_published(ros, panda):
     assert any(m.ns == 'target' for m in markers)
     strips = [m for m in markers if m.type == Marker.LINE_STRIP]
     assert len(strips) == len(answer.solutions)
-    assert strips[0].ns == 'rank_00' and strips[0].color.a > strips[-1].color.a - 1e-9
+    assert [m.ns for m in strips] == [f'rank_{i:02d}' for i in range(len(strips))]
+    assert all(strips[0].scale.x > m.scale.x for m in strips[1:]), 'best is highlighted'
     for strip, s in zip(strips, answer.solutions):
         assert strip.header.frame_id == BASE
         assert len(strip.points) == len(panda.joint_names) + 2
@@ -476,16 +478,19 @@ def test_concurrent_clients(ros, panda):
     assert len(done) == 16
 
 
-def test_missing_model_dir_exits_with_one_line(ros_domain, tmp_path):
-    """A node pointed at a missing bundle exits non-zero with one FATAL line, no traceback."""
-    proc = demo.launch_node(str(tmp_path / 'no_such_bundle'), env=ros_domain,
-                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+@pytest.mark.parametrize('kind', ['missing', 'corrupt'])
+def test_unusable_model_dir_exits_with_one_line(ros_domain, tmp_path, kind):
+    """A missing or corrupt bundle: the node exits non-zero with one FATAL line, no traceback."""
+    bundle = tmp_path / 'no_such_bundle'
+    if kind == 'corrupt':
+        bundle.mkdir()
+        (bundle / 'bundle.json').write_text('{"kind": "sik_bundle", "models": ')
+    proc = demo.launch_node(str(bundle), env=ros_domain, stdout=subprocess.PIPE,
+                            stderr=subprocess.STDOUT, text=True)
     out, _ = proc.communicate(timeout=90)
     assert proc.returncode != 0
     lines = [line for line in out.splitlines() if line.strip()]
-    assert len([line for line in lines if 'FATAL' in line]) == 1, out
-    assert 'Traceback' not in out
-    assert 'no_such_bundle' in out
+    assert len(lines) == 1 and 'FATAL' in lines[0] and 'no_such_bundle' in lines[0], out
 
 
 def test_sigint_exits_cleanly(ros, node_proc):
@@ -494,6 +499,19 @@ def test_sigint_exits_cleanly(ros, node_proc):
     assert demo.stop_node(node_proc, timeout=20.0) == 0
     log = node_proc.log_path.read_text()
     assert 'Traceback' not in log and '[ERROR]' not in log, log
+
+
+def test_sigterm_exits_cleanly(ros, node_proc, bundle_dir, ros_domain):
+    """SIGTERM stops a running node with exit code 0 (after the module's node has stopped)."""
+    assert node_proc.poll() is not None, 'runs after test_sigint_exits_cleanly'
+    proc = demo.launch_node(bundle_dir, env=ros_domain, stdout=subprocess.DEVNULL,
+                            stderr=subprocess.STDOUT)
+    try:
+        assert demo.wait_for_service(ros, ros.solve_client, proc, 90.0)
+        proc.send_signal(signal.SIGTERM)
+        assert proc.wait(20.0) == 0
+    finally:
+        demo.stop_node(proc)
 
 
 if __name__ == '__main__':  # pragma: no cover

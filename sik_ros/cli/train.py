@@ -32,6 +32,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument('--batch-size', type=int)
     p.add_argument('--lr', type=float)
     p.add_argument('--fk-weight', type=float, help='FK consistency weight (0: paper\'s loss)')
+    p.add_argument('--fk-start', type=int, help='step from which the FK term is on')
     p.add_argument('--kl-weight', type=float, help='KL weight (PSIK)')
     p.add_argument('--uni-position', action='store_true',
                    help='one row per distinct position (the paper\'s uni-position dataset)')
@@ -60,8 +61,9 @@ def main(argv: Optional[List[str]] = None) -> int:
             ckpt = load_checkpoint(out / 'last.pt')
             model_cfg = ModelConfig.from_dict(ckpt['model_config'])
             train_cfg = TrainConfig(**ckpt['train_config'])
-            if args.steps:
-                train_cfg = with_overrides(train_cfg, steps=args.steps)
+            # a resumed run may extend its schedule or switch the FK term on later
+            train_cfg = with_overrides(train_cfg, steps=args.steps, fk_weight=args.fk_weight,
+                                       fk_start=args.fk_start)
         else:
             if (out / 'last.pt').exists():
                 raise ArtifactExists(f'{out}/last.pt exists: use --resume, or another --out')
@@ -71,7 +73,7 @@ def main(argv: Optional[List[str]] = None) -> int:
                                     latent_dim=latent, encoder=enc, decoder=dec)
             train_cfg = with_overrides(
                 TrainConfig(), steps=args.steps, batch_size=args.batch_size, lr=args.lr,
-                fk_weight=args.fk_weight, kl_weight=args.kl_weight,
+                fk_weight=args.fk_weight, fk_start=args.fk_start, kl_weight=args.kl_weight,
                 eval_every=args.eval_every, checkpoint_every=args.checkpoint_every,
                 seed=args.seed, threads=args.threads, device=args.device,
                 uni_position=args.uni_position or None)

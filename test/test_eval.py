@@ -1,0 +1,105 @@
+"""sik-eval: a quick run writes a report with numbers and figures, and its numbers are true."""
+
+import json
+from pathlib import Path
+import re
+
+import numpy as np
+import pytest
+
+from sik_ros.cli.eval import main
+from sik_ros.evaluation import Baseline, position_errors
+from sik_ros.models import ModelConfig, PRESETS
+from sik_ros.solver import SelectiveIK
+from sik_ros.training import export_model, TrainConfig, Trainer
+
+PNG_MAGIC = b'\x89PNG\r\n\x1a\n'
+
+
+@pytest.fixture(scope='module')
+def baselines(panda, uniform_small, tmp_path_factory):
+    """A folder with a tiny FCN (trained for a few steps) as the only baseline."""
+    out = tmp_path_factory.mktemp('baselines')
+    cfg = ModelConfig(kind='fcn', encoder=PRESETS['tiny'][0], decoder=PRESETS['tiny'][1])
+    t = Trainer(panda, uniform_small, cfg,
+                TrainConfig(steps=20, batch_size=256, warmup=5, eval_every=20,
+                            checkpoint_every=20, val_rows=500, fk_weight=0.0), out / 'run')
+    t.run()
+    export_model(t.checkpoint(), out / 'fcn.pt')
+    return out
+
+
+@pytest.fixture(scope='module')
+def report(tiny_bundle, baselines, tmp_path_factory):
+    """The output folder of one ``sik-eval --quick`` run on the tiny bundle."""
+    out = tmp_path_factory.mktemp('eval')
+    rc = main(['--quick', '--bundle', str(tiny_bundle), '--baselines', str(baselines),
+               '--out', str(out), '--targets', '3', '--samples', '20000', '--quiet'])
+    assert rc == 0
+    return out
+
+
+def radius_table(text):
+    """The per-radius table of results.md as (header, rows of cells)."""
+    rows = []
+    for line in text.split('<!-- per-radius table -->\n', 1)[1].splitlines():
+        if not line.startswith('|'):
+            break
+        rows.append([c.strip() for c in line.strip('|').split('|')])
+    return rows[0], [r for r in rows[2:] if r[0] != 'average']
+
+
+def test_report_and_figures_are_written(report):
+    """results.md, results.json and every PNG the report links to exist and are PNG files."""
+    text = (report / 'results.md').read_text()
+    links = re.findall(r'!\[[^\]]*\]\(([^)]+\.png)\)', text)
+    assert len(links) >= 5
+    for link in links:
+        assert (report / link).read_bytes()[:8] == PNG_MAGIC, link
+    assert json.loads((report / 'results.json').read_text())['quick'] is True
+    assert not list(report.glob('**/.*.tmp*'))
+    for section in ('## 1.', '## 2.', '## 3.', '## 4.', '## 5.', '## 6.'):
+        assert section in text
+    assert 'PSIK: not provided' in text and 'ANFIS: not provided' in text
+
+
+def test_tables_contain_numbers(report):
+    """The per-radius, timing and diversity tables hold finite numbers, not placeholders."""
+    text = (report / 'results.md').read_text()
+    header, rows = radius_table(text)
+    assert header[:3] == ['radius [cm]', 'targets', 'SIK raw 1st']
+    for row in rows:
+        for name in ('SIK raw 1st', 'SIK refined', 'SIK paper', 'FCN raw'):
+            assert np.isfinite(float(row[header.index(name)])), (name, row)
+    assert re.search(r'\| SIK refined: `solve\(num_solutions=1\)` \| \d+\.\d+ \|', text)
+    assert re.search(r'\| a \| ours raw( \| \d+\.\d+){7} \|', text)
+
+
+def test_radius_errors_match_fk_recomputation(report, tiny_bundle, baselines):
+    """Per-radius SIK and FCN errors in results.md equal a fresh solve checked by FK."""
+    text = (report / 'results.md').read_text()
+    header, rows = radius_table(text)
+    data = json.loads((report / 'results.json').read_text())
+    ik = SelectiveIK.load(tiny_bundle)
+    fcn = Baseline('fcn', baselines / 'fcn.pt', ik.robot)
+    for row in rows[:2]:
+        radius = float(row[0]) / 100
+        targets = np.array(data['radius'][str(radius)]['targets'])
+        assert len(targets) == 3
+        assert np.all(np.abs(np.linalg.norm(targets, axis=1) - radius) < 0.01)
+        raw = [position_errors(ik.robot, ik.solve(p, num_solutions=10, refine=False)
+                               .solutions[0].q, p)[0] for p in targets]
+        assert float(row[header.index('SIK raw 1st')]) == pytest.approx(
+            100 * np.mean(raw), abs=0.006)
+        fcn_err = position_errors(ik.robot, fcn.predict(targets), targets)
+        assert float(row[header.index('FCN raw')]) == pytest.approx(
+            100 * np.mean(fcn_err), abs=0.006)
+
+
+def test_missing_folder_is_refused(tiny_bundle, tmp_path, capsys):
+    """A --baselines folder that does not exist exits non-zero with a one-line reason."""
+    rc = main(['--quick', '--bundle', str(tiny_bundle), '--out', str(tmp_path),
+               '--baselines', str(tmp_path / 'nope'), '--quiet'])
+    assert rc == 2
+    assert 'not a directory' in capsys.readouterr().err
+    assert not Path(tmp_path / 'results.md').exists()

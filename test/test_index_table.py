@@ -1,0 +1,84 @@
+"""Index tables: distinct indices per cell, files checked on load, sik-index end to end."""
+
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from sik_ros.errors import ArtifactMismatch, CorruptArtifact
+from sik_ros.index_table import farthest_point_subset, IndexTable, TableConfig
+from sik_ros.kinematics import load_robot
+
+
+def small_table(cell=0.1, dedup=0.5, max_per_cell=4):
+    """A table built from hand-made indices at known positions."""
+    pos = np.array([[0.01, 0.01, 0.01]] * 5 + [[0.55, 0.01, 0.01]] * 2)
+    z = np.array([[0.0], [0.1], [1.0], [2.0], [3.0], [5.0], [5.05]])
+    return IndexTable.build(z, pos, TableConfig(cell, dedup, max_per_cell),
+                            {'robot': {'robot': 'x'}, 'model': {'m': 1}})
+
+
+def test_near_duplicates_are_dropped_and_cells_capped():
+    """Indices closer than the dedup step count once; a cell keeps at most max_per_cell."""
+    table = small_table()
+    assert len(table) == 2
+    first = sorted(table.indices[table.offsets[0]:table.offsets[1], 0].tolist())
+    second = table.indices[table.offsets[1]:table.offsets[2], 0].tolist()
+    assert len(first) == 4 and 3.0 in first and 0.0 in first
+    assert len(second) == 1
+
+
+def test_candidates_come_from_the_nearest_cells():
+    """A query returns the indices of the cells nearest the position."""
+    table = small_table()
+    near_second = table.candidates(np.array([0.56, 0.0, 0.0]), k_cells=1)
+    assert near_second.shape == (1, 1) and abs(near_second[0, 0] - 5.0) < 0.1
+
+
+def test_farthest_point_subset_spreads_out():
+    """Farthest-point sampling picks the extremes of a line of points first."""
+    pts = np.linspace(0, 1, 11)[:, None]
+    chosen = farthest_point_subset(pts, 3)
+    assert sorted(pts[chosen, 0].tolist()) == [0.0, 0.5, 1.0]
+
+
+def test_save_load_round_trip(tmp_path):
+    """A saved table loads back with the same cells and indices (float16 storage)."""
+    table = small_table()
+    path = table.save(tmp_path / 't.npz')
+    back = IndexTable.load(path, {'robot': 'x'}, {'m': 1})
+    np.testing.assert_allclose(back.indices, table.indices, atol=1e-2)
+    np.testing.assert_array_equal(back.offsets, table.offsets)
+
+
+def test_mismatched_or_corrupt_table_is_refused(tmp_path):
+    """A table of another robot or model, or a damaged file, is refused."""
+    path = small_table().save(tmp_path / 't.npz')
+    with pytest.raises(ArtifactMismatch, match='robot'):
+        IndexTable.load(path, {'robot': 'panda'})
+    with pytest.raises(ArtifactMismatch, match='model'):
+        IndexTable.load(path, None, {'m': 2})
+    path.write_bytes(path.read_bytes()[:200])
+    with pytest.raises(CorruptArtifact):
+        IndexTable.load(path)
+
+
+def test_sik_index_cli_builds_a_bundle(tiny_bundle, uniform_small, tmp_path):
+    """sik-index encodes a dataset with a trained model and adds model and table to a bundle."""
+    from sik_ros.solver import SelectiveIK
+    model = tiny_bundle / 'sik_position.pt'
+    r = subprocess.run([sys.executable, '-m', 'sik_ros.cli.index', '--model', str(model),
+                        '--dataset', str(uniform_small.path), '--out', str(tmp_path / 't.npz'),
+                        '--bundle', str(tmp_path / 'b'), '--quiet'],
+                       capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0, r.stderr
+    ik = SelectiveIK.load(tmp_path / 'b')
+    assert ik.goals == ['position']
+    target = load_robot('panda').fk_batch(np.asarray(uniform_small.q[:1]))[0][0]
+    assert ik.solve(target, num_solutions=2).solutions
+    again = subprocess.run([sys.executable, '-m', 'sik_ros.cli.index', '--model', str(model),
+                            '--dataset', str(uniform_small.path), '--out',
+                            str(tmp_path / 't.npz'), '--quiet'],
+                           capture_output=True, text=True, timeout=120)
+    assert again.returncode == 2 and '--force' in again.stderr
