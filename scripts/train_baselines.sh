@@ -16,7 +16,7 @@ train() {  # name, steps, then sik-train arguments
     --max-time "$BUDGET" --threads 1 --quiet --export "runs/baselines/${name#base_}.pt" \
     "${resume[@]}" "$@"
 }
-train base_anfis 200 --model anfis --goal position --eval-every 20
+train base_anfis 200 --model anfis --goal position --uni-position --eval-every 20
 train base_fcn 1500 --model fcn --goal position
 train base_fcn_uni 1500 --model fcn --goal position --uni-position
 train base_psik 2000 --model psik --goal position --latent-dim 4 --fk-weight 0

@@ -30,7 +30,7 @@ from std_msgs.msg import Header
 import torch
 from visualization_msgs.msg import MarkerArray
 
-from sik_interfaces.msg import IKSolutionArray
+from sik_interfaces.msg import IKSolution, IKSolutionArray
 from sik_interfaces.srv import SolveIK
 from sik_ros import ros_conversions as conv
 from sik_ros.errors import SikError
@@ -302,8 +302,9 @@ class SikNode(Node):
             code, text = Response.NO_SOLUTION, f'{result.message or "no solution"} ({summary})'
         return code, '; '.join(t for t in (text, note) if t), result
 
-    def _answer(self, request: SolveIK.Request, where: str):
-        """Error code, message and IKSolution list for a request; never raises."""
+    def _answer(self, request: SolveIK.Request, where: str
+                ) -> Tuple[int, str, List[IKSolution], Header]:
+        """Error code, message, IKSolutions and header of the answer to a request; never raises."""
         p = self._params
         header = self._header(p)
         try:

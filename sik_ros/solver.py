@@ -47,6 +47,8 @@ class SolverConfig:
         distinct_threshold: solutions closer than this (L2 over the joints that move the tool
             centre point for position goals) are duplicates [rad].
         adjust_budget: decodes Algorithm 2 may spend adjusting an index.
+        reach_margin: a goal farther than this from every table cell is treated as out of
+            reach: a short best-effort refinement, no retries [m].
     """
 
     position_tolerance: float = 1e-4
@@ -59,6 +61,7 @@ class SolverConfig:
     max_step: float = 0.4
     distinct_threshold: float = 0.5
     adjust_budget: int = 24
+    reach_margin: float = 0.15
 
 
 @dataclass
@@ -126,6 +129,7 @@ class SelectiveIK:
         self.bundle = bundle
         self.checker = CollisionChecker(robot)
         self._lock = threading.Lock()
+        self._cut_short = False
 
     # -- loading ---------------------------------------------------------------------------------
 
@@ -337,8 +341,11 @@ class SelectiveIK:
         cos = (np.einsum('ij,nij->n', rot, r) - 1) / 2
         return perr, np.arccos(np.clip(cos, -1.0, 1.0))
 
-    def refine(self, q: np.ndarray, pos: np.ndarray, rot, deadline: Optional[float] = None):
+    def refine(self, q: np.ndarray, pos: np.ndarray, rot, deadline: Optional[float] = None,
+               iterations: Optional[int] = None):
         """Batched damped least squares towards the goal, within the joint limits.
+
+        Sets ``self._cut_short`` when the deadline stopped it before convergence.
 
         Returns:
             refined configurations (M, n), position errors [m], orientation errors [rad].
@@ -349,9 +356,13 @@ class SelectiveIK:
         lam2 = cfg.damping ** 2
         eye = np.eye(rows)
         active = np.ones(len(q), dtype=bool)
-        for _ in range(cfg.refine_iterations):
+        self._cut_short = False
+        for _ in range(iterations or cfg.refine_iterations):
             idx = np.flatnonzero(active)
-            if len(idx) == 0 or (deadline is not None and time.perf_counter() > deadline):
+            if len(idx) == 0:
+                break
+            if deadline is not None and time.perf_counter() > deadline:
+                self._cut_short = True
                 break
             p, r, jac = self.robot.jacobian_batch(q[idx])
             err = pos - p
@@ -405,14 +416,17 @@ class SelectiveIK:
         z = self.candidate_indices(goal, pos, rot, q_seed)
         q = self.decode(goal, pos, rot, z)
         timed_out = False
+        # a goal far from every position in the data is out of reach: answer quickly
+        far = self.models[goal].table.distance_to_data(pos) > self.config.reach_margin
         if refine:
             # decoded postures that nearly coincide would refine to the same solution
             near = self.distinct_mask(q, goal, self.config.distinct_threshold * 0.5)
             q, z = q[near], z[near]
-            q, perr, oerr = self.refine(q, pos, rot, deadline)
-            if not self._converged(perr, oerr, goal).any():
+            q, perr, oerr = self.refine(q, pos, rot, deadline, 5 if far else None)
+            timed_out = self._cut_short
+            if not far and not self._converged(perr, oerr, goal).any():
                 q, z, perr, oerr = self._retry(goal, q, z, perr, oerr, pos, rot, deadline)
-            timed_out = deadline is not None and time.perf_counter() > deadline
+                timed_out = timed_out or self._cut_short
         else:
             perr, oerr = self.errors(q, pos, rot)
         conv = self._converged(perr, oerr, goal)
@@ -434,8 +448,11 @@ class SelectiveIK:
         return IKResult(success, sols, goal, timed_out, message=msg)
 
     def _retry(self, goal, q, z, perr, oerr, pos, rot, deadline, keep: int = 8):
-        """Second chance when no candidate converged: restart the best ones from perturbed
-        configurations (a fixed random stream per target, so answers stay deterministic)."""
+        """Restart the best candidates from perturbed configurations when none converged.
+
+        The perturbations come from a random stream fixed per target, so answers stay
+        deterministic.
+        """
         best = np.argsort(perr + 0.1 * oerr)[:keep]
         rng = np.random.default_rng(zlib.crc32(pos.tobytes()))
         span = self.robot.upper - self.robot.lower
@@ -443,7 +460,7 @@ class SelectiveIK:
                              rng.uniform(self.robot.lower, self.robot.upper, (keep, q.shape[1]))])
         q2 = np.clip(q2, self.robot.lower, self.robot.upper)
         q2, perr2, oerr2 = self.refine(q2, pos, rot, deadline)
-        z2 = np.concatenate([z[best], z[best]])
+        z2 = np.concatenate([z[best], z[best][np.arange(keep) % len(best)]])
         return (np.concatenate([q, q2]), np.concatenate([z, z2]),
                 np.concatenate([perr, perr2]), np.concatenate([oerr, oerr2]))
 
