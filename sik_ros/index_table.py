@@ -16,6 +16,7 @@ import zipfile
 
 import numpy as np
 from scipy.spatial import cKDTree
+from scipy.spatial.distance import cdist
 import torch
 
 from sik_ros.artifacts import check_robot_manifest, FORMAT_VERSION
@@ -51,15 +52,12 @@ def farthest_point_subset(points: np.ndarray, k: int, first: int = 0) -> np.ndar
     n = len(points)
     if n <= k:
         return np.arange(n)
-    pairwise = np.linalg.norm(points[:, None] - points[None], axis=2) if n <= 2048 else None
     chosen = [first]
-    dist = pairwise[first].copy() if pairwise is not None else \
-        np.linalg.norm(points - points[first], axis=1)
+    dist = cdist(points[first:first + 1], points)[0]
     for _ in range(k - 1):
         i = int(np.argmax(dist))
         chosen.append(i)
-        row = pairwise[i] if pairwise is not None else np.linalg.norm(points - points[i], axis=1)
-        np.minimum(dist, row, out=dist)
+        np.minimum(dist, cdist(points[i:i + 1], points)[0], out=dist)
     return np.array(chosen)
 
 

@@ -185,6 +185,9 @@ class Robot:
                 f'lower={self.lower.tolist()}, upper={self.upper.tolist()}')
         self.chain = self._extract_chain()
         self.data = self.model.createData()
+        self._tip_id = self.model.getFrameId(tip_frame)
+        self._base_is_world = bool(np.allclose(self.chain.base_rotation, np.eye(3))
+                                   and np.allclose(self.chain.base_translation, 0.0))
         self._collision = None
 
     # -- construction --------------------------------------------------------------------------
@@ -280,6 +283,53 @@ class Robot:
         lin = np.cross(axes, p[:, None, :] - origins)
         jac = np.concatenate([lin, axes], axis=2).transpose(0, 2, 1)
         return p, r, jac
+
+    def jacobian_loop(self, q: np.ndarray, data: Optional[pin.Data] = None
+                      ) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Same as :meth:`jacobian_batch`, one Pinocchio call per configuration.
+
+        Faster than the vectorised version for small batches (tens of configurations).
+
+        Args:
+            q: (N, n) joint positions [rad].
+            data: Pinocchio data to work in (one per thread); the robot's own if None.
+        """
+        q = self._check_q(q)
+        data = self.data if data is None else data
+        fid = self._tip_id
+        pos = np.empty((len(q), 3))
+        rot = np.empty((len(q), 3, 3))
+        jac = np.empty((len(q), 6, self.dof))
+        for i, qi in enumerate(q):
+            jac[i] = pin.computeFrameJacobian(self.model, data, qi, fid, pin.LOCAL_WORLD_ALIGNED)
+            pin.updateFramePlacement(self.model, data, fid)
+            placement = data.oMf[fid]
+            pos[i] = placement.translation
+            rot[i] = placement.rotation
+        if not self._base_is_world:
+            rb, tb = self.chain.base_rotation, self.chain.base_translation
+            pos = pos @ rb.T + tb
+            rot = rb @ rot
+            jac = np.concatenate([rb @ jac[:, :3], rb @ jac[:, 3:]], axis=1)
+        return pos, rot, jac
+
+    def fk_loop(self, q: np.ndarray, data: Optional[pin.Data] = None
+                ) -> Tuple[np.ndarray, np.ndarray]:
+        """Tip positions and rotations of a small batch, one Pinocchio call per configuration."""
+        q = self._check_q(q)
+        data = self.data if data is None else data
+        fid = self._tip_id
+        pos = np.empty((len(q), 3))
+        rot = np.empty((len(q), 3, 3))
+        for i, qi in enumerate(q):
+            pin.framesForwardKinematics(self.model, data, qi)
+            pos[i] = data.oMf[fid].translation
+            rot[i] = data.oMf[fid].rotation
+        if not self._base_is_world:
+            rb, tb = self.chain.base_rotation, self.chain.base_translation
+            pos = pos @ rb.T + tb
+            rot = rb @ rot
+        return pos, rot
 
     def pin_placement(self, q: np.ndarray) -> pin.SE3:
         """Tip placement in the base frame computed by Pinocchio itself (reference)."""

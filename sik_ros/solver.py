@@ -15,6 +15,7 @@ from typing import Dict, List, Optional, Sequence, Union
 import zlib
 
 import numpy as np
+from scipy.spatial.distance import cdist
 from scipy.spatial.transform import Rotation
 import torch
 
@@ -130,6 +131,7 @@ class SelectiveIK:
         self.checker = CollisionChecker(robot)
         self._lock = threading.Lock()
         self._cut_short = False
+        self._data = robot.model.createData()
 
     # -- loading ---------------------------------------------------------------------------------
 
@@ -334,7 +336,7 @@ class SelectiveIK:
 
     def errors(self, q: np.ndarray, pos: np.ndarray, rot) -> tuple:
         """Position errors [m] and orientation errors [rad] (zeros without ``rot``), (M,)."""
-        p, r = self.robot.fk_rot(q)
+        p, r = self.robot.fk_loop(q, self._data) if len(q) <= 256 else self.robot.fk_rot(q)
         perr = np.linalg.norm(p - pos, axis=1)
         if rot is None:
             return perr, np.zeros(len(q))
@@ -364,7 +366,7 @@ class SelectiveIK:
             if deadline is not None and time.perf_counter() > deadline:
                 self._cut_short = True
                 break
-            p, r, jac = self.robot.jacobian_batch(q[idx])
+            p, r, jac = self.robot.jacobian_loop(q[idx], self._data)
             err = pos - p
             done = np.linalg.norm(err, axis=1) < cfg.position_tolerance * 0.5
             if rot is not None:
@@ -404,11 +406,13 @@ class SelectiveIK:
         """Greedy keep-mask of rows at least ``threshold`` apart (default: the config's)."""
         threshold = self.config.distinct_threshold if threshold is None else threshold
         cols = slice(0, self.robot.dof - 1) if goal == 'position' else slice(None)
-        x = q[:, cols]
-        near = np.linalg.norm(x[:, None] - x[None], axis=2) < threshold
+        near = (cdist(q[:, cols], q[:, cols]) < threshold).tolist()
+        kept: List[int] = []
+        for i, row in enumerate(near):
+            if not any(row[k] for k in kept):
+                kept.append(i)
         mask = np.zeros(len(q), dtype=bool)
-        for i in range(len(q)):
-            mask[i] = not np.any(near[i, :i] & mask[:i])
+        mask[kept] = True
         return mask
 
     def _solve(self, pos, rot, goal, num, q_seed, obstacles, refine, objective, timeout, t0):

@@ -73,3 +73,16 @@ def test_collision_geometry_is_loaded(panda):
     """The arm's collision geometry is available (coal objects through Pinocchio)."""
     geom = panda.collision_model
     assert geom.ngeoms > 7
+
+
+def test_pinocchio_loop_matches_batched(panda):
+    """The per-configuration Pinocchio path gives the batched FK and Jacobians."""
+    q = np.random.default_rng(3).uniform(panda.lower, panda.upper, size=(25, panda.dof))
+    p1, r1, j1 = panda.jacobian_batch(q)
+    p2, r2, j2 = panda.jacobian_loop(q)
+    p3, r3 = panda.fk_loop(q)
+    np.testing.assert_allclose(p2, p1, atol=1e-12)
+    np.testing.assert_allclose(r2, r1, atol=1e-12)
+    np.testing.assert_allclose(j2, j1, atol=1e-12)
+    np.testing.assert_allclose(p3, p1, atol=1e-12)
+    np.testing.assert_allclose(r3, r1, atol=1e-12)
