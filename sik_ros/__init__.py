@@ -1,3 +1,22 @@
-"""sik_ros: Selective Inverse Kinematics (learned multi-solution IK) for ROS 2."""
+"""sik_ros: Selective Inverse Kinematics (learned multi-solution IK) for ROS 2.
+
+The library needs no ROS: ``SelectiveIK.load("panda").solve(position)`` gives ranked joint
+solutions. The ROS layer lives in :mod:`sik_ros.node` and :mod:`sik_ros.ros_conversions`.
+"""
 
 __version__ = '0.1.0'
+
+from sik_ros.errors import (  # noqa: E402
+    ArtifactError, ArtifactExists, ArtifactMismatch, CorruptArtifact, FrameNotFound,
+    InvalidArgument, InvalidGoal, InvalidModel, InvalidSeed, JointLimitViolation,
+    RobotNotFound, SikError, TrainingDiverged)
+from sik_ros.kinematics import load_robot, Robot  # noqa: E402
+from sik_ros.objectives import Obstacle  # noqa: E402
+from sik_ros.solver import IKResult, SelectiveIK, Solution, SolverConfig  # noqa: E402
+
+__all__ = sorted([
+    'ArtifactError', 'ArtifactExists', 'ArtifactMismatch', 'CorruptArtifact', 'FrameNotFound',
+    'IKResult', 'InvalidArgument', 'InvalidGoal', 'InvalidModel', 'InvalidSeed',
+    'JointLimitViolation', 'Obstacle', 'Robot', 'RobotNotFound', 'SelectiveIK', 'SikError',
+    'Solution', 'SolverConfig', 'TrainingDiverged', 'load_robot',
+])
