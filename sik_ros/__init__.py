@@ -14,9 +14,9 @@ from sik_ros.kinematics import load_robot, Robot  # noqa: E402
 from sik_ros.objectives import Obstacle  # noqa: E402
 from sik_ros.solver import IKResult, SelectiveIK, Solution, SolverConfig  # noqa: E402
 
-__all__ = sorted([
+__all__ = [
     'ArtifactError', 'ArtifactExists', 'ArtifactMismatch', 'CorruptArtifact', 'FrameNotFound',
     'IKResult', 'InvalidArgument', 'InvalidGoal', 'InvalidModel', 'InvalidSeed',
     'JointLimitViolation', 'Obstacle', 'Robot', 'RobotNotFound', 'SelectiveIK', 'SikError',
     'Solution', 'SolverConfig', 'TrainingDiverged', 'load_robot',
-])
+]
