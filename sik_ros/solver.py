@@ -308,18 +308,26 @@ class SelectiveIK:
         """Posture indices to decode: the seed's own index first, then far-apart table ones."""
         gm = self.models[goal]
         pool = gm.table.candidates(pos, self.config.k_cells)
+        if pool.shape[1] == 1:
+            # a 1-d index is a line: also sweep it over the range the table holds
+            lo, hi = gm.table.index_bounds
+            pool = np.concatenate([pool, np.linspace(lo, hi, self.config.num_candidates)])
         if q_seed is not None:
             z_seed = self.encode(goal, pos, rot, q_seed[None])[0]
             pool = np.concatenate([z_seed[None], pool])
         return pool[farthest_point_subset(pool, self.config.num_candidates)]
 
+    def _goal_net(self, goal: str, pos: np.ndarray, rot, rows: int) -> torch.Tensor:
+        """The goal repeated ``rows`` times, in the network's normalised units."""
+        g = make_goal(goal, np.repeat(pos[None], rows, 0),
+                      None if rot is None else np.repeat(rot[None], rows, 0))
+        return self.models[goal].norm.goal_to_net(torch.from_numpy(g.astype(np.float32)))
+
     @torch.no_grad()
     def decode(self, goal: str, pos: np.ndarray, rot, z: np.ndarray) -> np.ndarray:
         """Joint solutions (M, n) [rad] decoded from posture indices (M, latent), clipped."""
         gm = self.models[goal]
-        g = make_goal(goal, np.repeat(pos[None], len(z), 0),
-                      None if rot is None else np.repeat(rot[None], len(z), 0))
-        g = gm.norm.goal_to_net(torch.from_numpy(g.astype(np.float32)))
+        g = self._goal_net(goal, pos, rot, len(z))
         x = gm.model.decode(g, torch.from_numpy(np.asarray(z, dtype=np.float32)))
         q = gm.norm.q_from_net(x).double().numpy()
         return np.clip(q, self.robot.lower, self.robot.upper)
@@ -328,9 +336,7 @@ class SelectiveIK:
     def encode(self, goal: str, pos: np.ndarray, rot, q: np.ndarray) -> np.ndarray:
         """Posture indices (M, latent) of configurations (M, n) for a goal."""
         gm = self.models[goal]
-        g = make_goal(goal, np.repeat(pos[None], len(q), 0),
-                      None if rot is None else np.repeat(rot[None], len(q), 0))
-        g = gm.norm.goal_to_net(torch.from_numpy(g.astype(np.float32)))
+        g = self._goal_net(goal, pos, rot, len(q))
         z, _ = gm.model.encode(g, gm.norm.q_to_net(torch.from_numpy(q.astype(np.float32))))
         return z.numpy().astype(np.float64)
 
