@@ -41,7 +41,9 @@ class SolverConfig:
         orientation_tolerance: ... and its orientation error below this [rad] (pose goals).
         max_solutions_cap: largest ``num_solutions`` accepted.
         k_cells: table cells pooled around the goal.
-        num_candidates: posture indices decoded per call.
+        num_candidates: posture indices decoded per call for position goals (at least 1.5 times
+            the solutions asked for).
+        pose_candidates: the same for pose goals, where fewer decoded postures converge.
         refine_iterations: most damped least squares iterations.
         damping: damping of the least squares steps.
         max_step: largest joint change per iteration [rad].
@@ -56,7 +58,8 @@ class SolverConfig:
     orientation_tolerance: float = 1e-3
     max_solutions_cap: int = 64
     k_cells: int = 8
-    num_candidates: int = 48
+    num_candidates: int = 24
+    pose_candidates: int = 48
     refine_iterations: int = 40
     damping: float = 1e-3
     max_step: float = 0.4
@@ -304,18 +307,22 @@ class SelectiveIK:
         return [self.solve(p, None if orientations is None else orientations[i], **kw)
                 for i, p in enumerate(positions)]
 
-    def candidate_indices(self, goal: str, pos: np.ndarray, rot, q_seed) -> np.ndarray:
+    def candidate_indices(self, goal: str, pos: np.ndarray, rot, q_seed,
+                          num_solutions: int = 16) -> np.ndarray:
         """Posture indices to decode: the seed's own index first, then far-apart table ones."""
+        cfg = self.config
+        count = max(cfg.num_candidates if goal == 'position' else cfg.pose_candidates,
+                    (3 * num_solutions + 1) // 2)
         gm = self.models[goal]
         pool = gm.table.candidates(pos, self.config.k_cells)
         if pool.shape[1] == 1:
             # a 1-d index is a line: also sweep it over the range the table holds
             lo, hi = gm.table.index_bounds
-            pool = np.concatenate([pool, np.linspace(lo, hi, self.config.num_candidates)])
+            pool = np.concatenate([pool, np.linspace(lo, hi, count)])
         if q_seed is not None:
             z_seed = self.encode(goal, pos, rot, q_seed[None])[0]
             pool = np.concatenate([z_seed[None], pool])
-        return pool[farthest_point_subset(pool, self.config.num_candidates)]
+        return pool[farthest_point_subset(pool, count)]
 
     def _goal_net(self, goal: str, pos: np.ndarray, rot, rows: int) -> torch.Tensor:
         """The goal repeated ``rows`` times, in the network's normalised units."""
@@ -423,7 +430,7 @@ class SelectiveIK:
 
     def _solve(self, pos, rot, goal, num, q_seed, obstacles, refine, objective, timeout, t0):
         deadline = None if timeout is None else t0 + timeout
-        z = self.candidate_indices(goal, pos, rot, q_seed)
+        z = self.candidate_indices(goal, pos, rot, q_seed, num)
         q = self.decode(goal, pos, rot, z)
         timed_out = False
         # a goal far from every position in the data is out of reach: answer quickly
@@ -445,12 +452,11 @@ class SelectiveIK:
         q, z, perr, oerr, conv = q[order], z[order], perr[order], oerr[order], conv[order]
         keep = self.distinct_mask(q, goal)
         q, z, perr, oerr, conv = q[keep], z[keep], perr[keep], oerr[keep], conv[keep]
-        sols = self._rank(q, z, perr, oerr, conv, q_seed, obstacles, objective)
+        sols = self._rank(q, z, perr, oerr, conv, q_seed, obstacles, objective, limit=num)
         if obstacles and refine and not any(s.converged and not s.in_collision for s in sols):
             extra = self.adjust_index(goal, pos, rot, sols, obstacles, deadline)
             if extra is not None:
-                sols = self._merge(sols, extra, goal, q_seed, obstacles, objective)
-        sols = sols[:num]
+                sols = self._merge(sols, extra, goal, q_seed, obstacles, objective)[:num]
         success = any(s.converged for s in sols)
         msg = '' if success else (
             'no solution within tolerance (best-effort solutions returned)' if sols else
@@ -474,21 +480,34 @@ class SelectiveIK:
         return (np.concatenate([q, q2]), np.concatenate([z, z2]),
                 np.concatenate([perr, perr2]), np.concatenate([oerr, oerr2]))
 
-    def _rank(self, q, z, perr, oerr, conv, q_seed, obstacles, objective) -> List[Solution]:
+    def _rank(self, q, z, perr, oerr, conv, q_seed, obstacles, objective,
+              limit: Optional[int] = None) -> List[Solution]:
+        """Solutions ranked best first; with ``limit``, only the best ``limit`` of them.
+
+        Self-collision is checked lazily in ranking order: a self-colliding posture drops
+        behind every free one, so checking stops once ``limit`` free postures are found.
+        """
         if len(q) == 0:
             return []
         clear = self.checker.clearance(q, obstacles)
-        selfc = self.checker.self_collision(q)
         if objective is None:
             objective = SeedDistance(q_seed) if q_seed is not None else JointLimitMargin(
                 self.robot)
         cost = np.asarray(objective(q), dtype=float)
-        collide = selfc | (clear <= 0.0)
         # tiers: free & exact < free & inexact < colliding & exact < colliding & inexact
-        tier = 2.0 * collide + (~conv)
         inexact_cost = np.where(conv, 0.0, (perr + oerr * 0.1) * 100.0)
-        score = tier * 1e3 + inexact_cost + np.where(conv, cost, 0.0)
-        order = np.argsort(score, kind='stable')
+        base = inexact_cost + np.where(conv, cost, 0.0) + 1e3 * (~conv)
+        score = base + 2e3 * (clear <= 0.0)
+        selfc = np.zeros(len(q), dtype=bool)
+        limit = len(q) if limit is None else limit
+        free = 0
+        for i in np.argsort(score, kind='stable'):
+            if free >= limit:
+                break
+            selfc[i] = self.checker.self_collision(q[i:i + 1])[0]
+            free += not selfc[i]
+        score = base + 2e3 * ((clear <= 0.0) | selfc)
+        order = np.argsort(score, kind='stable')[:limit]
         return [Solution(q[i].copy(), float(perr[i]), float(oerr[i]), z[i].astype(np.float32),
                          float(score[i]), float(clear[i]), bool(selfc[i]), bool(conv[i]))
                 for i in order]
