@@ -44,6 +44,8 @@ class SolverConfig:
         num_candidates: posture indices decoded per call for position goals (at least 1.5 times
             the solutions asked for).
         pose_candidates: the same for pose goals, where fewer decoded postures converge.
+        raw_candidates: posture indices decoded when ``refine`` is off: the most accurate
+            distinct decoded postures are returned, so a larger pool gives better raw answers.
         refine_iterations: most damped least squares iterations.
         damping: damping of the least squares steps.
         max_step: largest joint change per iteration [rad].
@@ -60,6 +62,7 @@ class SolverConfig:
     k_cells: int = 8
     num_candidates: int = 24
     pose_candidates: int = 48
+    raw_candidates: int = 192
     refine_iterations: int = 40
     damping: float = 1e-3
     max_step: float = 0.4
@@ -308,11 +311,13 @@ class SelectiveIK:
                 for i, p in enumerate(positions)]
 
     def candidate_indices(self, goal: str, pos: np.ndarray, rot, q_seed,
-                          num_solutions: int = 16) -> np.ndarray:
+                          num_solutions: int = 16, refine: bool = True) -> np.ndarray:
         """Posture indices to decode: the seed's own index first, then far-apart table ones."""
         cfg = self.config
         count = max(cfg.num_candidates if goal == 'position' else cfg.pose_candidates,
                     (3 * num_solutions + 1) // 2)
+        if not refine:
+            count = max(count, cfg.raw_candidates)
         gm = self.models[goal]
         pool = gm.table.candidates(pos, self.config.k_cells)
         if pool.shape[1] == 1:
@@ -430,7 +435,7 @@ class SelectiveIK:
 
     def _solve(self, pos, rot, goal, num, q_seed, obstacles, refine, objective, timeout, t0):
         deadline = None if timeout is None else t0 + timeout
-        z = self.candidate_indices(goal, pos, rot, q_seed, num)
+        z = self.candidate_indices(goal, pos, rot, q_seed, num, refine)
         q = self.decode(goal, pos, rot, z)
         timed_out = False
         # a goal far from every position in the data is out of reach: answer quickly
