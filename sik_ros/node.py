@@ -13,6 +13,7 @@ from contextlib import contextmanager
 from dataclasses import dataclass, fields, replace
 import math
 import queue
+import signal
 import traceback
 from typing import Iterator, List, Optional, Tuple
 
@@ -341,8 +342,17 @@ class SikNode(Node):
         self._joint_state = msg
 
 
+def _terminate(signum, frame) -> None:
+    """SIGTERM: stop like SIGINT does."""
+    raise KeyboardInterrupt
+
+
 def main(args: Optional[List[str]] = None) -> int:
     """Run sik_node until SIGINT/SIGTERM; exit code 1 (one FATAL log line) if it cannot start."""
+    # SIGTERM (systemd, docker stop, kill) ends the spin like SIGINT: rclpy's handler wakes the
+    # executor and then chains to this Python handler (installed first), which raises
+    # KeyboardInterrupt in the main thread instead of the default action (death by signal)
+    signal.signal(signal.SIGTERM, _terminate)
     rclpy.init(args=args)
     try:
         node = SikNode()

@@ -496,7 +496,8 @@ def test_unusable_model_dir_exits_with_one_line(ros_domain, tmp_path, kind):
 def test_sigint_exits_cleanly(ros, node_proc):
     """SIGINT stops the node with exit code 0, and its log holds no traceback or error."""
     assert node_proc.poll() is None
-    assert demo.stop_node(node_proc, timeout=20.0) == 0
+    # generous wait: a loaded CI machine may take a while to tear down DDS
+    assert demo.stop_node(node_proc, timeout=60.0) == 0
     log = node_proc.log_path.read_text()
     assert 'Traceback' not in log and '[ERROR]' not in log, log
 
@@ -509,7 +510,7 @@ def test_sigterm_exits_cleanly(ros, node_proc, bundle_dir, ros_domain):
     try:
         assert demo.wait_for_service(ros, ros.solve_client, proc, 90.0)
         proc.send_signal(signal.SIGTERM)
-        assert proc.wait(20.0) == 0
+        assert proc.wait(60.0) == 0
     finally:
         demo.stop_node(proc)
 
