@@ -52,6 +52,8 @@ class SolverConfig:
         distinct_threshold: solutions closer than this (L2 over the joints that move the tool
             centre point for position goals) are duplicates [rad].
         adjust_budget: decodes Algorithm 2 may spend adjusting an index.
+        give_up_after: refinement iterations after which a candidate still ten tolerances away
+            is dropped.
         reach_margin: a goal farther than this from every table cell is treated as out of
             reach: a short best-effort refinement, no retries [m].
     """
@@ -69,6 +71,21 @@ class SolverConfig:
     distinct_threshold: float = 0.5
     adjust_budget: int = 24
     reach_margin: float = 0.15
+    give_up_after: int = 15
+
+
+def rotation_log(rot: np.ndarray) -> np.ndarray:
+    """Rotation vectors (N, 3) [rad] of rotation matrices (N, 3, 3) (the SO(3) logarithm)."""
+    v = 0.5 * np.stack([rot[:, 2, 1] - rot[:, 1, 2], rot[:, 0, 2] - rot[:, 2, 0],
+                        rot[:, 1, 0] - rot[:, 0, 1]], axis=1)
+    sin = np.linalg.norm(v, axis=1)
+    cos = np.clip((np.trace(rot, axis1=1, axis2=2) - 1) / 2, -1.0, 1.0)
+    angle = np.arctan2(sin, cos)
+    out = v * np.where(sin > 1e-9, angle / np.maximum(sin, 1e-12), 1.0)[:, None]
+    near_pi = (sin < 1e-6) & (cos < 0)
+    if near_pi.any():  # the skew part vanishes at pi: take the axis from R + I
+        out[near_pi] = Rotation.from_matrix(rot[near_pi]).as_rotvec()
+    return out
 
 
 @dataclass
@@ -377,7 +394,7 @@ class SelectiveIK:
         eye = np.eye(rows)
         active = np.ones(len(q), dtype=bool)
         self._cut_short = False
-        for _ in range(iterations or cfg.refine_iterations):
+        for it in range(iterations or cfg.refine_iterations):
             idx = np.flatnonzero(active)
             if len(idx) == 0:
                 break
@@ -386,13 +403,21 @@ class SelectiveIK:
                 break
             p, r, jac = self.robot.jacobian_loop(q[idx], self._data)
             err = pos - p
-            done = np.linalg.norm(err, axis=1) < cfg.position_tolerance * 0.5
+            perr = np.linalg.norm(err, axis=1)
+            done = perr < cfg.position_tolerance * 0.5
+            stuck = perr > 10 * cfg.position_tolerance
             if rot is not None:
-                rot_err = Rotation.from_matrix(rot @ r.transpose(0, 2, 1)).as_rotvec()
+                rot_err = rotation_log(rot @ r.transpose(0, 2, 1))
+                oerr = np.linalg.norm(rot_err, axis=1)
                 err = np.concatenate([err, rot_err], axis=1)
-                done &= np.linalg.norm(rot_err, axis=1) < cfg.orientation_tolerance * 0.5
+                done &= oerr < cfg.orientation_tolerance * 0.5
+                stuck |= oerr > 10 * cfg.orientation_tolerance
             j = jac[:, :rows]
             active[idx[done]] = False
+            if it >= cfg.give_up_after:
+                # far from the goal this late: a local minimum or a joint limit, not worth more
+                active[idx[stuck]] = False
+                done |= stuck
             qa = q[idx]
             dq = self._dls_step(j, err, lam2, eye)
             # joints pushed against a limit leave the problem (active set), then re-solve
