@@ -350,7 +350,7 @@ def distance_section(run: Run, baselines: Dict) -> List[str]:
              'returned joint angles reach, computed by forward kinematics (the paper\'s '
              'definition). Targets are reachable by construction: the tip positions of joint '
              'angles drawn uniformly within the limits. Variants: **raw 1st** is the '
-             'first-ranked solution of `solve(refine=False)`: the decoder output for up to 48 '
+             'first-ranked solution of `solve(refine=False)`: the decoder output for up to 192 '
              'posture indices from the table, ranked by FK error (self-colliding postures '
              'last), an optimistic reading of a raw decoder; **raw mean** is the mean over the '
              'up to 10 distinct solutions that call returns, closest to the paper\'s protocol '
@@ -451,8 +451,9 @@ def timing_section(res: Dict, baselines: Dict) -> List[str]:
              'workspace, after one warm-up call, one process, torch on 1 thread; the median is '
              'shown. "per solution" divides each call by the solutions it returned. The '
              'paper measured processor time (`time.clock`) of running its models over 100 '
-             'targets. Every `solve` decodes up to 48 posture indices in one batch and checks '
-             'them by FK, whatever `num_solutions` is. TRAC-IK solves the full pose of the '
+             'targets. A raw `solve` decodes up to 192 posture indices in one batch and checks '
+             'them by FK, a refined one 24 (48 for pose goals), '
+             'whatever `num_solutions` is. TRAC-IK solves the full pose of the '
              'target (position and orientation, a harder problem), from a random seed, with a '
              '5 ms timeout.', '']
     rows = []
@@ -482,7 +483,7 @@ def timing_section(res: Dict, baselines: Dict) -> List[str]:
     lines.append('- ' + verdict(t['sik_decode']['median_ms'], ev.PAPER['time_ms']['sik'], 'ms',
                                 'SIK model time for one solution', 3))
     lines.append('- ' + verdict(t['sik_raw_1']['median_ms'], ev.PAPER['time_ms']['sik'], 'ms',
-                                'SIK raw solve for one solution (table look-up, 48 decodes, FK '
+                                'SIK raw solve for one solution (table look-up, 192 decodes, FK '
                                 'check, ranking)', 3))
     for m in ('fcn', 'anfis'):
         if m in t:
