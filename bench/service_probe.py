@@ -1,0 +1,74 @@
+"""A short cross-check of sik_node's round trip with two plain client loops.
+
+Starts the node, sends 200 position goals with ``demo.call`` and 200 with a
+SingleThreadedExecutor loop, and prints round trip, the node's own solver time and their
+difference (p50 / p99, ms). See docs/benchmarks.md for why it exists.
+
+    python bench/service_probe.py [--requests 200]
+"""
+
+import argparse
+import re
+import subprocess
+import time
+
+import numpy as np
+import rclpy
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.signals import SignalHandlerOptions
+
+from sik_interfaces.srv import SolveIK
+from sik_ros import demo
+from sik_ros.kinematics import load_robot
+
+SOLVER_MS = re.compile(r'goal, ([0-9.]+) ms')
+
+
+def main() -> None:
+    """Entry point."""
+    parser = argparse.ArgumentParser(description=__doc__.split('\n')[0])
+    parser.add_argument('--requests', type=int, default=200)
+    args = parser.parse_args()
+    robot = load_robot('panda')
+    q = np.random.default_rng(0).uniform(robot.lower, robot.upper, (args.requests, robot.dof))
+    goals = robot.fk_batch(q)[0]
+    env = demo.ros_env()
+    proc = demo.launch_node(None, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.STDOUT)
+    rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
+    node = rclpy.create_node('sik_probe')
+    client = node.create_client(SolveIK, '/sik_node/solve_ik')
+    try:
+        if not demo.wait_for_service(node, client, proc, 90.0):
+            raise SystemExit('sik_node did not come up')
+        for mode in ('demo.call', 'executor loop'):
+            executor = SingleThreadedExecutor() if mode == 'executor loop' else None
+            if executor:
+                executor.add_node(node)
+            rtt, inside = [], []
+            for p in goals:
+                req = demo.pose_request(p, max_solutions=16)
+                t0 = time.perf_counter()
+                if executor:
+                    future = client.call_async(req)
+                    executor.spin_until_future_complete(future, timeout_sec=10.0)
+                    answer = future.result()
+                else:
+                    answer = demo.call(node, client, req)
+                rtt.append(time.perf_counter() - t0)
+                took = SOLVER_MS.search(answer.message)
+                inside.append(float(took.group(1)) * 1e-3 if took else np.nan)
+            if executor:
+                executor.remove_node(node)
+                executor.shutdown()
+            rtt_ms, in_ms = np.array(rtt) * 1e3, np.array(inside) * 1e3
+            print(f'{mode}: round trip p50 {np.median(rtt_ms):.2f} / p99 '
+                  f'{np.percentile(rtt_ms, 99):.2f} ms, solver p50 {np.nanmedian(in_ms):.2f} ms,'
+                  f' overhead p50 {np.nanmedian(rtt_ms - in_ms):.2f} ms')
+    finally:
+        node.destroy_node()
+        demo.stop_node(proc)
+        rclpy.try_shutdown()
+
+
+if __name__ == '__main__':
+    main()
