@@ -26,6 +26,7 @@ from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import qos_profile_sensor_data
+from rclpy.signals import SignalHandlerOptions
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Header
 import torch
@@ -40,6 +41,8 @@ from sik_ros.solver import IKResult, SelectiveIK
 NODE_NAME = 'sik_node'
 #: Executor threads, and solver instances in the pool (one per thread).
 WORKERS = 4
+#: Longest time the main thread waits in the executor before it checks for signals [s].
+SPIN_PERIOD = 0.1
 Response = SolveIK.Response
 
 
@@ -342,37 +345,42 @@ class SikNode(Node):
         self._joint_state = msg
 
 
-def _terminate(signum, frame) -> None:
-    """SIGTERM: stop like SIGINT does."""
+def _stop(signum, frame) -> None:
+    """SIGINT and SIGTERM: leave the spin loop (raised in the main thread)."""
     raise KeyboardInterrupt
 
 
 def main(args: Optional[List[str]] = None) -> int:
     """Run sik_node until SIGINT/SIGTERM; exit code 1 (one FATAL log line) if it cannot start."""
-    # SIGTERM (systemd, docker stop, kill) ends the spin like SIGINT: rclpy's handler wakes the
-    # executor and then chains to this Python handler (installed first), which raises
-    # KeyboardInterrupt in the main thread instead of the default action (death by signal)
-    signal.signal(signal.SIGTERM, _terminate)
-    rclpy.init(args=args)
+    # The node owns SIGINT and SIGTERM (systemd, docker stop, kill): both raise
+    # KeyboardInterrupt in the main thread, which spins with a short timeout so that it gets
+    # back to Python, and so to the handler, at least every SPIN_PERIOD seconds.
+    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+    signal.signal(signal.SIGINT, _stop)
+    signal.signal(signal.SIGTERM, _stop)
     try:
         node = SikNode()
-    except Exception as exc:  # one clear line instead of a traceback, whatever failed
-        interrupted = not rclpy.ok()  # SIGINT during start-up: not a failure
-        if not interrupted:
-            reason = ' '.join(str(exc).split())
-            if not isinstance(exc, SikError):
-                reason = f'{type(exc).__name__}: {reason}'
-            rclpy.logging.get_logger(NODE_NAME).fatal(f'cannot start: {reason}')
+    except KeyboardInterrupt:  # stopped during start-up: not a failure
         rclpy.try_shutdown()
-        return 0 if interrupted else 1
+        return 0
+    except Exception as exc:  # one clear line instead of a traceback, whatever failed
+        reason = ' '.join(str(exc).split())
+        if not isinstance(exc, SikError):
+            reason = f'{type(exc).__name__}: {reason}'
+        rclpy.logging.get_logger(NODE_NAME).fatal(f'cannot start: {reason}')
+        rclpy.try_shutdown()
+        return 1
     executor = MultiThreadedExecutor(num_threads=node.workers)
     executor.add_node(node)
     try:
-        executor.spin()
+        while rclpy.ok():
+            executor.spin_once(timeout_sec=SPIN_PERIOD)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:
-        executor.shutdown()
+        signal.signal(signal.SIGINT, signal.SIG_IGN)  # a second signal must not break clean-up
+        signal.signal(signal.SIGTERM, signal.SIG_IGN)
+        executor.shutdown(timeout_sec=10.0)
         node.destroy_node()
         rclpy.try_shutdown()
     return 0
