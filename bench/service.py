@@ -2,7 +2,9 @@
 
 Measures, for position goals at FK of random configurations and 16 ranked refined solutions:
 
-- round-trip latency of sequential requests (p50, p99) [ms], beside the solver's own time
+- round-trip latency of sequential requests (p50, p99) [ms] from a :class:`SolveIKClient` (a
+  background-spun client: ``spin_until_future_complete`` alone costs several ms per call), beside
+  the solver's own time
   (``IKResult.elapsed``) for the same requests as the node reports it in each answer's message,
   and as measured in this process on the same targets, so the ROS overhead shows;
 - throughput with several concurrent clients [requests/s];
@@ -21,12 +23,12 @@ from typing import List, Optional
 
 import numpy as np
 import rclpy
-from rclpy.executors import SingleThreadedExecutor
 from rclpy.signals import SignalHandlerOptions
 import torch
 
 from sik_interfaces.srv import SolveIK
 from sik_ros import demo
+from sik_ros.client import SolveIKClient
 from sik_ros.kinematics import load_robot
 from sik_ros.solver import SelectiveIK
 
@@ -59,7 +61,7 @@ def percentiles(seconds) -> str:
     return f'{p50:.2f} / {p99:.2f}'
 
 
-def sequential(executor, client, goals: np.ndarray):
+def sequential(client: SolveIKClient, goals: np.ndarray):
     """Time one request per goal, one at a time.
 
     Returns:
@@ -70,10 +72,8 @@ def sequential(executor, client, goals: np.ndarray):
     for p in goals:
         req = demo.pose_request(p, max_solutions=NUM_SOLUTIONS)
         t0 = time.perf_counter()
-        future = client.call_async(req)
-        executor.spin_until_future_complete(future, timeout_sec=10.0)
+        answer = client.call(req)
         times.append(time.perf_counter() - t0)
-        answer = future.result() if future.done() else None
         codes.append(None if answer is None else answer.error_code)
         took = None if answer is None else SOLVER_MS.search(answer.message)
         inside.append(float(took.group(1)) * 1e-3 if took else np.nan)
@@ -87,21 +87,15 @@ def concurrent(goals: np.ndarray, clients: int, duration: float):
     stop = threading.Event()
 
     def run(k):
-        node = rclpy.create_node(f'sik_bench_client_{k}')
-        executor = SingleThreadedExecutor()
-        executor.add_node(node)
-        cli = node.create_client(SolveIK, SERVICE)
-        cli.wait_for_service(timeout_sec=10.0)
-        start.wait()
-        i = k
-        while not stop.is_set():
-            future = cli.call_async(demo.pose_request(goals[i % len(goals)],
-                                                      max_solutions=NUM_SOLUTIONS))
-            executor.spin_until_future_complete(future, timeout_sec=10.0)
-            counts[k] += future.done() and future.result() is not None
-            i += clients
-        executor.shutdown()
-        node.destroy_node()
+        with SolveIKClient(SERVICE, f'sik_bench_client_{k}') as cli:
+            cli.wait_for_service(10.0)
+            start.wait()
+            i = k
+            while not stop.is_set():
+                answer = cli.call(demo.pose_request(goals[i % len(goals)],
+                                                    max_solutions=NUM_SOLUTIONS))
+                counts[k] += answer is not None
+                i += clients
 
     threads = [threading.Thread(target=run, args=(k,)) for k in range(clients)]
     for t in threads:
@@ -147,20 +141,20 @@ def main(argv: Optional[List[str]] = None) -> int:
                             stderr=subprocess.STDOUT)
     rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
     try:
-        node = rclpy.create_node('sik_bench')
-        client = node.create_client(SolveIK, SERVICE)
-        if not demo.wait_for_service(node, client, proc, 90.0):
+        node = rclpy.create_node('sik_bench_probe')
+        probe = node.create_client(SolveIK, SERVICE)
+        up = demo.wait_for_service(node, probe, proc, 90.0)
+        node.destroy_node()
+        if not up:
             print(f'sik_node did not come up (exit code {proc.poll()})')
             return 1
-        executor = SingleThreadedExecutor()
-        executor.add_node(node)
-        sequential(executor, client, targets(20, seed=1))  # warm-up
-        rss0 = vm_rss_mb(proc.pid)
-        rtt, inside, codes = sequential(executor, client, goals)
+        with SolveIKClient(SERVICE, 'sik_bench') as client:
+            client.wait_for_service(10.0)
+            sequential(client, targets(20, seed=1))  # warm-up
+            rss0 = vm_rss_mb(proc.pid)
+            rtt, inside, codes = sequential(client, goals)
         answered, wall = concurrent(goals, args.clients, duration)
         rss1 = vm_rss_mb(proc.pid)
-        executor.shutdown()
-        node.destroy_node()
     finally:
         demo.stop_node(proc)
         rclpy.try_shutdown()

@@ -12,6 +12,7 @@ are shown beside for reference). Also: raw (unrefined) decoder errors, and an ob
 """
 
 import argparse
+import json
 import os
 import platform
 import time
@@ -101,7 +102,7 @@ def bench_goal(ik, goal, positions, quats, peers, args):
     position_goal = goal == 'position'
     rng = np.random.default_rng(11)
     rows = {'ok': [], 'n': [], 't': [], 'raw': [], 'raw_o': [], 'raw_best': [], 'cand': [],
-            'cand_o': []}
+            'cand_o': [], 'or': [], 'or_o': []}
     peer_rows = {name: {'t': [], 'reached': [], 'ratio': []} for name in peers}
     for i, p in enumerate(positions):
         quat = None if position_goal else quats[i]
@@ -118,6 +119,12 @@ def bench_goal(ik, goal, positions, quats, peers, args):
         perr, oerr = ik.errors(ik.decode(goal, p, rot, z), p, rot)
         rows['cand'] += perr.tolist()
         rows['cand_o'] += oerr.tolist()
+        if not position_goal:
+            q_or = ik.oriented_postures(p, rot, ik.config.oriented_candidates)
+            if len(q_or):
+                perr, oerr = ik.errors(q_or, p, rot)
+                rows['or'] += perr.tolist()
+                rows['or_o'] += oerr.tolist()
         rows['raw_o'] += [s.orientation_error for s in raw.solutions]
         rows['raw_best'].append(raw.solutions[0].position_error)
         for name, solve_once in peers.items():
@@ -144,6 +151,10 @@ def bench_goal(ik, goal, positions, quats, peers, args):
     if not position_goal:
         cand_line += f', orientation {np.degrees(np.mean(rows["cand_o"])):.2f} deg'
     print(cand_line)
+    if rows['or']:
+        print(f'oriented candidates (position model, closed-form last joint, no selection): '
+              f'mean distance error {100 * np.mean(rows["or"]):.2f} cm, orientation '
+              f'{np.degrees(np.mean(rows["or_o"])):.2f} deg')
     print('| peer (to the same number of distinct solutions) | median time [ms] | reached | '
           'median ratio ours/peer | p90 ratio |')
     print('|---|---|---|---|---|')
@@ -200,11 +211,14 @@ def main():
                         help='peer attempts per target before giving up')
     parser.add_argument('--goals', default='position,pose')
     parser.add_argument('--quick', action='store_true', help='alias for --targets 50')
+    parser.add_argument('--config', default='{}',
+                        help='SolverConfig fields to change, as JSON, e.g. '
+                        '\'{"give_up_after": 10}\'')
     args = parser.parse_args()
     if args.quick:
         args.targets = min(args.targets, 50)
     torch.set_num_threads(1)
-    ik = SelectiveIK.load(args.bundle)
+    ik = SelectiveIK.load(args.bundle).with_config(**json.loads(args.config))
     robot = ik.robot
     rng = np.random.default_rng(2024)
     q = rng.uniform(robot.lower, robot.upper, size=(args.targets, robot.dof))
@@ -213,7 +227,7 @@ def main():
     dls = PinocchioDLS(robot)
     print(f'# bench/solve.py: {platform.processor() or platform.machine()}, '
           f'{os.cpu_count()} cores, torch threads 1, {args.targets} targets uniform in joint '
-          f'space (seed 2024), bundle {ik.bundle}')
+          f'space (seed 2024), bundle {ik.bundle}, solver config changes {args.config}')
     med, mean, ok = single_solution_time(tracik, robot, positions, quats)
     print(f'TRAC-IK single solution (pose, random seed): median {med:.3f} ms, mean {mean:.3f} '
           f'ms, success {ok:.1f} %')

@@ -4,6 +4,10 @@ After training, every dataset row is encoded to its posture index. Rows are grou
 cells of the tip position; per cell only indices that differ are kept (near-duplicates dropped,
 then a far-apart subset when too many remain). A KD-tree over the cells' mean positions finds the
 cells near a goal, and their indices are the candidates the decoder turns into joint solutions.
+
+A table may also keep, per index, the tip orientation of the dataset row it came from (the paper's
+KD-tree "over positions and orientations"): for a pose goal, the indices whose rows had an
+orientation near the goal's keep a posture close to a solution.
 """
 
 from dataclasses import dataclass
@@ -92,13 +96,21 @@ def encode_dataset(model, cfg: ModelConfig, norm: Normalizer, ds: Dataset,
 
 
 class IndexTable:
-    """Cells of tip positions, each with its distinct posture indices."""
+    """Cells of tip positions, each with its distinct posture indices.
+
+    ``orientations`` (optional, (M, 4) unit quaternions x, y, z, w): the tip orientation of the
+    dataset row each index was kept from.
+    """
 
     def __init__(self, centers: np.ndarray, offsets: np.ndarray, indices: np.ndarray,
-                 manifest: Dict):
+                 manifest: Dict, orientations: Optional[np.ndarray] = None):
         self.centers = np.asarray(centers, dtype=np.float64)
         self.offsets = np.asarray(offsets, dtype=np.int64)
         self.indices = np.asarray(indices, dtype=np.float32)
+        self.orientations = None
+        if orientations is not None:
+            quat = np.asarray(orientations, dtype=np.float32)
+            self.orientations = quat / np.linalg.norm(quat, axis=1, keepdims=True)
         self.manifest = manifest
         self.tree = cKDTree(self.centers)
         self.cell = float(manifest['table_config']['cell'])
@@ -110,11 +122,31 @@ class IndexTable:
 
     def candidates(self, position: np.ndarray, k_cells: int = 8) -> np.ndarray:
         """Posture indices of the ``k_cells`` cells nearest a position [m], (M, latent)."""
+        return self.indices[self._rows_near(position, k_cells)]
+
+    def oriented_candidates(self, position: np.ndarray, quaternion: np.ndarray, count: int,
+                            k_cells: int = 8) -> np.ndarray:
+        """Indices near a position whose rows' orientations were nearest a quaternion.
+
+        Returns the ``count`` indices of the cells near ``position`` whose dataset rows had tip
+        orientations nearest ``quaternion`` (x, y, z, w), nearest first, (M, latent).
+
+        Raises:
+            InvalidArgument: the table keeps no orientations.
+        """
+        if self.orientations is None:
+            raise InvalidArgument('this index table keeps no orientations (rebuild it with '
+                                  'sik-index --orientations)')
+        rows = self._rows_near(position, k_cells)
+        closeness = np.abs(self.orientations[rows] @ np.asarray(quaternion, dtype=np.float32))
+        best = np.argsort(-closeness, kind='stable')[:count]
+        return self.indices[rows[best]]
+
+    def _rows_near(self, position: np.ndarray, k_cells: int) -> np.ndarray:
         k = min(k_cells, len(self.centers))
         _, cells = self.tree.query(np.asarray(position, dtype=float), k=k)
         cells = np.atleast_1d(cells)
-        parts = [self.indices[self.offsets[c]:self.offsets[c + 1]] for c in cells]
-        return np.concatenate(parts, axis=0)
+        return np.concatenate([np.arange(self.offsets[c], self.offsets[c + 1]) for c in cells])
 
     def distance_to_data(self, position: np.ndarray) -> float:
         """Distance from a position to the nearest cell centre [m]."""
@@ -130,8 +162,11 @@ class IndexTable:
 
     @classmethod
     def build(cls, z: np.ndarray, position: np.ndarray, cfg: TableConfig,
-              manifest: Dict) -> 'IndexTable':
-        """Group encoded rows into cells and keep distinct, far-apart indices per cell."""
+              manifest: Dict, quaternion: Optional[np.ndarray] = None) -> 'IndexTable':
+        """Group encoded rows into cells and keep distinct, far-apart indices per cell.
+
+        With ``quaternion`` (the rows' tip orientations), each kept index keeps its row's.
+        """
         position = np.asarray(position)
         cell_idx = np.floor(position / cfg.cell).astype(np.int64) + (1 << 20)
         keys = (cell_idx[:, 0] << 42) | (cell_idx[:, 1] << 21) | cell_idx[:, 2]
@@ -153,25 +188,36 @@ class IndexTable:
         centers = sums / counts[:, None]
         kept, offsets = [], [0]
         for s, e in zip(starts, ends):
-            zs = z[rows[s:e]]
-            if len(zs) > cfg.max_per_cell:
-                zs = zs[farthest_point_subset(zs, cfg.max_per_cell)]
-            kept.append(zs)
-            offsets.append(offsets[-1] + len(zs))
-        indices = np.concatenate(kept).astype(np.float32)
+            cell_rows = rows[s:e]
+            if len(cell_rows) > cfg.max_per_cell:
+                cell_rows = cell_rows[farthest_point_subset(z[cell_rows], cfg.max_per_cell)]
+            kept.append(cell_rows)
+            offsets.append(offsets[-1] + len(cell_rows))
+        kept_rows = np.concatenate(kept)
+        indices = z[kept_rows].astype(np.float32)
+        orientations = None
+        if quaternion is not None:
+            order_rows = np.argsort(kept_rows)  # sorted reads from a memory-mapped array
+            orientations = np.empty((len(kept_rows), 4), dtype=np.float32)
+            orientations[order_rows] = np.asarray(quaternion[kept_rows[order_rows]])
         manifest = dict(manifest, table_config={'cell': cfg.cell, 'dedup': cfg.dedup,
                                                 'max_per_cell': cfg.max_per_cell},
                         cells=int(len(centers)), entries=int(len(indices)),
+                        orientations=orientations is not None,
                         kind='sik_index_table', format_version=FORMAT_VERSION)
-        return cls(centers, np.array(offsets), indices, manifest)
+        return cls(centers, np.array(offsets), indices, manifest, orientations)
 
     def save(self, path: Path) -> Path:
         """Write the table atomically as a compressed ``.npz`` (indices stored as float16)."""
         path = Path(path)
         tmp = path.with_name(f'.{path.name}.{os.getpid()}.tmp.npz')
+        extra = {}
+        if self.orientations is not None:  # 8-bit quaternions: ~1 degree, enough to choose
+            extra['orientations'] = np.round(self.orientations * 127).astype(np.int8)
         np.savez_compressed(tmp, centers=self.centers.astype(np.float32), offsets=self.offsets,
                             indices=self.indices.astype(np.float16),
-                            manifest=np.array(json.dumps(self.manifest, sort_keys=True)))
+                            manifest=np.array(json.dumps(self.manifest, sort_keys=True)),
+                            **extra)
         os.replace(tmp, path)
         return path
 
@@ -192,6 +238,8 @@ class IndexTable:
                 centers, offsets = f['centers'], f['offsets']
                 indices = f['indices'].astype(np.float32)
                 manifest = json.loads(str(f['manifest']))
+                orientations = f['orientations'].astype(np.float32) \
+                    if 'orientations' in f else None
         except CorruptArtifact:
             raise
         except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile) as exc:
@@ -201,9 +249,13 @@ class IndexTable:
         if (len(offsets) != len(centers) + 1 or offsets[-1] != len(indices)
                 or len(centers) != manifest.get('cells')):
             raise CorruptArtifact(f'index table {path}: sizes disagree with its manifest')
+        if bool(manifest.get('orientations', False)) != (orientations is not None) or (
+                orientations is not None and (orientations.shape != (len(indices), 4)
+                                              or not np.all(np.any(orientations != 0, axis=1)))):
+            raise CorruptArtifact(f'index table {path}: orientations disagree with its manifest')
         if robot_manifest is not None:
             check_robot_manifest(f'index table {path}', robot_manifest, manifest['robot'])
         if signature is not None and manifest.get('model') != signature:
             raise ArtifactMismatch(f'index table {path}: model', signature,
                                    manifest.get('model'))
-        return cls(centers, offsets, indices, manifest)
+        return cls(centers, offsets, indices, manifest, orientations)

@@ -11,7 +11,7 @@ import json
 from pathlib import Path
 import threading
 import time
-from typing import Dict, List, Optional, Sequence, Union
+from typing import Dict, List, Optional, Sequence, Tuple, Union
 import zlib
 
 import numpy as np
@@ -44,6 +44,11 @@ class SolverConfig:
         num_candidates: posture indices decoded per call for position goals (at least 1.5 times
             the solutions asked for).
         pose_candidates: the same for pose goals, where fewer decoded postures converge.
+        oriented_candidates: for pose goals, also this many postures from the position model:
+            the indices of its table (when it keeps orientations) whose rows' tip orientations
+            were nearest the goal's, decoded at the goal position, the last joint then turned
+            in closed form towards the goal orientation. 0 disables it.
+        oriented_cells: table cells pooled around the goal for those.
         raw_candidates: posture indices decoded when ``refine`` is off: the most accurate
             distinct decoded postures are returned, so a larger pool gives better raw answers.
         refine_iterations: most damped least squares iterations.
@@ -56,6 +61,13 @@ class SolverConfig:
             is dropped.
         reach_margin: a goal farther than this from every table cell is treated as out of
             reach: a short best-effort refinement, no retries [m].
+        prune_at: refinement iterations at which candidates heading for the same solution
+            are merged (the one with the lower error goes on).
+        prune_radius: joint distance under which two candidates are merged there [rad].
+        stall_window, stall_ratio: a candidate still ten tolerances away whose error is above
+            ``stall_ratio`` times its error ``stall_window`` iterations before is dropped
+            (0 disables it), from iteration ``stall_after`` on; ``give_up_after`` still bounds
+            the rest.
     """
 
     position_tolerance: float = 1e-4
@@ -63,7 +75,9 @@ class SolverConfig:
     max_solutions_cap: int = 64
     k_cells: int = 8
     num_candidates: int = 24
-    pose_candidates: int = 48
+    pose_candidates: int = 8
+    oriented_candidates: int = 32
+    oriented_cells: int = 16
     raw_candidates: int = 192
     refine_iterations: int = 40
     damping: float = 1e-3
@@ -72,14 +86,19 @@ class SolverConfig:
     adjust_budget: int = 24
     reach_margin: float = 0.15
     give_up_after: int = 15
+    prune_at: Tuple[int, ...] = (3, 6, 10)
+    prune_radius: float = 0.25
+    stall_window: int = 3
+    stall_ratio: float = 0.7
+    stall_after: int = 8
 
 
 def rotation_log(rot: np.ndarray) -> np.ndarray:
     """Rotation vectors (N, 3) [rad] of rotation matrices (N, 3, 3) (the SO(3) logarithm)."""
     v = 0.5 * np.stack([rot[:, 2, 1] - rot[:, 1, 2], rot[:, 0, 2] - rot[:, 2, 0],
                         rot[:, 1, 0] - rot[:, 0, 1]], axis=1)
-    sin = np.linalg.norm(v, axis=1)
-    cos = np.clip((np.trace(rot, axis1=1, axis2=2) - 1) / 2, -1.0, 1.0)
+    sin = np.sqrt((v * v).sum(1))
+    cos = np.clip((rot[:, 0, 0] + rot[:, 1, 1] + rot[:, 2, 2] - 1) / 2, -1.0, 1.0)
     angle = np.arctan2(sin, cos)
     out = v * np.where(sin > 1e-9, angle / np.maximum(sin, 1e-12), 1.0)[:, None]
     near_pi = (sin < 1e-6) & (cos < 0)
@@ -328,11 +347,16 @@ class SelectiveIK:
                 for i, p in enumerate(positions)]
 
     def candidate_indices(self, goal: str, pos: np.ndarray, rot, q_seed,
-                          num_solutions: int = 16, refine: bool = True) -> np.ndarray:
-        """Posture indices to decode: the seed's own index first, then far-apart table ones."""
+                          num_solutions: int = 16, refine: bool = True,
+                          others: int = 0) -> np.ndarray:
+        """Posture indices to decode: the seed's own index first, then far-apart table ones.
+
+        ``others``: candidates coming from elsewhere (oriented postures), which count towards
+        the 1.5 candidates per solution asked for.
+        """
         cfg = self.config
         count = max(cfg.num_candidates if goal == 'position' else cfg.pose_candidates,
-                    (3 * num_solutions + 1) // 2)
+                    (3 * num_solutions + 1) // 2 - others)
         if not refine:
             count = max(count, cfg.raw_candidates)
         gm = self.models[goal]
@@ -345,6 +369,39 @@ class SelectiveIK:
             z_seed = self.encode(goal, pos, rot, q_seed[None])[0]
             pool = np.concatenate([z_seed[None], pool])
         return pool[farthest_point_subset(pool, count)]
+
+    def oriented_postures(self, pos: np.ndarray, rot: np.ndarray, count: int) -> np.ndarray:
+        """Postures (M, n) for a pose goal from the position model's orientation-aware table.
+
+        The position model's indices whose dataset rows had tip orientations nearest the goal
+        keep those postures when decoded at the goal position; the last joint, free for a
+        position goal, is then set in closed form to bring the tip orientation closest to the
+        goal. Empty when the bundle has no position model or its table keeps no orientations.
+        """
+        gm = self.models.get('position')
+        if gm is None or gm.table.orientations is None or count < 1:
+            return np.empty((0, self.robot.dof))
+        quat = Rotation.from_matrix(rot).as_quat()
+        z = gm.table.oriented_candidates(pos, quat, count, self.config.oriented_cells)
+        q = self.decode('position', pos, None, z)
+        return self.align_last_joint(q, rot)
+
+    def align_last_joint(self, q: np.ndarray, rot: np.ndarray) -> np.ndarray:
+        """``q`` with the last joint turned (within its limits) towards the orientation ``rot``.
+
+        Every joint turns about its own z axis, so with ``a`` the last joint's frame at zero
+        and ``B`` the fixed tip rotation, ``a Rz(t) B = rot`` is best met by the angle of
+        ``Rz(t) ~ B R0^T rot B^T`` about z, where ``R0 = a B``.
+        """
+        q = q.copy()
+        q0 = q.copy()
+        q0[:, -1] = 0.0
+        _, r0 = self.robot.fk_loop(q0, self._data)
+        b = self.robot.chain.tip_rotation
+        m = b @ r0.transpose(0, 2, 1) @ rot @ b.T
+        theta = np.arctan2(m[:, 1, 0] - m[:, 0, 1], m[:, 0, 0] + m[:, 1, 1])
+        q[:, -1] = np.clip(theta, self.robot.lower[-1], self.robot.upper[-1])
+        return q
 
     def _goal_net(self, goal: str, pos: np.ndarray, rot, rows: int) -> torch.Tensor:
         """The goal repeated ``rows`` times, in the network's normalised units."""
@@ -379,22 +436,40 @@ class SelectiveIK:
         return perr, np.arccos(np.clip(cos, -1.0, 1.0))
 
     def refine(self, q: np.ndarray, pos: np.ndarray, rot, deadline: Optional[float] = None,
-               iterations: Optional[int] = None):
+               iterations: Optional[int] = None, prune: bool = False):
         """Batched damped least squares towards the goal, within the joint limits.
 
-        Sets ``self._cut_short`` when the deadline stopped it before convergence.
+        Sets ``self._cut_short`` when the deadline stopped it before convergence. With
+        ``prune``, at the iterations in ``config.prune_at`` a candidate closer than
+        ``config.prune_radius`` to one with a lower error (converged ones included) stops
+        there: both are heading for the same solution, which the final duplicate removal would
+        keep only once. Its row is returned as it was when it stopped.
 
         Returns:
             refined configurations (M, n), position errors [m], orientation errors [rad].
         """
         cfg = self.config
         q = q.copy()
+        n = len(q)
         rows = 3 if rot is None else 6
+        lower, upper = self.robot.lower, self.robot.upper
         lam2 = cfg.damping ** 2
         eye = np.eye(rows)
-        active = np.ones(len(q), dtype=bool)
+        active = np.ones(n, dtype=bool)
+        given_up = np.zeros(n, dtype=bool)
+        perr_all, oerr_all = np.full(n, np.inf), np.zeros(n)
+        stale = np.ones(n, dtype=bool)  # rows moved since their errors were computed
+        score = np.full(n, np.inf)  # latest error of each row, to choose between neighbours
+        window = cfg.stall_window
+        history = np.full((window, n), np.inf)  # errors of the last ``window`` iterations
         self._cut_short = False
         for it in range(iterations or cfg.refine_iterations):
+            if prune and it in cfg.prune_at:
+                alive = np.flatnonzero(~given_up)
+                order = alive[np.argsort(score[alive], kind='stable')]
+                keep = self.distinct_mask(q[order], 'position' if rot is None else 'pose',
+                                          cfg.prune_radius)
+                active[order[~keep]] = False
             idx = np.flatnonzero(active)
             if len(idx) == 0:
                 break
@@ -403,34 +478,54 @@ class SelectiveIK:
                 break
             p, r, jac = self.robot.jacobian_loop(q[idx], self._data)
             err = pos - p
-            perr = np.linalg.norm(err, axis=1)
+            perr = np.sqrt((err * err).sum(1))
             done = perr < cfg.position_tolerance * 0.5
             stuck = perr > 10 * cfg.position_tolerance
             if rot is not None:
                 rot_err = rotation_log(rot @ r.transpose(0, 2, 1))
-                oerr = np.linalg.norm(rot_err, axis=1)
+                oerr = np.sqrt((rot_err * rot_err).sum(1))
                 err = np.concatenate([err, rot_err], axis=1)
                 done &= oerr < cfg.orientation_tolerance * 0.5
                 stuck |= oerr > 10 * cfg.orientation_tolerance
-            j = jac[:, :rows]
-            active[idx[done]] = False
-            if it >= cfg.give_up_after:
+                oerr_all[idx] = oerr
+                score[idx] = perr + 0.1 * oerr
+            else:
+                score[idx] = perr
+            perr_all[idx] = perr
+            stale[idx] = False
+            if window and it >= max(window, cfg.stall_after):
+                # far from the goal and hardly closer than ``window`` iterations ago: stalled
+                stalled = stuck & (score[idx] > cfg.stall_ratio * history[it % window, idx])
+            else:
+                stalled = None
+            if window:
+                history[it % window, idx] = score[idx]
+            if it >= cfg.give_up_after or (stalled is not None and stalled.any()):
                 # far from the goal this late: a local minimum or a joint limit, not worth more
-                active[idx[stuck]] = False
+                if it < cfg.give_up_after:
+                    stuck = stalled
+                given_up[idx[stuck & ~done]] = True
                 done |= stuck
-            qa = q[idx]
-            dq = self._dls_step(j, err, lam2, eye)
+            if done.any():
+                active[idx[done]] = False
+                go = ~done
+                if not go.any():
+                    continue
+                idx, jac, err = idx[go], jac[go], err[go]
+            j, e, qa = jac[:, :rows], err, q[idx]
+            dq = self._dls_step(j, e, lam2, eye)
             # joints pushed against a limit leave the problem (active set), then re-solve
-            blocked = ((qa <= self.robot.lower + 1e-9) & (dq < 0)) | \
-                ((qa >= self.robot.upper - 1e-9) & (dq > 0))
+            blocked = ((qa <= lower + 1e-9) & (dq < 0)) | ((qa >= upper - 1e-9) & (dq > 0))
             if blocked.any():
-                dq = self._dls_step(j * ~blocked[:, None, :], err, lam2, eye)
+                hit = blocked.any(axis=1)
+                dq[hit] = self._dls_step(j[hit] * ~blocked[hit][:, None, :], e[hit], lam2, eye)
             scale = np.maximum(1.0, np.abs(dq).max(axis=1) / cfg.max_step)
-            dq = dq / scale[:, None]
-            dq[done] = 0.0
-            q[idx] = np.clip(qa + dq, self.robot.lower, self.robot.upper)
-        perr, oerr = self.errors(q, pos, rot)
-        return q, perr, oerr
+            q[idx] = np.clip(qa + dq / scale[:, None], lower, upper)
+            stale[idx] = True
+        moved = np.flatnonzero(stale)
+        if len(moved):
+            perr_all[moved], oerr_all[moved] = self.errors(q[moved], pos, rot)
+        return q, perr_all, oerr_all
 
     @staticmethod
     def _dls_step(j: np.ndarray, err: np.ndarray, lam2: float, eye: np.ndarray) -> np.ndarray:
@@ -460,8 +555,16 @@ class SelectiveIK:
 
     def _solve(self, pos, rot, goal, num, q_seed, obstacles, refine, objective, timeout, t0):
         deadline = None if timeout is None else t0 + timeout
-        z = self.candidate_indices(goal, pos, rot, q_seed, num, refine)
+        extra = self.oriented_postures(pos, rot, self.config.oriented_candidates) \
+            if goal == 'pose' and refine else np.empty((0, self.robot.dof))
+        z = self.candidate_indices(goal, pos, rot, q_seed, num, refine, len(extra))
         q = self.decode(goal, pos, rot, z)
+        if len(extra):
+            # the seed's own posture first, then the oriented ones, then the pose model's
+            head = 1 if q_seed is not None else 0
+            q = np.concatenate([q[:head], extra, q[head:]])
+            # their posture indices (the pose model's) are encoded once ranked, for the few kept
+            z = np.concatenate([z[:head], np.full((len(extra), z.shape[1]), np.nan), z[head:]])
         timed_out = False
         # a goal far from every position in the data is out of reach: answer quickly
         far = self.models[goal].table.distance_to_data(pos) > self.config.reach_margin
@@ -469,7 +572,7 @@ class SelectiveIK:
             # decoded postures that nearly coincide would refine to the same solution
             near = self.distinct_mask(q, goal, self.config.distinct_threshold * 0.5)
             q, z = q[near], z[near]
-            q, perr, oerr = self.refine(q, pos, rot, deadline, 5 if far else None)
+            q, perr, oerr = self.refine(q, pos, rot, deadline, 5 if far else None, prune=True)
             timed_out = self._cut_short
             if not far and not self._converged(perr, oerr, goal).any():
                 q, z, perr, oerr = self._retry(goal, q, z, perr, oerr, pos, rot, deadline)
@@ -483,6 +586,7 @@ class SelectiveIK:
         keep = self.distinct_mask(q, goal)
         q, z, perr, oerr, conv = q[keep], z[keep], perr[keep], oerr[keep], conv[keep]
         sols = self._rank(q, z, perr, oerr, conv, q_seed, obstacles, objective, limit=num)
+        self._fill_indices(goal, pos, rot, sols)
         if obstacles and refine and not any(s.converged and not s.in_collision for s in sols):
             extra = self.adjust_index(goal, pos, rot, sols, obstacles, deadline)
             if extra is not None:
@@ -492,6 +596,14 @@ class SelectiveIK:
             'no solution within tolerance (best-effort solutions returned)' if sols else
             'no solution')
         return IKResult(success, sols, goal, timed_out, message=msg)
+
+    def _fill_indices(self, goal, pos, rot, sols: List[Solution]) -> None:
+        """Posture indices of solutions that came without one: the encoding of their q."""
+        todo = [s for s in sols if np.isnan(s.posture_index).any()]
+        if todo:
+            z = self.encode(goal, pos, rot, np.array([s.q for s in todo]))
+            for s, zi in zip(todo, z):
+                s.posture_index = zi.astype(np.float32)
 
     def _retry(self, goal, q, z, perr, oerr, pos, rot, deadline, keep: int = 8):
         """Restart the best candidates from perturbed configurations when none converged.
@@ -506,7 +618,7 @@ class SelectiveIK:
                              rng.uniform(self.robot.lower, self.robot.upper, (keep, q.shape[1]))])
         q2 = np.clip(q2, self.robot.lower, self.robot.upper)
         q2, perr2, oerr2 = self.refine(q2, pos, rot, deadline)
-        z2 = np.concatenate([z[best], z[best][np.arange(keep) % len(best)]])
+        z2 = np.full((len(q2), z.shape[1]), np.nan)  # restarts: encoded once ranked
         return (np.concatenate([q, q2]), np.concatenate([z, z2]),
                 np.concatenate([perr, perr2]), np.concatenate([oerr, oerr2]))
 

@@ -50,7 +50,8 @@ def build_tiny_bundle(robot, dataset, out, steps=400):
         z = encode_dataset(model, mcfg, norm, dataset)
         table = IndexTable.build(z, dataset.position, TableConfig(cell=0.08),
                                  {'robot': robot.manifest(), 'model': model_signature(ckpt),
-                                  'dataset': dataset_summary(dataset), 'goal': goal})
+                                  'dataset': dataset_summary(dataset), 'goal': goal},
+                                 dataset.quaternion)
         table_path = table.save(out / f'{goal}_table.npz')
         add_to_bundle(out / 'bundle', robot.manifest(), goal, model_path, table_path)
     return out / 'bundle'

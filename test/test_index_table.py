@@ -52,6 +52,50 @@ def test_save_load_round_trip(tmp_path):
     np.testing.assert_array_equal(back.offsets, table.offsets)
 
 
+def oriented_table():
+    """A one-cell table whose indices 0..3 came from rows turned 0, 30, 60, 90 deg about z."""
+    from scipy.spatial.transform import Rotation
+    angles = np.radians([0.0, 30.0, 60.0, 90.0])
+    quat = Rotation.from_euler('z', angles[:, None]).as_quat()
+    pos = np.full((4, 3), 0.01)
+    z = np.arange(4.0)[:, None]
+    return IndexTable.build(z, pos, TableConfig(0.1, 0.5, 8),
+                            {'robot': {'robot': 'x'}, 'model': {'m': 1}}, quat), quat
+
+
+def test_oriented_candidates_are_the_nearest_in_orientation(tmp_path):
+    """Each index keeps its row's orientation, through a save and a load (8-bit storage).
+
+    A pose query returns the indices whose rows were turned nearest the goal, nearest first.
+    """
+    from scipy.spatial.transform import Rotation
+    table, quat = oriented_table()
+    back = IndexTable.load(table.save(tmp_path / 'o.npz'))
+    for t in (table, back):
+        order = np.argsort(t.indices[:, 0])
+        angle = np.degrees(2 * np.arccos(np.clip(np.abs(
+            np.sum(t.orientations[order] * quat, axis=1)), 0, 1)))
+        assert angle.max() < 1.5
+        goal = Rotation.from_euler('z', 70, degrees=True).as_quat()
+        picked = t.oriented_candidates(np.array([0.02, 0.0, 0.0]), goal, 2)
+        assert picked[:, 0].tolist() == [2.0, 3.0]
+
+
+def test_a_table_without_orientations_says_so(tmp_path):
+    """Asking a position-only table for oriented candidates names the fix.
+
+    A file whose orientations disagree with its manifest is refused.
+    """
+    from sik_ros.errors import InvalidArgument
+    with pytest.raises(InvalidArgument, match='orientations'):
+        small_table().oriented_candidates(np.zeros(3), np.array([0, 0, 0, 1.0]), 2)
+    table, _ = oriented_table()
+    table.manifest = dict(table.manifest, orientations=False)
+    path = table.save(tmp_path / 'bad.npz')
+    with pytest.raises(CorruptArtifact, match='orientations'):
+        IndexTable.load(path)
+
+
 def test_mismatched_or_corrupt_table_is_refused(tmp_path):
     """A table of another robot or model, or a damaged file, is refused."""
     path = small_table().save(tmp_path / 't.npz')

@@ -70,6 +70,40 @@ def test_pose_goals_are_verified_by_fk(panda, ik, targets):
     assert successes >= len(pos) // 2
 
 
+def test_last_joint_in_closed_form_recovers_the_orientation(panda, ik, targets):
+    """With joints 1-6 right and joint 7 anywhere, the closed form finds joint 7 again.
+
+    It turns joint 7 back to the configuration's own value, so the tip orientation is the goal's.
+    """
+    q, pos, quat = targets
+    from scipy.spatial.transform import Rotation
+    wrong = q.copy()
+    wrong[:, -1] = np.random.default_rng(1).uniform(panda.lower[-1], panda.upper[-1], len(q))
+    for qi, wi, qt in zip(q, wrong, quat):
+        fixed = ik.align_last_joint(wi[None], Rotation.from_quat(qt).as_matrix())[0]
+        assert fixed[-1] == pytest.approx(qi[-1], abs=1e-9)
+        np.testing.assert_array_equal(fixed[:-1], wi[:-1])
+
+
+def test_pose_candidates_include_oriented_postures(panda, ik, targets):
+    """Pose goals also start from the position model's orientation-aware table.
+
+    Every solution comes back with a (pose model) posture index, whatever its source.
+    """
+    from scipy.spatial.transform import Rotation
+    _, pos, quat = targets
+    rot = Rotation.from_quat(quat[3]).as_matrix()
+    extra = ik.oriented_postures(pos[3], rot, 8)
+    assert extra.shape == (8, panda.dof)
+    assert np.all(extra >= panda.lower) and np.all(extra <= panda.upper)
+    res = ik.solve(pos[3], quat[3], num_solutions=8)
+    check_solutions(panda, ik, res, pos[3], quat[3])
+    for s in res.solutions:
+        assert s.posture_index.shape == (1,) and np.all(np.isfinite(s.posture_index))
+    off = ik.with_config(oriented_candidates=0)
+    assert len(off.oriented_postures(pos[3], rot, 0)) == 0
+
+
 def test_raw_solutions_report_true_errors(panda, ik, targets):
     """refine=False returns decoded solutions with their true (larger) errors."""
     _, pos, _ = targets

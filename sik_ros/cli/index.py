@@ -26,6 +26,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument('--dedup', type=float, default=TableConfig.dedup,
                    help='indices closer than this per element are duplicates')
     p.add_argument('--max-per-cell', type=int, default=TableConfig.max_per_cell)
+    p.add_argument('--orientations', action=argparse.BooleanOptionalAction, default=True,
+                   help='keep each index\'s tip orientation (8 bits per element), so pose goals '
+                   'can choose indices by orientation (default: on)')
     p.add_argument('--bundle', help='also add model and table to this bundle directory')
     p.add_argument('--force', action='store_true', help='replace an existing --out')
     p.add_argument('--quiet', action='store_true', help='no progress bar')
@@ -57,7 +60,8 @@ def main(argv: Optional[List[str]] = None) -> int:
             z = encode_dataset(model, mcfg, norm, ds, progress=bar.update)
         manifest = {'robot': robot.manifest(), 'model': model_signature(ckpt),
                     'dataset': dataset_summary(ds), 'goal': mcfg.goal}
-        table = IndexTable.build(z, ds.position, cfg, manifest)
+        table = IndexTable.build(z, ds.position, cfg, manifest,
+                                 ds.quaternion if args.orientations else None)
         table.save(out)
         print(f'{table.manifest["cells"]} cells, {table.manifest["entries"]} indices '
               f'({out.stat().st_size / 1e6:.2f} MB) in {time.perf_counter() - t0:.1f} s')

@@ -33,6 +33,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument('--lr', type=float)
     p.add_argument('--fk-weight', type=float, help='FK consistency weight (0: paper\'s loss)')
     p.add_argument('--fk-start', type=int, help='step from which the FK term is on')
+    p.add_argument('--rot-weight', type=float,
+                   help='weight of the orientation part of the FK term (pose goals)')
     p.add_argument('--kl-weight', type=float, help='KL weight (PSIK)')
     p.add_argument('--uni-position', action='store_true',
                    help='one row per distinct position (the paper\'s uni-position dataset)')
@@ -63,7 +65,7 @@ def main(argv: Optional[List[str]] = None) -> int:
             train_cfg = TrainConfig(**ckpt['train_config'])
             # a resumed run may extend its schedule or switch the FK term on later
             train_cfg = with_overrides(train_cfg, steps=args.steps, fk_weight=args.fk_weight,
-                                       fk_start=args.fk_start)
+                                       fk_start=args.fk_start, rot_weight=args.rot_weight)
         else:
             if (out / 'last.pt').exists():
                 raise ArtifactExists(f'{out}/last.pt exists: use --resume, or another --out')
@@ -74,6 +76,7 @@ def main(argv: Optional[List[str]] = None) -> int:
             train_cfg = with_overrides(
                 TrainConfig(), steps=args.steps, batch_size=args.batch_size, lr=args.lr,
                 fk_weight=args.fk_weight, fk_start=args.fk_start, kl_weight=args.kl_weight,
+                rot_weight=args.rot_weight,
                 eval_every=args.eval_every, checkpoint_every=args.checkpoint_every,
                 seed=args.seed, threads=args.threads, device=args.device,
                 uni_position=args.uni_position or None)

@@ -1,0 +1,74 @@
+"""A blocking Python client of ``~/solve_ik`` that keeps latency low.
+
+``rclpy.spin_until_future_complete`` rebuilds the executor's wait set on every call and costs
+several milliseconds per request in rclpy (Jazzy) on a small machine; spinning one executor in a
+background thread and waiting on each future with a :class:`threading.Event` costs well under a
+millisecond (measured in docs/benchmarks.md). This module does the latter::
+
+    with SolveIKClient() as client:          # after rclpy.init()
+        client.wait_for_service(10.0)
+        answer = client.call(demo.pose_request([0.4, 0.1, 0.5]))
+
+It is safe to call from several threads at once.
+"""
+
+import threading
+from typing import Optional
+
+import rclpy
+from rclpy.context import Context
+from rclpy.executors import SingleThreadedExecutor
+
+from sik_interfaces.srv import SolveIK
+
+SERVICE = '/sik_node/solve_ik'
+
+
+class SolveIKClient:
+    """A node with a ``SolveIK`` client, spun by its own background thread."""
+
+    def __init__(self, service: str = SERVICE, node_name: str = 'sik_client',
+                 context: Optional[Context] = None):
+        """Create the node and start spinning it (rclpy must be initialised)."""
+        self.node = rclpy.create_node(node_name, context=context)
+        self.client = self.node.create_client(SolveIK, service)
+        self._executor = SingleThreadedExecutor(context=context)
+        self._executor.add_node(self.node)
+        self._thread = threading.Thread(target=self._spin, name=f'{node_name}_spin',
+                                        daemon=True)
+        self._thread.start()
+
+    def _spin(self) -> None:
+        try:
+            self._executor.spin()
+        except Exception:  # shutdown of the context or the executor ends the thread
+            pass
+
+    def wait_for_service(self, timeout: float = 10.0) -> bool:
+        """Whether the service appeared within ``timeout`` seconds."""
+        return self.client.wait_for_service(timeout_sec=timeout)
+
+    def call(self, request: SolveIK.Request, timeout: float = 10.0
+             ) -> Optional[SolveIK.Response]:
+        """Send a request and wait for its answer [s]; None if none came in time."""
+        done = threading.Event()
+        future = self.client.call_async(request)
+        future.add_done_callback(lambda _: done.set())
+        if not done.wait(timeout):
+            self.client.remove_pending_request(future)
+            return None
+        return future.result()
+
+    def close(self) -> None:
+        """Stop the spinning thread and destroy the node."""
+        self._executor.shutdown(timeout_sec=1.0)
+        self._thread.join(timeout=2.0)
+        self.node.destroy_node()
+
+    def __enter__(self) -> 'SolveIKClient':
+        """Use as a context manager: closed on exit."""
+        return self
+
+    def __exit__(self, *exc) -> None:
+        """Close the client."""
+        self.close()
