@@ -8,13 +8,15 @@ Measures, for position goals at FK of random configurations and 16 ranked refine
   (``IKResult.elapsed``) for the same requests as the node reports it in each answer's message,
   and as measured in this process on the same targets, so the ROS overhead shows;
 - throughput with several concurrent clients [requests/s];
-- resident memory (VmRSS) growth of the node over all the requests sent [MB].
+- resident memory (VmRSS) growth of the node and its solver processes over all the requests
+  sent [MB].
 
 Usage: ``python bench/service.py [--quick] [--requests N] [--model-dir DIR]``. Prints a table; the
 figures are never asserted (see docs/benchmarks.md).
 """
 
 import argparse
+import os
 import re
 import subprocess
 import threading
@@ -40,12 +42,17 @@ SOLVER_MS = re.compile(r'goal, ([0-9.]+) ms')
 
 
 def vm_rss_mb(pid: int) -> float:
-    """Resident memory of a process [MB], from /proc/<pid>/status."""
+    """Resident memory of a process and its children (the solver processes) [MB]."""
+    total = 0.0
     with open(f'/proc/{pid}/status') as f:
         for line in f:
             if line.startswith('VmRSS:'):
-                return int(line.split()[1]) / 1024.0
-    raise RuntimeError(f'no VmRSS for pid {pid}')
+                total += int(line.split()[1]) / 1024.0
+    children = []
+    for task in os.listdir(f'/proc/{pid}/task'):
+        with open(f'/proc/{pid}/task/{task}/children') as f:
+            children += [int(c) for c in f.read().split()]
+    return total + sum(vm_rss_mb(c) for c in children)
 
 
 def targets(count: int, seed: int = 0) -> np.ndarray:
@@ -130,6 +137,8 @@ def main(argv: Optional[List[str]] = None) -> int:
     parser.add_argument('--clients', type=int, default=4, help='concurrent clients')
     parser.add_argument('--duration', type=float, help='concurrent phase [s] (default 20)')
     parser.add_argument('--model-dir', help='bundle directory (default: the bundled panda)')
+    parser.add_argument('-p', '--param', action='append', default=[],
+                        help='a node parameter override name:=value (repeatable)')
     args = parser.parse_args(argv)
     n = args.requests or (200 if args.quick else 10_000)
     duration = args.duration or (3.0 if args.quick else 20.0)
@@ -137,7 +146,7 @@ def main(argv: Optional[List[str]] = None) -> int:
     goals = targets(n)
 
     env = demo.ros_env()
-    proc = demo.launch_node(args.model_dir, env=env, stdout=subprocess.DEVNULL,
+    proc = demo.launch_node(args.model_dir, args.param, env=env, stdout=subprocess.DEVNULL,
                             stderr=subprocess.STDOUT)
     rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
     try:
@@ -173,6 +182,7 @@ def main(argv: Optional[List[str]] = None) -> int:
     ]
     print(f'sik_node ~/solve_ik over loopback DDS: bundle {bundle}, position goals, '
           f'{NUM_SOLUTIONS} ranked refined solutions, node timeout {NODE_TIMEOUT * 1e3:.0f} ms'
+          + (f', parameters {" ".join(args.param)}' if args.param else '')
           + (' (quick run)' if args.quick else ''))
     width = max(len(r[0]) for r in rows)
     print(f"| {'metric':<{width}} | {'measured':>22} | {'target':>16} |")

@@ -5,8 +5,11 @@ Service ``~/solve_ik`` (``sik_interfaces/srv/SolveIK``), topics ``~/goal`` -> ``
 ``sik_node --ros-args --params-file config/panda.yaml``. See INTERFACES.md, section 4.
 
 Concurrency: a :class:`MultiThreadedExecutor` runs the service and goal callbacks in a reentrant
-callback group; each callback borrows its own solver (a :meth:`SelectiveIK.clone`, with its own
-Pinocchio and coal data) from a pool, so parallel requests never share mutable state.
+callback group. Each callback hands its solve to one of ``solver_processes`` solver processes
+(:class:`~sik_ros.solver_pool.SolverPool`: parallel beyond the GIL, each with its own
+:class:`SelectiveIK`), or, with ``solver_processes: 0``, borrows a solver of its own (a
+:meth:`SelectiveIK.clone`, with its own Pinocchio and coal data) from a pool of clones, so
+parallel requests never share mutable state.
 """
 
 from contextlib import contextmanager
@@ -37,6 +40,7 @@ from sik_interfaces.srv import SolveIK
 from sik_ros import ros_conversions as conv
 from sik_ros.errors import SikError
 from sik_ros.solver import IKResult, SelectiveIK
+from sik_ros.solver_pool import SolverCrashed, SolverPool
 
 NODE_NAME = 'sik_node'
 #: Executor threads, and solver instances in the pool (one per thread).
@@ -65,6 +69,8 @@ class NodeParams:
         use_joint_states: seed requests without a seed with the latest ``joint_states``.
         goal_use_orientation: ``~/goal`` poses are pose goals (else position goals).
         publish_markers: publish the ranked postures on ``~/markers`` (when subscribed).
+        solver_processes: solver processes serving requests in parallel; 0: solve in the
+            executor's threads.
     """
 
     robot: str = 'panda'
@@ -80,6 +86,7 @@ class NodeParams:
     use_joint_states: bool = False
     goal_use_orientation: bool = False
     publish_markers: bool = True
+    solver_processes: int = 0
 
 
 #: Parameter descriptions; read-only ones identify the loaded bundle (change them by restarting).
@@ -97,8 +104,12 @@ DESCRIPTIONS = {
     'use_joint_states': 'seed requests that have no seed with the latest joint_states',
     'goal_use_orientation': '~/goal poses are pose goals (false: position goals)',
     'publish_markers': 'publish the ranked postures on ~/markers for RViz',
+    'solver_processes': 'solver processes serving requests in parallel (beyond the GIL); 0: '
+                        'solve in the executor threads; 0..16 (read-only)',
 }
-READ_ONLY = ('robot', 'model_dir', 'base_frame', 'tip_frame')
+READ_ONLY = ('robot', 'model_dir', 'base_frame', 'tip_frame', 'solver_processes')
+#: Most solver processes.
+MAX_SOLVER_PROCESSES = 16
 
 
 class StartupError(SikError):
@@ -111,6 +122,9 @@ def validate(p: NodeParams) -> Optional[str]:
         return 'robot and model_dir are both empty: name a bundled model or a bundle directory'
     if not p.base_frame or not p.tip_frame:
         return 'base_frame and tip_frame must not be empty'
+    if not 0 <= p.solver_processes <= MAX_SOLVER_PROCESSES:
+        return (f'solver_processes must be in 0..{MAX_SOLVER_PROCESSES}; got '
+                f'{p.solver_processes}')
     if not 1 <= p.max_solutions_cap <= 1024:
         return f'max_solutions_cap must be in 1..1024; got {p.max_solutions_cap}'
     if not 1 <= p.num_solutions <= p.max_solutions_cap:
@@ -148,8 +162,16 @@ class SikNode(Node):
             raise StartupError(f'bad parameters: {reason}')
         self._ik = self._load(self._params)
         self._pool: 'queue.LifoQueue[SelectiveIK]' = queue.LifoQueue()
-        for _ in range(workers):
-            self._pool.put(self._ik.clone())
+        self._processes: Optional[SolverPool] = None
+        if self._params.solver_processes > 0:
+            try:
+                self._processes = SolverPool(self._ik.bundle, self._ik.config,
+                                             self._params.solver_processes)
+            except SikError as exc:
+                raise StartupError(f'cannot start the solver processes: {exc}') from exc
+        else:
+            for _ in range(workers):
+                self._pool.put(self._ik.clone())
         self._joint_state: Optional[JointState] = None
         self._joint_state_sub = None
         self.add_on_set_parameters_callback(self._on_set_parameters)
@@ -164,7 +186,8 @@ class SikNode(Node):
         self.get_logger().info(
             f'ready: bundle {self._ik.bundle} ({", ".join(self._ik.goals)} goals, '
             f'{len(self._ik.joint_names)} joints {self._params.base_frame} -> '
-            f'{self._params.tip_frame}), {workers} workers')
+            f'{self._params.tip_frame}), {workers} executor threads, '
+            f'{self._params.solver_processes} solver processes')
 
     # -- parameters ------------------------------------------------------------------------------
 
@@ -286,9 +309,17 @@ class SikNode(Node):
                 seed = self._state_seed()
             obstacles = conv.obstacles_from_msgs(request.obstacles, request.obstacle_poses)
             timeout = conv.seconds_from_duration(request.timeout) or p.timeout
-            with self._solver(p) as ik:
-                result = ik.solve(position, orientation, num, seed=seed, obstacles=obstacles,
-                                  refine=p.refine, timeout=timeout)
+            if self._processes is not None:
+                result = self._processes.solve(
+                    self._solver_settings(p), position, orientation, num, seed=seed,
+                    obstacles=obstacles, refine=p.refine, timeout=timeout)
+            else:
+                with self._solver(p) as ik:
+                    result = ik.solve(position, orientation, num, seed=seed,
+                                      obstacles=obstacles, refine=p.refine, timeout=timeout)
+        except SolverCrashed as exc:
+            self.get_logger().error(str(exc))
+            return Response.NO_SOLUTION, f'internal error: {exc}', None
         except SikError as exc:
             return conv.error_code_for(exc), str(exc), None
         exact = sum(s.converged for s in result.solutions)
@@ -343,6 +374,12 @@ class SikNode(Node):
 
     def _on_joint_state(self, msg: JointState) -> None:
         self._joint_state = msg
+
+    def destroy_node(self) -> None:
+        """Stop the solver processes, then destroy the node."""
+        if getattr(self, '_processes', None) is not None:
+            self._processes.close()
+        super().destroy_node()
 
 
 def _stop(signum, frame) -> None:

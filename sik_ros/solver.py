@@ -580,6 +580,8 @@ class SelectiveIK:
         else:
             perr, oerr = self.errors(q, pos, rot)
         conv = self._converged(perr, oerr, goal)
+        if conv.any():  # with exact solutions, only exact ones are returned
+            q, z, perr, oerr, conv = q[conv], z[conv], perr[conv], oerr[conv], conv[conv]
         # order: exact first, then by error; keep one solution per distinct posture
         order = np.lexsort((perr + oerr * 0.1, ~conv))
         q, z, perr, oerr, conv = q[order], z[order], perr[order], oerr[order], conv[order]

@@ -514,6 +514,58 @@ def test_sigterm_exits_cleanly(ros, node_proc, bundle_dir, ros_domain):
     finally:
         demo.stop_node(proc)
 
+def _solver_children(pid):
+    """Process ids of a node's solver processes (its multiprocessing children)."""
+    children = []
+    for task in os.listdir(f'/proc/{pid}/task'):
+        with open(f'/proc/{pid}/task/{task}/children') as f:
+            children += [int(c) for c in f.read().split()]
+    found = []
+    for c in children:
+        with open(f'/proc/{c}/cmdline', 'rb') as f:
+            cmd = f.read().replace(b'\0', b' ').decode()
+        if 'multiprocessing' in cmd and 'resource_tracker' not in cmd:
+            found.append(c)
+    return found
+
+
+def test_solver_processes_answer_and_a_dead_one_is_replaced(ros, panda, node_proc, bundle_dir,
+                                                            ros_domain):
+    """With solver_processes:=1 the solve runs in another process, with the same answers.
+
+    Answers are verified by FK; an error raised in the solver process keeps its code; a
+    solver process killed by a signal costs one answer (NO_SOLUTION, internal error), is
+    replaced, and the node answers again. Runs after the module's node has stopped.
+    """
+    assert node_proc.poll() is not None, 'runs after test_sigint_exits_cleanly'
+    proc = demo.launch_node(bundle_dir, ['solver_processes:=1'], env=ros_domain,
+                            stdout=subprocess.DEVNULL, stderr=subprocess.STDOUT)
+    try:
+        assert demo.wait_for_service(ros, ros.solve_client, proc, 90.0)
+        workers = _solver_children(proc.pid)
+        assert len(workers) == 1, workers
+        _, p, _ = target(panda, 41)
+        check_answer(panda, solve(ros, request(p)), p)
+        req, code = _bad_requests(panda)['seed outside limits']
+        answer = solve(ros, req)
+        assert answer.error_code == code and 'panda_joint4' in answer.message, answer.message
+        os.kill(workers[0], signal.SIGKILL)
+        answer = solve(ros, request(p))
+        assert answer.error_code == R.NO_SOLUTION and 'died' in answer.message, answer.message
+        answer = solve(ros, request(p))
+        check_answer(panda, answer, p)
+        assert answer.error_code == R.SUCCESS, answer.message
+        fresh = _solver_children(proc.pid)
+        assert len(fresh) == 1 and fresh != workers
+        proc.send_signal(signal.SIGINT)
+        assert proc.wait(60.0) == 0
+        deadline = time.monotonic() + 10.0
+        while os.path.exists(f'/proc/{fresh[0]}') and time.monotonic() < deadline:
+            time.sleep(0.1)
+        assert not os.path.exists(f'/proc/{fresh[0]}'), 'the solver process outlived the node'
+    finally:
+        demo.stop_node(proc)
+
 
 if __name__ == '__main__':  # pragma: no cover
     sys.exit(pytest.main([__file__, '-q']))
