@@ -514,6 +514,7 @@ def test_sigterm_exits_cleanly(ros, node_proc, bundle_dir, ros_domain):
     finally:
         demo.stop_node(proc)
 
+
 def _solver_children(pid):
     """Process ids of a node's solver processes (its multiprocessing children)."""
     children = []
