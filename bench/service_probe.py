@@ -1,8 +1,14 @@
-"""A short cross-check of sik_node's round trip with two plain client loops.
+"""How the client is written changes sik_node's measured round trip: three client loops, one node.
 
-Starts the node, sends 200 position goals with ``demo.call`` and 200 with a
-SingleThreadedExecutor loop, and prints round trip, the node's own solver time and their
-difference (p50 / p99, ms). See docs/benchmarks.md for why it exists.
+Starts the node and sends the same position goals (16 solutions) with
+
+- ``demo.call`` (``rclpy.spin_until_future_complete`` on the node, as the rclpy tutorials do),
+- a ``SingleThreadedExecutor`` loop (``executor.spin_until_future_complete``),
+- :class:`sik_ros.client.SolveIKClient` (an executor spun in a background thread, each call
+  waiting on a ``threading.Event``),
+
+and prints, per loop, round trip, the node's own solver time and their difference (p50 / p99),
+and the client process's CPU time per request. See docs/benchmarks.md.
 
     python bench/service_probe.py [--requests 200]
 """
@@ -19,6 +25,7 @@ from rclpy.signals import SignalHandlerOptions
 
 from sik_interfaces.srv import SolveIK
 from sik_ros import demo
+from sik_ros.client import SolveIKClient
 from sik_ros.kinematics import load_robot
 
 SOLVER_MS = re.compile(r'goal, ([0-9.]+) ms')
@@ -40,11 +47,16 @@ def main() -> None:
     try:
         if not demo.wait_for_service(node, client, proc, 90.0):
             raise SystemExit('sik_node did not come up')
-        for mode in ('demo.call', 'executor loop'):
-            executor = SingleThreadedExecutor() if mode == 'executor loop' else None
-            if executor:
+        for mode in ('demo.call', 'executor loop', 'SolveIKClient'):
+            executor, fast = None, None
+            if mode == 'executor loop':
+                executor = SingleThreadedExecutor()
                 executor.add_node(node)
+            elif mode == 'SolveIKClient':
+                fast = SolveIKClient(node_name='sik_probe_fast')
+                fast.wait_for_service(10.0)
             rtt, inside = [], []
+            cpu0 = time.process_time()
             for p in goals:
                 req = demo.pose_request(p, max_solutions=16)
                 t0 = time.perf_counter()
@@ -52,18 +64,24 @@ def main() -> None:
                     future = client.call_async(req)
                     executor.spin_until_future_complete(future, timeout_sec=10.0)
                     answer = future.result()
+                elif fast:
+                    answer = fast.call(req)
                 else:
                     answer = demo.call(node, client, req)
                 rtt.append(time.perf_counter() - t0)
                 took = SOLVER_MS.search(answer.message)
                 inside.append(float(took.group(1)) * 1e-3 if took else np.nan)
+            cpu = (time.process_time() - cpu0) / len(goals) * 1e3
             if executor:
                 executor.remove_node(node)
                 executor.shutdown()
+            if fast:
+                fast.close()
             rtt_ms, in_ms = np.array(rtt) * 1e3, np.array(inside) * 1e3
-            print(f'{mode}: round trip p50 {np.median(rtt_ms):.2f} / p99 '
+            print(f'{mode:>14}: round trip p50 {np.median(rtt_ms):.2f} / p99 '
                   f'{np.percentile(rtt_ms, 99):.2f} ms, solver p50 {np.nanmedian(in_ms):.2f} ms,'
-                  f' overhead p50 {np.nanmedian(rtt_ms - in_ms):.2f} ms')
+                  f' overhead p50 {np.nanmedian(rtt_ms - in_ms):.2f} ms, client CPU '
+                  f'{cpu:.2f} ms/request')
     finally:
         node.destroy_node()
         demo.stop_node(proc)

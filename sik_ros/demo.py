@@ -29,6 +29,7 @@ from shape_msgs.msg import SolidPrimitive
 
 from sik_interfaces.msg import IKSolutionArray
 from sik_interfaces.srv import SolveIK
+from sik_ros.client import SolveIKClient
 from sik_ros.ros_conversions import ERROR_NAMES
 
 NODE = '/sik_node'
@@ -185,8 +186,12 @@ def topic_goal(node: Node, position: Sequence[float], timeout: float = 10.0):
     return got[0] if got else None
 
 
-def run_demo(node: Node, client, goals: List[str]) -> bool:
-    """Send the demo goals and print the answers; True if every request was answered."""
+def run_demo(node: Node, client: 'SolveIKClient', goals: List[str]) -> bool:
+    """Send the demo goals and print the answers; True if every request was answered.
+
+    Service calls go through ``client`` (spun in its own thread, see :mod:`sik_ros.client`);
+    the topic goal through ``node``.
+    """
     from sik_ros.kinematics import load_robot
     robot = load_robot('panda')
     fk = {name: robot.fk(np.array(q)) for name, q in
@@ -208,7 +213,7 @@ def run_demo(node: Node, client, goals: List[str]) -> bool:
     ok = True
     for title, req in requests:
         t0 = time.perf_counter()
-        answer = call(node, client, req)
+        answer = client.call(req)
         took = time.perf_counter() - t0
         p = req.target.pose.position
         title = f'{title} at ({p.x:.3f}, {p.y:.3f}, {p.z:.3f}) m'
@@ -251,7 +256,9 @@ def main(argv: Optional[List[str]] = None) -> int:
             print('sik_node did not come up' + (f' (exit code {proc.returncode})'
                                                 if proc.poll() is not None else ''))
         else:
-            ok = run_demo(node, client, bundle_goals(args.model_dir))
+            with SolveIKClient(f'{NODE}/solve_ik', 'sik_demo_client') as fast:
+                fast.wait_for_service(10.0)
+                ok = run_demo(node, fast, bundle_goals(args.model_dir))
         node.destroy_node()
     except KeyboardInterrupt:
         print('interrupted')
