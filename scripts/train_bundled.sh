@@ -23,3 +23,7 @@ train() {  # name, then sik-train arguments
 train sik_position --model sik --goal position --latent-dim 4 --steps "$POS_STEPS" --fk-start 8000 &
 train sik_pose --model sik --goal pose --latent-dim 1 --steps "$POSE_STEPS" --fk-start 7000 &
 wait
+# pose, second part (docs/training.md): the schedule extended to POSE_STEPS2 with a stronger FK
+# term, its orientation part weighted 4x
+POSE_STEPS2=${POSE_STEPS2:-28000}
+FK_WEIGHT=0.01 train sik_pose --steps "$POSE_STEPS2" --rot-weight 4
