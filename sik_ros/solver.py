@@ -76,8 +76,8 @@ class SolverConfig:
     k_cells: int = 8
     num_candidates: int = 24
     pose_candidates: int = 8
-    oriented_candidates: int = 32
-    oriented_cells: int = 16
+    oriented_candidates: int = 64
+    oriented_cells: int = 27
     raw_candidates: int = 192
     refine_iterations: int = 40
     damping: float = 1e-3
