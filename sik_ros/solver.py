@@ -544,13 +544,13 @@ class SelectiveIK:
         """Greedy keep-mask of rows at least ``threshold`` apart (default: the config's)."""
         threshold = self.config.distinct_threshold if threshold is None else threshold
         cols = slice(0, self.robot.dof - 1) if goal == 'position' else slice(None)
-        near = (cdist(q[:, cols], q[:, cols]) < threshold).tolist()
-        kept: List[int] = []
-        for i, row in enumerate(near):
-            if not any(row[k] for k in kept):
-                kept.append(i)
+        near = cdist(q[:, cols], q[:, cols]) < threshold
         mask = np.zeros(len(q), dtype=bool)
-        mask[kept] = True
+        covered = np.zeros(len(q), dtype=bool)  # rows near an already kept one
+        for i in range(len(q)):
+            if not covered[i]:
+                mask[i] = True
+                covered |= near[i]
         return mask
 
     def _solve(self, pos, rot, goal, num, q_seed, obstacles, refine, objective, timeout, t0):
