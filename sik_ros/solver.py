@@ -394,9 +394,8 @@ class SelectiveIK:
         ``Rz(t) ~ B R0^T rot B^T`` about z, where ``R0 = a B``.
         """
         q = q.copy()
-        q0 = q.copy()
-        q0[:, -1] = 0.0
-        _, r0 = self.robot.fk_loop(q0, self._data)
+        q[:, -1] = 0.0
+        _, r0 = self.robot.fk_loop(q, self._data)
         b = self.robot.chain.tip_rotation
         m = b @ r0.transpose(0, 2, 1) @ rot @ b.T
         theta = np.arctan2(m[:, 1, 0] - m[:, 0, 1], m[:, 0, 0] + m[:, 1, 1])
