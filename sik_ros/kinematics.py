@@ -297,15 +297,13 @@ class Robot:
         q = self._check_q(q)
         data = self.data if data is None else data
         fid = self._tip_id
-        pos = np.empty((len(q), 3))
-        rot = np.empty((len(q), 3, 3))
+        frame = np.empty((len(q), 4, 4))
         jac = np.empty((len(q), 6, self.dof))
         for i, qi in enumerate(q):
+            # also places the frame (data.oMf[fid]) for the configuration
             jac[i] = pin.computeFrameJacobian(self.model, data, qi, fid, pin.LOCAL_WORLD_ALIGNED)
-            pin.updateFramePlacement(self.model, data, fid)
-            placement = data.oMf[fid]
-            pos[i] = placement.translation
-            rot[i] = placement.rotation
+            frame[i] = data.oMf[fid].homogeneous
+        pos, rot = frame[:, :3, 3], frame[:, :3, :3]
         if not self._base_is_world:
             rb, tb = self.chain.base_rotation, self.chain.base_translation
             pos = pos @ rb.T + tb

@@ -68,6 +68,16 @@ class SolverConfig:
             ``stall_ratio`` times its error ``stall_window`` iterations before is dropped
             (0 disables it), from iteration ``stall_after`` on; ``give_up_after`` still bounds
             the rest.
+        early_stop_margin: with the default ranking (no seed, obstacles or objective),
+            refinement stops once ``num_solutions`` plus this many distinct exact solutions are
+            found, instead of refining every candidate to its end; -1 disables it.
+        walk_rounds: pose goals: while fewer than ``num_solutions`` (plus the margin above)
+            distinct exact solutions are found, up to this many rounds of steps along the
+            self-motion manifolds of the found ones (0 disables it): each solution, moved
+            ``walk_step`` [rad] along the null space of its Jacobian (both ways from the
+            refined solutions, then onwards), is refined for at most ``walk_iterations``
+            iterations; the new exact solutions at least ``distinct_threshold`` from every
+            found one are kept and walk on.
     """
 
     position_tolerance: float = 1e-4
@@ -75,8 +85,8 @@ class SolverConfig:
     max_solutions_cap: int = 64
     k_cells: int = 8
     num_candidates: int = 24
-    pose_candidates: int = 8
-    oriented_candidates: int = 64
+    pose_candidates: int = 4
+    oriented_candidates: int = 32
     oriented_cells: int = 27
     raw_candidates: int = 192
     refine_iterations: int = 40
@@ -91,6 +101,10 @@ class SolverConfig:
     stall_window: int = 3
     stall_ratio: float = 0.7
     stall_after: int = 8
+    early_stop_margin: int = 2
+    walk_rounds: int = 6
+    walk_step: float = 0.6
+    walk_iterations: int = 4
 
 
 def rotation_log(rot: np.ndarray) -> np.ndarray:
@@ -435,14 +449,17 @@ class SelectiveIK:
         return perr, np.arccos(np.clip(cos, -1.0, 1.0))
 
     def refine(self, q: np.ndarray, pos: np.ndarray, rot, deadline: Optional[float] = None,
-               iterations: Optional[int] = None, prune: bool = False):
+               iterations: Optional[int] = None, prune: bool = False,
+               enough: Optional[int] = None):
         """Batched damped least squares towards the goal, within the joint limits.
 
         Sets ``self._cut_short`` when the deadline stopped it before convergence. With
         ``prune``, at the iterations in ``config.prune_at`` a candidate closer than
         ``config.prune_radius`` to one with a lower error (converged ones included) stops
         there: both are heading for the same solution, which the final duplicate removal would
-        keep only once. Its row is returned as it was when it stopped.
+        keep only once. Its row is returned as it was when it stopped. With ``enough``, it stops
+        as soon as ``enough`` distinct rows meet the tolerances (the others are returned where
+        they are, with their errors).
 
         Returns:
             refined configurations (M, n), position errors [m], orientation errors [rad].
@@ -461,12 +478,14 @@ class SelectiveIK:
         score = np.full(n, np.inf)  # latest error of each row, to choose between neighbours
         window = cfg.stall_window
         history = np.full((window, n), np.inf)  # errors of the last ``window`` iterations
+        exact = np.zeros(n, dtype=bool)
+        goal = 'position' if rot is None else 'pose'
         self._cut_short = False
         for it in range(iterations or cfg.refine_iterations):
             if prune and it in cfg.prune_at:
                 alive = np.flatnonzero(~given_up)
                 order = alive[np.argsort(score[alive], kind='stable')]
-                keep = self.distinct_mask(q[order], 'position' if rot is None else 'pose',
+                keep = self.distinct_mask(q[order], goal,
                                           cfg.prune_radius)
                 active[order[~keep]] = False
             idx = np.flatnonzero(active)
@@ -492,6 +511,11 @@ class SelectiveIK:
                 score[idx] = perr
             perr_all[idx] = perr
             stale[idx] = False
+            if enough and done.any():
+                exact[idx[done]] = True
+                found = np.flatnonzero(exact)
+                if len(found) >= enough and self.distinct_mask(q[found], goal).sum() >= enough:
+                    break
             if window and it >= max(window, cfg.stall_after):
                 # far from the goal and hardly closer than ``window`` iterations ago: stalled
                 stalled = stuck & (score[idx] > cfg.stall_ratio * history[it % window, idx])
@@ -512,12 +536,11 @@ class SelectiveIK:
                     continue
                 idx, jac, err = idx[go], jac[go], err[go]
             j, e, qa = jac[:, :rows], err, q[idx]
-            dq = self._dls_step(j, e, lam2, eye)
-            # joints pushed against a limit leave the problem (active set), then re-solve
-            blocked = ((qa <= lower + 1e-9) & (dq < 0)) | ((qa >= upper - 1e-9) & (dq > 0))
-            if blocked.any():
-                hit = blocked.any(axis=1)
-                dq[hit] = self._dls_step(j[hit] * ~blocked[hit][:, None, :], e[hit], lam2, eye)
+            # joints at a limit that the descent direction J^T e pushes further out leave the
+            # problem (active set)
+            g = np.einsum('nrj,nr->nj', j, e)
+            blocked = ((qa <= lower + 1e-9) & (g < 0)) | ((qa >= upper - 1e-9) & (g > 0))
+            dq = self._dls_step(j * ~blocked[:, None, :], e, lam2, eye)
             scale = np.maximum(1.0, np.abs(dq).max(axis=1) / cfg.max_step)
             q[idx] = np.clip(qa + dq / scale[:, None], lower, upper)
             stale[idx] = True
@@ -571,11 +594,20 @@ class SelectiveIK:
             # decoded postures that nearly coincide would refine to the same solution
             near = self.distinct_mask(q, goal, self.config.distinct_threshold * 0.5)
             q, z = q[near], z[near]
-            q, perr, oerr = self.refine(q, pos, rot, deadline, 5 if far else None, prune=True)
+            # ranked by the default objective, the first distinct exact solutions found are as
+            # good as any: stop refining once there are enough
+            enough = None if (q_seed is not None or obstacles or objective is not None
+                              or self.config.early_stop_margin < 0) \
+                else num + self.config.early_stop_margin
+            q, perr, oerr = self.refine(q, pos, rot, deadline, 5 if far else None, prune=True,
+                                        enough=enough)
             timed_out = self._cut_short
             if not far and not self._converged(perr, oerr, goal).any():
                 q, z, perr, oerr = self._retry(goal, q, z, perr, oerr, pos, rot, deadline)
                 timed_out = timed_out or self._cut_short
+            if goal == 'pose' and not far and self.config.walk_rounds > 0:
+                q, z, perr, oerr = self._walk(goal, q, z, perr, oerr, pos, rot, deadline,
+                                              num + max(self.config.early_stop_margin, 0))
         else:
             perr, oerr = self.errors(q, pos, rot)
         conv = self._converged(perr, oerr, goal)
@@ -597,6 +629,52 @@ class SelectiveIK:
             'no solution within tolerance (best-effort solutions returned)' if sols else
             'no solution')
         return IKResult(success, sols, goal, timed_out, message=msg)
+
+    def _walk(self, goal, q, z, perr, oerr, pos, rot, deadline, need: int):
+        """More distinct exact solutions along the self-motion manifolds of the found ones."""
+        cfg = self.config
+        conv = self._converged(perr, oerr, goal)
+        if not conv.any():
+            return q, z, perr, oerr
+        rows = np.flatnonzero(conv)
+        rows = rows[np.argsort(perr[rows] + 0.1 * oerr[rows], kind='stable')]
+        found = q[rows[self.distinct_mask(q[rows], goal)]]
+        if len(found) >= need:
+            return q, z, perr, oerr
+        frontier, heading = found, None
+        new_q, new_p, new_o = [], [], []
+        for _ in range(cfg.walk_rounds):
+            _, _, jac = self.robot.jacobian_loop(frontier, self._data)
+            nvec = np.linalg.svd(jac)[2][:, -1]  # unit vectors spanning each null space
+            if heading is None:
+                nvec = np.concatenate([nvec, -nvec])
+                frontier = np.concatenate([frontier, frontier])
+            else:
+                nvec *= np.where((nvec * heading).sum(1) < 0, -1.0, 1.0)[:, None]
+            start = np.clip(frontier + cfg.walk_step * nvec, self.robot.lower, self.robot.upper)
+            q2, p2, o2 = self.refine(start, pos, rot, deadline, cfg.walk_iterations)
+            ok = self._converged(p2, o2, goal)
+            if ok.any():
+                far_enough = cdist(q2[ok], found).min(axis=1) >= cfg.distinct_threshold
+                pick = np.flatnonzero(ok)[far_enough]
+                pick = pick[self.distinct_mask(q2[pick], goal)]
+            else:
+                pick = np.empty(0, dtype=int)
+            if len(pick) == 0:
+                break
+            new_q.append(q2[pick])
+            new_p.append(p2[pick])
+            new_o.append(o2[pick])
+            found = np.concatenate([found, q2[pick]])
+            frontier, heading = q2[pick], nvec[pick]
+            if len(found) >= need:
+                break
+        if not new_q:
+            return q, z, perr, oerr
+        q2 = np.concatenate(new_q)
+        return (np.concatenate([q, q2]),
+                np.concatenate([z, np.full((len(q2), z.shape[1]), np.nan)]),
+                np.concatenate([perr] + new_p), np.concatenate([oerr] + new_o))
 
     def _fill_indices(self, goal, pos, rot, sols: List[Solution]) -> None:
         """Posture indices of solutions that came without one: the encoding of their q."""

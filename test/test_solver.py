@@ -105,6 +105,24 @@ def test_pose_candidates_include_oriented_postures(panda, ik, targets):
     assert len(off.oriented_postures(pos[3], rot, 0)) == 0
 
 
+def test_walk_along_self_motion_adds_distinct_exact_pose_solutions(panda, ik, targets):
+    """Steps along the null space of found pose solutions give more, verified, distinct ones."""
+    _, pos, quat = targets
+    few = ik.with_config(oriented_candidates=4, pose_candidates=2, walk_rounds=0)
+    walk = few.with_config(walk_rounds=6)
+    gained = 0
+    for p, q in zip(pos, quat):
+        before, after = few.solve(p, q, num_solutions=16), walk.solve(p, q, num_solutions=16)
+        check_solutions(panda, walk, after, p, q)
+        exact = np.array([s.q for s in after.solutions if s.converged]).reshape(-1, panda.dof)
+        for i in range(len(exact)):
+            for j in range(i):
+                assert np.linalg.norm(exact[i] - exact[j]) >= walk.config.distinct_threshold
+        assert len(exact) >= sum(s.converged for s in before.solutions)
+        gained += len(exact) > sum(s.converged for s in before.solutions)
+    assert gained >= len(pos) // 2
+
+
 def test_raw_solutions_report_true_errors(panda, ik, targets):
     """refine=False returns decoded solutions with their true (larger) errors."""
     _, pos, _ = targets
