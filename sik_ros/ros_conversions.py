@@ -142,8 +142,8 @@ def solution_to_msg(solution: Solution, joint_names: Sequence[str], header: Head
     msg = IKSolution()
     msg.joint_state.header = header
     msg.joint_state.name = list(joint_names)
-    msg.joint_state.position = [float(v) for v in solution.q]
-    msg.posture_index = [float(v) for v in solution.posture_index]
+    msg.joint_state.position = solution.q.tolist()
+    msg.posture_index = solution.posture_index.tolist()
     msg.position_error = float(solution.position_error)
     msg.orientation_error = float(solution.orientation_error)
     msg.min_obstacle_distance = float(solution.min_obstacle_distance)

@@ -9,6 +9,7 @@ collision checks and ranking. See the paper's "Posture index selection" and Algo
 from dataclasses import dataclass, field, replace
 import json
 from pathlib import Path
+import math
 import threading
 import time
 from typing import Dict, List, Optional, Sequence, Tuple, Union
@@ -41,9 +42,10 @@ class SolverConfig:
         orientation_tolerance: ... and its orientation error below this [rad] (pose goals).
         max_solutions_cap: largest ``num_solutions`` accepted.
         k_cells: table cells pooled around the goal.
-        num_candidates: posture indices decoded per call for position goals (at least 1.5 times
-            the solutions asked for).
-        pose_candidates: the same for pose goals, where fewer decoded postures converge.
+        num_candidates: posture indices decoded per call for position goals (at least
+            ``candidates_per_solution`` times the solutions asked for).
+        candidates_per_solution: see above.
+        pose_candidates: the same for pose goals (the pose model's indices).
         oriented_candidates: for pose goals, also this many postures from the position model:
             the indices of its table (when it keeps orientations) whose rows' tip orientations
             were nearest the goal's, decoded at the goal position, the last joint then turned
@@ -84,7 +86,8 @@ class SolverConfig:
     orientation_tolerance: float = 1e-3
     max_solutions_cap: int = 64
     k_cells: int = 8
-    num_candidates: int = 24
+    num_candidates: int = 20
+    candidates_per_solution: float = 1.25
     pose_candidates: int = 4
     oriented_candidates: int = 32
     oriented_cells: int = 27
@@ -366,11 +369,11 @@ class SelectiveIK:
         """Posture indices to decode: the seed's own index first, then far-apart table ones.
 
         ``others``: candidates coming from elsewhere (oriented postures), which count towards
-        the 1.5 candidates per solution asked for.
+        the ``candidates_per_solution`` per solution asked for.
         """
         cfg = self.config
         count = max(cfg.num_candidates if goal == 'position' else cfg.pose_candidates,
-                    (3 * num_solutions + 1) // 2 - others)
+                    math.ceil(cfg.candidates_per_solution * num_solutions) - others)
         if not refine:
             count = max(count, cfg.raw_candidates)
         gm = self.models[goal]
