@@ -8,8 +8,8 @@ collision checks and ranking. See the paper's "Posture index selection" and Algo
 
 from dataclasses import dataclass, field, replace
 import json
-from pathlib import Path
 import math
+from pathlib import Path
 import threading
 import time
 from typing import Dict, List, Optional, Sequence, Tuple, Union
