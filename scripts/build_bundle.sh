@@ -12,7 +12,8 @@ for goal in position pose; do
   [ -f "$run/model.pt" ] || $PY -c "
 from sik_ros.training import export_model, load_checkpoint
 export_model(load_checkpoint('$run/last.pt'), '$run/model.pt')"
-  # the position table keeps each index's orientation: pose goals choose indices by it
+  # the position table keeps each index's orientation (pose goals choose indices by it) and
+  # its decoded posture at the cell centre (sik-index's default for position models)
   orient=--orientations
   [ "$goal" = pose ] && orient=--no-orientations
   $PY -m sik_ros.cli.index --model "$run/model.pt" --dataset "$DATA" \

@@ -8,6 +8,12 @@ cells near a goal, and their indices are the candidates the decoder turns into j
 A table may also keep, per index, the tip orientation of the dataset row it came from (the paper's
 KD-tree "over positions and orientations"): for a pose goal, the indices whose rows had an
 orientation near the goal's keep a posture close to a solution.
+
+A position-goal table may also keep, per index, its **decoded posture**: the decoder's output for
+that index at the centre of its cell (8 bits per joint over the joint range), computed once when
+the table is built. The solver refines from these instead of decoding the candidates at every
+call: a goal is at most half a cell from the centre, which costs the refinement about one
+iteration and saves the decoder's forward pass (see docs/benchmarks.md).
 """
 
 from dataclasses import dataclass
@@ -95,15 +101,39 @@ def encode_dataset(model, cfg: ModelConfig, norm: Normalizer, ds: Dataset,
     return out
 
 
+@torch.no_grad()
+def decode_postures(model, cfg: ModelConfig, norm: Normalizer, table: 'IndexTable',
+                    lower: np.ndarray, upper: np.ndarray, batch: int = 65536) -> np.ndarray:
+    """Every index of a position-goal table decoded at its cell's centre, (M, n) clipped [rad].
+
+    Raises:
+        InvalidArgument: a pose-goal model (its goals have an orientation a cell lacks).
+    """
+    if cfg.goal != 'position':
+        raise InvalidArgument(f'decoded postures need a position-goal model; got {cfg.goal!r}')
+    centers = table.cell_centers(np.arange(len(table.indices)))
+    out = np.empty((len(table.indices), len(lower)), dtype=np.float32)
+    for s in range(0, len(out), batch):
+        goal = torch.from_numpy(make_goal('position', centers[s:s + batch], None)
+                                .astype(np.float32))
+        z = torch.from_numpy(table.indices[s:s + batch])
+        q = norm.q_from_net(model.decode(norm.goal_to_net(goal), z)).double().numpy()
+        out[s:s + batch] = np.clip(q, lower, upper)
+    return out
+
+
 class IndexTable:
     """Cells of tip positions, each with its distinct posture indices.
 
     ``orientations`` (optional, (M, 4) unit quaternions x, y, z, w): the tip orientation of the
-    dataset row each index was kept from.
+    dataset row each index was kept from. ``postures`` (optional, (M, n) [rad]): each index
+    decoded at its cell's centre (see :func:`decode_postures`); the manifest's ``postures``
+    entry holds the joint range they are quantised over.
     """
 
     def __init__(self, centers: np.ndarray, offsets: np.ndarray, indices: np.ndarray,
-                 manifest: Dict, orientations: Optional[np.ndarray] = None):
+                 manifest: Dict, orientations: Optional[np.ndarray] = None,
+                 postures: Optional[np.ndarray] = None):
         self.centers = np.asarray(centers, dtype=np.float64)
         self.offsets = np.asarray(offsets, dtype=np.int64)
         self.indices = np.asarray(indices, dtype=np.float32)
@@ -111,6 +141,7 @@ class IndexTable:
         if orientations is not None:
             quat = np.asarray(orientations, dtype=np.float32)
             self.orientations = quat / np.linalg.norm(quat, axis=1, keepdims=True)
+        self.postures = None if postures is None else np.asarray(postures, dtype=np.float32)
         self.manifest = manifest
         self.tree = cKDTree(self.centers)
         self.cell = float(manifest['table_config']['cell'])
@@ -122,7 +153,7 @@ class IndexTable:
 
     def candidates(self, position: np.ndarray, k_cells: int = 8) -> np.ndarray:
         """Posture indices of the ``k_cells`` cells nearest a position [m], (M, latent)."""
-        return self.indices[self._rows_near(position, k_cells)]
+        return self.indices[self.rows_near(position, k_cells)]
 
     def oriented_candidates(self, position: np.ndarray, quaternion: np.ndarray, count: int,
                             k_cells: int = 8) -> np.ndarray:
@@ -134,15 +165,37 @@ class IndexTable:
         Raises:
             InvalidArgument: the table keeps no orientations.
         """
+        return self.indices[self.oriented_rows(position, quaternion, count, k_cells)]
+
+    def oriented_rows(self, position: np.ndarray, quaternion: np.ndarray, count: int,
+                      k_cells: int = 8) -> np.ndarray:
+        """Table rows of :meth:`oriented_candidates` (indices into ``indices``)."""
         if self.orientations is None:
             raise InvalidArgument('this index table keeps no orientations (rebuild it with '
                                   'sik-index --orientations)')
-        rows = self._rows_near(position, k_cells)
+        rows = self.rows_near(position, k_cells)
         closeness = np.abs(self.orientations[rows] @ np.asarray(quaternion, dtype=np.float32))
         best = np.argsort(-closeness, kind='stable')[:count]
-        return self.indices[rows[best]]
+        return rows[best]
 
-    def _rows_near(self, position: np.ndarray, k_cells: int) -> np.ndarray:
+    def cell_centers(self, rows: np.ndarray) -> np.ndarray:
+        """Centre [m] of the cell of each table row, (M, 3)."""
+        return self.centers[np.searchsorted(self.offsets, rows, side='right') - 1]
+
+    def with_postures(self, postures: np.ndarray, lower: np.ndarray,
+                      upper: np.ndarray) -> 'IndexTable':
+        """This table with decoded postures (M, n) [rad] quantised over ``lower``..``upper``."""
+        postures = np.asarray(postures, dtype=np.float32)
+        if postures.shape[0] != len(self.indices) or not np.all(np.isfinite(postures)):
+            raise InvalidArgument(f'postures must be finite with {len(self.indices)} rows; got '
+                                  f'shape {postures.shape}')
+        manifest = dict(self.manifest, postures={'lower': [float(v) for v in lower],
+                                                 'upper': [float(v) for v in upper]})
+        return IndexTable(self.centers, self.offsets, self.indices, manifest, self.orientations,
+                          postures)
+
+    def rows_near(self, position: np.ndarray, k_cells: int) -> np.ndarray:
+        """Table rows (indices into ``indices``) of the ``k_cells`` cells nearest a position."""
         k = min(k_cells, len(self.centers))
         _, cells = self.tree.query(np.asarray(position, dtype=float), k=k)
         cells = np.atleast_1d(cells)
@@ -194,7 +247,8 @@ class IndexTable:
             kept.append(cell_rows)
             offsets.append(offsets[-1] + len(cell_rows))
         kept_rows = np.concatenate(kept)
-        indices = z[kept_rows].astype(np.float32)
+        # at the precision they are stored with, so a built table is the table loaded later
+        indices = z[kept_rows].astype(np.float16).astype(np.float32)
         orientations = None
         if quaternion is not None:
             order_rows = np.argsort(kept_rows)  # sorted reads from a memory-mapped array
@@ -214,6 +268,10 @@ class IndexTable:
         extra = {}
         if self.orientations is not None:  # 8-bit quaternions: ~1 degree, enough to choose
             extra['orientations'] = np.round(self.orientations * 127).astype(np.int8)
+        if self.postures is not None:  # 8 bits over each joint's range: < 0.015 rad
+            lower, upper = (np.array(self.manifest['postures'][k]) for k in ('lower', 'upper'))
+            codes = np.round((self.postures - lower) / (upper - lower) * 255)
+            extra['postures'] = np.clip(codes, 0, 255).astype(np.uint8)
         np.savez_compressed(tmp, centers=self.centers.astype(np.float32), offsets=self.offsets,
                             indices=self.indices.astype(np.float16),
                             manifest=np.array(json.dumps(self.manifest, sort_keys=True)),
@@ -240,6 +298,7 @@ class IndexTable:
                 manifest = json.loads(str(f['manifest']))
                 orientations = f['orientations'].astype(np.float32) \
                     if 'orientations' in f else None
+                codes = f['postures'] if 'postures' in f else None
         except CorruptArtifact:
             raise
         except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile) as exc:
@@ -253,9 +312,29 @@ class IndexTable:
                 orientations is not None and (orientations.shape != (len(indices), 4)
                                               or not np.all(np.any(orientations != 0, axis=1)))):
             raise CorruptArtifact(f'index table {path}: orientations disagree with its manifest')
+        postures = cls._postures_from_codes(path, manifest, codes, len(indices))
         if robot_manifest is not None:
             check_robot_manifest(f'index table {path}', robot_manifest, manifest['robot'])
         if signature is not None and manifest.get('model') != signature:
             raise ArtifactMismatch(f'index table {path}: model', signature,
                                    manifest.get('model'))
-        return cls(centers, offsets, indices, manifest, orientations)
+        return cls(centers, offsets, indices, manifest, orientations, postures)
+
+    @staticmethod
+    def _postures_from_codes(path, manifest: Dict, codes: Optional[np.ndarray],
+                             entries: int) -> Optional[np.ndarray]:
+        """Decoded postures [rad] from their 8-bit codes, checked against the manifest."""
+        spec = manifest.get('postures')
+        if spec is None and codes is None:
+            return None
+        try:
+            lower = np.asarray(spec['lower'], dtype=float)
+            upper = np.asarray(spec['upper'], dtype=float)
+            ok = (codes is not None and codes.dtype == np.uint8 and lower.shape == upper.shape
+                  and codes.shape == (entries, len(lower)) and np.all(np.isfinite(lower))
+                  and np.all(np.isfinite(upper)) and np.all(upper > lower))
+        except (TypeError, KeyError, ValueError):
+            ok = False
+        if not ok:
+            raise CorruptArtifact(f'index table {path}: postures disagree with its manifest')
+        return (lower + codes.astype(np.float32) / 255 * (upper - lower)).astype(np.float32)

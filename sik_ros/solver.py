@@ -73,6 +73,10 @@ class SolverConfig:
         early_stop_margin: with the default ranking (no seed, obstacles or objective),
             refinement stops once ``num_solutions`` plus this many distinct exact solutions are
             found, instead of refining every candidate to its end; -1 disables it.
+        cached_postures: refine from the table's decoded postures (each index decoded at its
+            cell's centre when the table was built, ``sik-index --postures``) instead of
+            decoding the candidates at the goal at every call; raw answers
+            (``refine=False``) are always decoded at the goal.
         walk_rounds: pose goals: while fewer than ``num_solutions`` (plus the margin above)
             distinct exact solutions are found, up to this many rounds of steps along the
             self-motion manifolds of the found ones (0 disables it): each solution, moved
@@ -106,6 +110,7 @@ class SolverConfig:
     stall_after: int = 8
     early_stop_margin: int = 2
     walk_rounds: int = 6
+    cached_postures: bool = True
     walk_step: float = 0.6
     walk_iterations: int = 4
 
@@ -371,36 +376,60 @@ class SelectiveIK:
         ``others``: candidates coming from elsewhere (oriented postures), which count towards
         the ``candidates_per_solution`` per solution asked for.
         """
+        return self._candidates(goal, pos, rot, q_seed, num_solutions, refine, others)[0]
+
+    def _candidates(self, goal, pos, rot, q_seed, num_solutions, refine, others):
+        """:meth:`candidate_indices` and the table row of each (-1: not from the table)."""
         cfg = self.config
         count = max(cfg.num_candidates if goal == 'position' else cfg.pose_candidates,
                     math.ceil(cfg.candidates_per_solution * num_solutions) - others)
         if not refine:
             count = max(count, cfg.raw_candidates)
-        gm = self.models[goal]
-        pool = gm.table.candidates(pos, self.config.k_cells)
+        table = self.models[goal].table
+        rows = table.rows_near(pos, cfg.k_cells)
+        pool = table.indices[rows]
         if pool.shape[1] == 1:
             # a 1-d index is a line: also sweep it over the range the table holds
-            lo, hi = gm.table.index_bounds
+            lo, hi = table.index_bounds
             pool = np.concatenate([pool, np.linspace(lo, hi, count)])
+            rows = np.concatenate([rows, np.full(count, -1)])
         if q_seed is not None:
             z_seed = self.encode(goal, pos, rot, q_seed[None])[0]
             pool = np.concatenate([z_seed[None], pool])
-        return pool[farthest_point_subset(pool, count)]
+            rows = np.concatenate([[-1], rows])
+        pick = farthest_point_subset(pool, count)
+        return pool[pick], rows[pick]
+
+    def starting_postures(self, goal: str, pos: np.ndarray, rot, z: np.ndarray,
+                          rows: np.ndarray) -> np.ndarray:
+        """Postures (M, n) to refine from: the table's decoded postures of table rows (when it
+        keeps them and ``config.cached_postures``), the others decoded at the goal."""
+        postures = self.models[goal].table.postures
+        if postures is None or not self.config.cached_postures:
+            return self.decode(goal, pos, rot, z)
+        cached = rows >= 0
+        q = np.empty((len(z), self.robot.dof))
+        # float32 storage: clip back onto the limits
+        q[cached] = np.clip(postures[rows[cached]], self.robot.lower, self.robot.upper)
+        if not cached.all():
+            q[~cached] = self.decode(goal, pos, rot, z[~cached])
+        return q
 
     def oriented_postures(self, pos: np.ndarray, rot: np.ndarray, count: int) -> np.ndarray:
         """Postures (M, n) for a pose goal from the position model's orientation-aware table.
 
         The position model's indices whose dataset rows had tip orientations nearest the goal
-        keep those postures when decoded at the goal position; the last joint, free for a
-        position goal, is then set in closed form to bring the tip orientation closest to the
-        goal. Empty when the bundle has no position model or its table keeps no orientations.
+        keep those postures when decoded near the goal position (the table's decoded posture
+        at the cell centre, or a decode at the goal); the last joint, free for a position goal,
+        is then set in closed form to bring the tip orientation closest to the goal. Empty when
+        the bundle has no position model or its table keeps no orientations.
         """
         gm = self.models.get('position')
         if gm is None or gm.table.orientations is None or count < 1:
             return np.empty((0, self.robot.dof))
         quat = Rotation.from_matrix(rot).as_quat()
-        z = gm.table.oriented_candidates(pos, quat, count, self.config.oriented_cells)
-        q = self.decode('position', pos, None, z)
+        rows = gm.table.oriented_rows(pos, quat, count, self.config.oriented_cells)
+        q = self.starting_postures('position', pos, None, gm.table.indices[rows], rows)
         return self.align_last_joint(q, rot)
 
     def align_last_joint(self, q: np.ndarray, rot: np.ndarray) -> np.ndarray:
@@ -582,8 +611,9 @@ class SelectiveIK:
         deadline = None if timeout is None else t0 + timeout
         extra = self.oriented_postures(pos, rot, self.config.oriented_candidates) \
             if goal == 'pose' and refine else np.empty((0, self.robot.dof))
-        z = self.candidate_indices(goal, pos, rot, q_seed, num, refine, len(extra))
-        q = self.decode(goal, pos, rot, z)
+        z, rows = self._candidates(goal, pos, rot, q_seed, num, refine, len(extra))
+        q = self.starting_postures(goal, pos, rot, z, rows) if refine else \
+            self.decode(goal, pos, rot, z)
         if len(extra):
             # the seed's own posture first, then the oriented ones, then the pose model's
             head = 1 if q_seed is not None else 0

@@ -32,7 +32,8 @@ def uniform_small(panda, tmp_path_factory):
 def build_tiny_bundle(robot, dataset, out, steps=400):
     """Train tiny SIK position and pose models on ``dataset`` and bundle them with their tables."""
     from sik_ros.bundle import add_to_bundle
-    from sik_ros.index_table import encode_dataset, IndexTable, model_signature, TableConfig
+    from sik_ros.index_table import (decode_postures, encode_dataset, IndexTable,
+                                     model_signature, TableConfig)
     from sik_ros.models import ModelConfig, PRESETS
     from sik_ros.training import (dataset_summary, export_model, model_from_checkpoint,
                                   TrainConfig, Trainer)
@@ -52,6 +53,10 @@ def build_tiny_bundle(robot, dataset, out, steps=400):
                                  {'robot': robot.manifest(), 'model': model_signature(ckpt),
                                   'dataset': dataset_summary(dataset), 'goal': goal},
                                  dataset.quaternion)
+        if goal == 'position':  # the position table keeps decoded postures, as bundled
+            table = table.with_postures(
+                decode_postures(model, mcfg, norm, table, robot.lower, robot.upper),
+                robot.lower, robot.upper)
         table_path = table.save(out / f'{goal}_table.npz')
         add_to_bundle(out / 'bundle', robot.manifest(), goal, model_path, table_path)
     return out / 'bundle'

@@ -96,6 +96,41 @@ def test_a_table_without_orientations_says_so(tmp_path):
         IndexTable.load(path)
 
 
+def test_decoded_postures_are_the_decoder_at_the_cell_centres(tiny_bundle, tmp_path):
+    """A position table's decoded postures: each index decoded at its cell's centre, kept
+    within 8 bits of the joint range through a save and a load, and checked on load."""
+    import json
+    import torch
+    from sik_ros.errors import InvalidArgument
+    from sik_ros.index_table import decode_postures
+    from sik_ros.training import load_checkpoint, model_from_checkpoint
+    panda = load_robot('panda')
+    table = IndexTable.load(tiny_bundle / 'sik_position_table.npz')
+    assert table.postures is not None and table.postures.shape == (len(table.indices), 7)
+    model, mcfg, norm = model_from_checkpoint(load_checkpoint(tiny_bundle / 'sik_position.pt'))
+    rows = np.array([0, len(table.indices) // 2, len(table.indices) - 1])
+    with torch.no_grad():
+        goal = norm.goal_to_net(torch.from_numpy(table.cell_centers(rows).astype(np.float32)))
+        q = norm.q_from_net(model.decode(goal, torch.from_numpy(table.indices[rows])))
+    q = np.clip(q.double().numpy(), panda.lower, panda.upper)
+    step = (panda.upper - panda.lower) / 255
+    assert np.all(np.abs(table.postures[rows] - q) <= step / 2 + 1e-5)
+    fresh = decode_postures(model, mcfg, norm, table, panda.lower, panda.upper)
+    assert np.all(np.abs(fresh - table.postures) <= step / 2 + 1e-5)
+    pose_model, pose_cfg, pose_norm = model_from_checkpoint(
+        load_checkpoint(tiny_bundle / 'sik_pose.pt'))
+    with pytest.raises(InvalidArgument, match='position-goal'):
+        decode_postures(pose_model, pose_cfg, pose_norm, table, panda.lower, panda.upper)
+    bad = table.with_postures(fresh, panda.lower, panda.upper)
+    bad.manifest = dict(bad.manifest, postures={'lower': [0.0], 'upper': [1.0]})
+    with pytest.raises(CorruptArtifact, match='postures'):
+        IndexTable.load(bad.save(tmp_path / 'bad.npz'))
+    none = IndexTable(table.centers, table.offsets, table.indices,
+                      json.loads(json.dumps(bad.manifest)))
+    with pytest.raises(CorruptArtifact, match='postures'):
+        IndexTable.load(none.save(tmp_path / 'none.npz'))
+
+
 def test_mismatched_or_corrupt_table_is_refused(tmp_path):
     """A table of another robot or model, or a damaged file, is refused."""
     path = small_table().save(tmp_path / 't.npz')

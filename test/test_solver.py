@@ -123,6 +123,23 @@ def test_walk_along_self_motion_adds_distinct_exact_pose_solutions(panda, ik, ta
     assert gained >= len(pos) // 2
 
 
+def test_cached_postures_give_the_same_quality_as_decoding(panda, ik, targets):
+    """Refining from the table's decoded postures (cell centres) or from decodes at the goal:
+    both answer every target with exact, FK-verified solutions, as many of them."""
+    assert ik.models['position'].table.postures is not None
+    decoding = ik.with_config(cached_postures=False)
+    _, pos, quat = targets
+    counts = {True: 0, False: 0}
+    for p, q in zip(pos, quat):
+        for cached, solver in ((True, ik), (False, decoding)):
+            res = solver.solve(p, num_solutions=16)
+            assert res.success
+            check_solutions(panda, solver, res, p)
+            counts[cached] += len(res.solutions)
+            check_solutions(panda, solver, solver.solve(p, q, num_solutions=8), p, q)
+    assert counts[True] >= 0.9 * counts[False]
+
+
 def test_raw_solutions_report_true_errors(panda, ik, targets):
     """refine=False returns decoded solutions with their true (larger) errors."""
     _, pos, _ = targets

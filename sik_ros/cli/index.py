@@ -10,7 +10,8 @@ from sik_ros.bundle import add_to_bundle
 from sik_ros.cli import argv_or_default, run_cli
 from sik_ros.dataset import Dataset
 from sik_ros.errors import ArtifactExists, InvalidArgument
-from sik_ros.index_table import encode_dataset, IndexTable, model_signature, TableConfig
+from sik_ros.index_table import (decode_postures, encode_dataset, IndexTable,
+                                 model_signature, TableConfig)
 from sik_ros.kinematics import load_robot
 from sik_ros.training import dataset_summary, load_checkpoint, model_from_checkpoint
 
@@ -29,6 +30,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument('--orientations', action=argparse.BooleanOptionalAction, default=True,
                    help='keep each index\'s tip orientation (8 bits per element), so pose goals '
                    'can choose indices by orientation (default: on)')
+    p.add_argument('--postures', action=argparse.BooleanOptionalAction, default=None,
+                   help='keep each index decoded at its cell centre (8 bits per joint), so the '
+                   'solver refines from them without decoding (default: on for position-goal '
+                   'models; pose-goal models cannot)')
     p.add_argument('--bundle', help='also add model and table to this bundle directory')
     p.add_argument('--force', action='store_true', help='replace an existing --out')
     p.add_argument('--quiet', action='store_true', help='no progress bar')
@@ -51,6 +56,10 @@ def main(argv: Optional[List[str]] = None) -> int:
         model, mcfg, norm = model_from_checkpoint(ckpt)
         if mcfg.kind not in ('sik', 'psik'):
             raise InvalidArgument(f'{args.model} is a {mcfg.kind} model; tables need sik/psik')
+        postures = mcfg.goal == 'position' if args.postures is None else args.postures
+        if postures and mcfg.goal != 'position':
+            raise InvalidArgument('--postures needs a position-goal model (a pose goal has an '
+                                  'orientation that a cell centre lacks)')
         rm = ckpt['robot']
         robot = load_robot(rm['robot'], None, rm['base_frame'], rm['tip_frame'])
         ds = Dataset.load(args.dataset, robot)
@@ -62,6 +71,10 @@ def main(argv: Optional[List[str]] = None) -> int:
                     'dataset': dataset_summary(ds), 'goal': mcfg.goal}
         table = IndexTable.build(z, ds.position, cfg, manifest,
                                  ds.quaternion if args.orientations else None)
+        if postures:
+            table = table.with_postures(
+                decode_postures(model, mcfg, norm, table, robot.lower, robot.upper),
+                robot.lower, robot.upper)
         table.save(out)
         print(f'{table.manifest["cells"]} cells, {table.manifest["entries"]} indices '
               f'({out.stat().st_size / 1e6:.2f} MB) in {time.perf_counter() - t0:.1f} s')
