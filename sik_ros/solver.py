@@ -402,8 +402,11 @@ class SelectiveIK:
 
     def starting_postures(self, goal: str, pos: np.ndarray, rot, z: np.ndarray,
                           rows: np.ndarray) -> np.ndarray:
-        """Postures (M, n) to refine from: the table's decoded postures of table rows (when it
-        keeps them and ``config.cached_postures``), the others decoded at the goal."""
+        """Postures (M, n) to refine from, for indices ``z`` from table ``rows`` (-1: none).
+
+        Table rows take the table's decoded postures (when it keeps them and
+        ``config.cached_postures``); the others are decoded at the goal.
+        """
         postures = self.models[goal].table.postures
         if postures is None or not self.config.cached_postures:
             return self.decode(goal, pos, rot, z)

@@ -97,8 +97,11 @@ def test_a_table_without_orientations_says_so(tmp_path):
 
 
 def test_decoded_postures_are_the_decoder_at_the_cell_centres(tiny_bundle, tmp_path):
-    """A position table's decoded postures: each index decoded at its cell's centre, kept
-    within 8 bits of the joint range through a save and a load, and checked on load."""
+    """A position table's decoded postures are its indices decoded at their cells' centres.
+
+    They stay within 8 bits of the joint range through a save and a load, and are checked on
+    load.
+    """
     import json
     import torch
     from sik_ros.errors import InvalidArgument

@@ -124,8 +124,10 @@ def test_walk_along_self_motion_adds_distinct_exact_pose_solutions(panda, ik, ta
 
 
 def test_cached_postures_give_the_same_quality_as_decoding(panda, ik, targets):
-    """Refining from the table's decoded postures (cell centres) or from decodes at the goal:
-    both answer every target with exact, FK-verified solutions, as many of them."""
+    """Cached postures (cell centres) or decodes at the goal: the same quality.
+
+    Both answer every target with exact, FK-verified solutions, about as many of them.
+    """
     assert ik.models['position'].table.postures is not None
     decoding = ik.with_config(cached_postures=False)
     _, pos, quat = targets
