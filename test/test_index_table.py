@@ -164,3 +164,9 @@ def test_sik_index_cli_builds_a_bundle(tiny_bundle, uniform_small, tmp_path):
                             str(tmp_path / 't.npz'), '--quiet'],
                            capture_output=True, text=True, timeout=120)
     assert again.returncode == 2 and '--force' in again.stderr
+    pose = subprocess.run([sys.executable, '-m', 'sik_ros.cli.index', '--model',
+                           str(tiny_bundle / 'sik_pose.pt'), '--dataset', str(uniform_small.path),
+                           '--out', str(tmp_path / 'p.npz'), '--postures', '--quiet'],
+                          capture_output=True, text=True, timeout=120)
+    assert pose.returncode == 2 and 'position-goal model' in pose.stderr
+    assert not (tmp_path / 'p.npz').exists()
