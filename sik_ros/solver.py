@@ -1,9 +1,12 @@
 """SelectiveIK: several distinct, exact, ranked joint solutions per target.
 
 Pipeline per call: posture indices from the table near the goal (plus the seed's own index),
-a far-apart subset, one batched decode, clipping to the joint limits, batched damped least squares
-refinement on the chain's Jacobians, verification by FK, removal of near-duplicate postures,
-collision checks and ranking. See the paper's "Posture index selection" and Algorithm 2.
+a far-apart subset, their postures (the table's decoded postures at the cells' centres when it
+keeps them, else one batched decode at the goal; raw answers are always decoded at the goal),
+clipping to the joint limits, batched damped least squares refinement on the chain's Jacobians
+(for pose goals, then steps along the self-motion manifolds of the solutions found), verification
+by FK, removal of near-duplicate postures, collision checks and ranking. See the paper's
+"Posture index selection" and Algorithm 2.
 """
 
 from dataclasses import dataclass, field, replace
@@ -109,8 +112,8 @@ class SolverConfig:
     stall_ratio: float = 0.7
     stall_after: int = 8
     early_stop_margin: int = 2
-    walk_rounds: int = 6
     cached_postures: bool = True
+    walk_rounds: int = 6
     walk_step: float = 0.6
     walk_iterations: int = 4
 
@@ -520,8 +523,7 @@ class SelectiveIK:
             if prune and it in cfg.prune_at:
                 alive = np.flatnonzero(~given_up)
                 order = alive[np.argsort(score[alive], kind='stable')]
-                keep = self.distinct_mask(q[order], goal,
-                                          cfg.prune_radius)
+                keep = self.distinct_mask(q[order], goal, cfg.prune_radius)
                 active[order[~keep]] = False
             idx = np.flatnonzero(active)
             if len(idx) == 0:

@@ -142,6 +142,27 @@ def test_cached_postures_give_the_same_quality_as_decoding(panda, ik, targets):
     assert counts[True] >= 0.9 * counts[False]
 
 
+def test_refinement_stops_once_enough_distinct_solutions_are_exact(panda, ik, targets):
+    """``refine(enough=k)`` stops with at least k distinct exact rows; errors stay true."""
+    _, pos, _ = targets
+    stopped = 0
+    for p in pos:
+        z, rows = ik._candidates('position', p, None, None, 16, True, 0)
+        q0 = ik.starting_postures('position', p, None, z, rows)
+        full_q, full_p, full_o = ik.refine(q0, p, None)
+        full_exact = ik._converged(full_p, full_o, 'position')
+        k = int(ik.distinct_mask(full_q[full_exact], 'position').sum()) // 2
+        if k < 1:
+            continue
+        q, perr, _ = ik.refine(q0, p, None, enough=k)
+        exact = perr <= ik.config.position_tolerance
+        assert ik.distinct_mask(q[exact], 'position').sum() >= k
+        true = np.linalg.norm(panda.fk_batch(q)[0] - p, axis=1)
+        np.testing.assert_allclose(perr, true, atol=1e-9)
+        stopped += int(exact.sum()) < int(full_exact.sum())
+    assert stopped >= 1, 'stopping early left some candidates unrefined'
+
+
 def test_raw_solutions_report_true_errors(panda, ik, targets):
     """refine=False returns decoded solutions with their true (larger) errors."""
     _, pos, _ = targets
