@@ -9,7 +9,7 @@ by FK, removal of near-duplicate postures, collision checks and ranking. See the
 "Posture index selection" and Algorithm 2.
 """
 
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field, fields, replace
 import json
 import math
 from pathlib import Path
@@ -116,6 +116,35 @@ class SolverConfig:
     walk_rounds: int = 6
     walk_step: float = 0.6
     walk_iterations: int = 4
+
+    def __post_init__(self):
+        """Reject values the solver cannot work with.
+
+        Raises:
+            InvalidArgument: naming the field and the value.
+        """
+        for name in ('position_tolerance', 'orientation_tolerance', 'candidates_per_solution',
+                     'damping', 'max_step', 'distinct_threshold', 'reach_margin',
+                     'prune_radius', 'stall_ratio', 'walk_step'):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, (int, float)) \
+                    or not math.isfinite(value) or value <= 0:
+                raise InvalidArgument(f'SolverConfig.{name} must be a finite number > 0; got '
+                                      f'{value!r}')
+        for name, low in (('max_solutions_cap', 1), ('k_cells', 1), ('num_candidates', 0),
+                          ('pose_candidates', 0), ('oriented_candidates', 0),
+                          ('oriented_cells', 1), ('raw_candidates', 1),
+                          ('refine_iterations', 1), ('adjust_budget', 0), ('give_up_after', 1),
+                          ('stall_window', 0), ('stall_after', 0), ('early_stop_margin', -1),
+                          ('walk_rounds', 0), ('walk_iterations', 1)):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int) or value < low:
+                raise InvalidArgument(f'SolverConfig.{name} must be an integer >= {low}; got '
+                                      f'{value!r}')
+        if not all(isinstance(v, int) and not isinstance(v, bool) and v >= 0
+                   for v in self.prune_at):
+            raise InvalidArgument(f'SolverConfig.prune_at must hold integers >= 0; got '
+                                  f'{self.prune_at!r}')
 
 
 def rotation_log(rot: np.ndarray) -> np.ndarray:
@@ -246,7 +275,14 @@ class SelectiveIK:
         return SelectiveIK(self.robot, self.models, self.config, self.bundle)
 
     def with_config(self, **changes) -> 'SelectiveIK':
-        """An instance with some :class:`SolverConfig` fields changed."""
+        """An instance with some :class:`SolverConfig` fields changed.
+
+        Raises:
+            InvalidArgument: an unknown field or a bad value.
+        """
+        unknown = sorted(set(changes) - {f.name for f in fields(SolverConfig)})
+        if unknown:
+            raise InvalidArgument(f'unknown SolverConfig fields {unknown}')
         return SelectiveIK(self.robot, self.models, replace(self.config, **changes), self.bundle)
 
     # -- public helpers --------------------------------------------------------------------------

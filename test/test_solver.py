@@ -260,6 +260,20 @@ def test_bad_input_raises_clear_errors(ik, kwargs, error, message):
         ik.solve(**args)
 
 
+@pytest.mark.parametrize('changes, message', [
+    ({'walk_step': 0.0}, 'walk_step'),
+    ({'position_tolerance': float('nan')}, 'position_tolerance'),
+    ({'num_candidates': -1}, 'num_candidates'),
+    ({'walk_rounds': 1.5}, 'walk_rounds'),
+    ({'prune_at': (3, -1)}, 'prune_at'),
+    ({'no_such_setting': 1}, 'no_such_setting'),
+])
+def test_bad_solver_settings_are_refused(ik, changes, message):
+    """A SolverConfig value the solver cannot use, or an unknown field, is a clear error."""
+    with pytest.raises(InvalidArgument, match=message):
+        ik.with_config(**changes)
+
+
 def test_batch_shape_is_checked(ik):
     """solve_batch refuses arrays of the wrong shape."""
     with pytest.raises(InvalidGoal, match=r'\(N, 3\)'):
