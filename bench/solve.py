@@ -121,7 +121,7 @@ def bench_goal(ik, goal, positions, quats, peers, args):
         rows['cand_o'] += oerr.tolist()
         if position_goal and ik.models[goal].table.postures is not None:
             # where refinement starts: the table's decoded postures at the cells' centres
-            z, table_rows = ik._candidates(goal, p, None, None, 16, True, 0)
+            z, table_rows = ik.candidates(goal, p, None, None, 16, True, 0)
             rows['cached'] += ik.errors(ik.starting_postures(goal, p, None, z, table_rows), p,
                                         None)[0].tolist()
         if not position_goal:

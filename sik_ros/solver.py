@@ -415,10 +415,14 @@ class SelectiveIK:
         ``others``: candidates coming from elsewhere (oriented postures), which count towards
         the ``candidates_per_solution`` per solution asked for.
         """
-        return self._candidates(goal, pos, rot, q_seed, num_solutions, refine, others)[0]
+        return self.candidates(goal, pos, rot, q_seed, num_solutions, refine, others)[0]
 
-    def _candidates(self, goal, pos, rot, q_seed, num_solutions, refine, others):
-        """:meth:`candidate_indices` and the table row of each (-1: not from the table)."""
+    def candidates(self, goal: str, pos: np.ndarray, rot, q_seed, num_solutions: int = 16,
+                   refine: bool = True, others: int = 0) -> Tuple[np.ndarray, np.ndarray]:
+        """:meth:`candidate_indices` and the table row of each (-1: not from the table).
+
+        The rows give :meth:`starting_postures` the table's decoded postures.
+        """
         cfg = self.config
         count = max(cfg.num_candidates if goal == 'position' else cfg.pose_candidates,
                     math.ceil(cfg.candidates_per_solution * num_solutions) - others)
@@ -652,7 +656,7 @@ class SelectiveIK:
         deadline = None if timeout is None else t0 + timeout
         extra = self.oriented_postures(pos, rot, self.config.oriented_candidates) \
             if goal == 'pose' and refine else np.empty((0, self.robot.dof))
-        z, rows = self._candidates(goal, pos, rot, q_seed, num, refine, len(extra))
+        z, rows = self.candidates(goal, pos, rot, q_seed, num, refine, len(extra))
         q = self.starting_postures(goal, pos, rot, z, rows) if refine else \
             self.decode(goal, pos, rot, z)
         if len(extra):

@@ -147,7 +147,7 @@ def test_refinement_stops_once_enough_distinct_solutions_are_exact(panda, ik, ta
     _, pos, _ = targets
     stopped = 0
     for p in pos:
-        z, rows = ik._candidates('position', p, None, None, 16, True, 0)
+        z, rows = ik.candidates('position', p, None, None, 16, True, 0)
         q0 = ik.starting_postures('position', p, None, z, rows)
         full_q, full_p, full_o = ik.refine(q0, p, None)
         full_exact = ik._converged(full_p, full_o, 'position')
