@@ -27,7 +27,7 @@ setup:
 	@bash scripts/setup.sh
 
 run: setup
-	$(RUN_ENV) $(PY) -m sik_ros.demo
+	$(RUN_ENV) $(PY) -m sik_ros.ros.demo
 
 test: setup
 	$(RUN_ENV) $(PY) -m pytest -q $(PYTEST_ARGS) test

@@ -12,8 +12,8 @@ setup(
     packages=find_packages(exclude=['test', 'test.*']),
     package_data={
         PACKAGE_NAME: [
-            'models/panda/*',
-            'models/panda/**/*',
+            'bundles/panda/*',
+            'bundles/panda/**/*',
         ],
     },
     include_package_data=True,
@@ -50,7 +50,7 @@ setup(
             'sik-index = sik_ros.cli.index:main',
             'sik-solve = sik_ros.cli.solve:main',
             'sik-eval = sik_ros.cli.eval:main',
-            'sik_node = sik_ros.node:main',
+            'sik_node = sik_ros.ros.node:main',
         ],
     },
 )

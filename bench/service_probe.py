@@ -4,7 +4,7 @@ Starts the node and sends the same position goals (16 solutions) with
 
 - ``demo.call`` (``rclpy.spin_until_future_complete`` on the node, as the rclpy tutorials do),
 - a ``SingleThreadedExecutor`` loop (``executor.spin_until_future_complete``),
-- :class:`sik_ros.client.SolveIKClient` (an executor spun in a background thread, each call
+- :class:`sik_ros.ros.client.SolveIKClient` (an executor spun in a background thread, each call
   waiting on a ``threading.Event``),
 
 and prints, per loop, round trip, the node's own solver time and their difference (p50 / p99),
@@ -24,9 +24,9 @@ from rclpy.executors import SingleThreadedExecutor
 from rclpy.signals import SignalHandlerOptions
 
 from sik_interfaces.srv import SolveIK
-from sik_ros import demo
-from sik_ros.client import SolveIKClient
 from sik_ros.kinematics import load_robot
+from sik_ros.ros import demo
+from sik_ros.ros.client import SolveIKClient
 
 SOLVER_MS = re.compile(r'goal, ([0-9.]+) ms')
 

@@ -1,12 +1,12 @@
 #!/usr/bin/env bash
-# Builds the bundled Panda artifacts (sik_ros/models/panda/) from the trained runs of
+# Builds the bundled Panda artifacts (sik_ros/bundles/panda/) from the trained runs of
 # scripts/train_bundled.sh: encodes the 30-degree dataset with each model, keeps the distinct
 # posture indices per 5 cm cell, and writes model + table + bundle.json.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 PY=${PY:-.venv/bin/python}
 DATA=${DATA:-data/panda30}
-OUT=${OUT:-sik_ros/models/panda}
+OUT=${OUT:-sik_ros/bundles/panda}
 for goal in position pose; do
   run=runs/sik_$goal
   [ -f "$run/model.pt" ] || $PY -c "

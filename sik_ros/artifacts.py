@@ -37,19 +37,38 @@ def library_versions() -> dict:
     return versions
 
 
-def write_json_atomic(path: Path, data: Mapping) -> None:
-    """Write JSON to ``path`` through a temporary file and a rename."""
+@contextlib.contextmanager
+def atomic_write(path: Path) -> Iterator[Path]:
+    """A temporary path beside ``path`` to write to; renamed onto ``path`` when the block ends.
+
+    The temporary name keeps ``path``'s suffix (NumPy and Matplotlib choose the format by it).
+    If the block raises, the temporary file is removed and ``path`` is left as it was.
+
+    Yields:
+        the temporary path to write.
+    """
     path = Path(path)
-    fd, tmp = tempfile.mkstemp(prefix=f'.{path.name}.', suffix='.tmp', dir=path.parent)
+    fd, tmp = tempfile.mkstemp(prefix=f'.{path.stem}.', suffix=f'.tmp{path.suffix}',
+                               dir=path.parent)
+    os.close(fd)
     try:
-        with os.fdopen(fd, 'w') as f:
-            json.dump(data, f, indent=2, sort_keys=True)
-            f.write('\n')
+        yield Path(tmp)
         os.replace(tmp, path)
     except BaseException:
         with contextlib.suppress(FileNotFoundError):
             os.unlink(tmp)
         raise
+
+
+def write_text_atomic(path: Path, text: str) -> None:
+    """Write a text file through :func:`atomic_write`."""
+    with atomic_write(path) as tmp:
+        tmp.write_text(text)
+
+
+def write_json_atomic(path: Path, data: Mapping) -> None:
+    """Write JSON to ``path`` through :func:`atomic_write`."""
+    write_text_atomic(path, json.dumps(data, indent=2, sort_keys=True) + '\n')
 
 
 def read_json(path: Path, what: str) -> dict:

@@ -1,12 +1,121 @@
-"""Bundles: a directory with one model and one index table per goal kind, and ``bundle.json``."""
+"""Bundles: a directory with one model and one index table per goal kind, and ``bundle.json``.
 
-import os
+``bundle.json`` names the robot (its manifest: name or URDF, frames, joints) and, per goal kind
+(``position``, ``pose``), the model file and its table. :func:`build_bundle` makes one from
+trained models and a dataset (``sik-index --bundle`` and the tests use it); :func:`load_bundle`
+reads one back, checking every file against the manifest.
+"""
+
+from dataclasses import dataclass
 from pathlib import Path
 import shutil
-from typing import Dict
+from typing import Callable, Dict, Mapping, Optional, Tuple, Union
 
-from sik_ros.artifacts import FORMAT_VERSION, read_json, write_json_atomic
-from sik_ros.errors import ArtifactMismatch
+import torch
+
+from sik_ros.artifacts import (atomic_write, check_robot_manifest, FORMAT_VERSION, read_json,
+                               write_json_atomic)
+from sik_ros.checkpoints import load_checkpoint, model_from_checkpoint, model_signature
+from sik_ros.dataset import Dataset
+from sik_ros.errors import ArtifactMismatch, CorruptArtifact
+from sik_ros.index_table import IndexTable, PostureTable, TableConfig
+from sik_ros.indexing import build_table
+from sik_ros.kinematics import load_robot, Robot
+
+#: The bundles shipped inside the package, one directory per robot name.
+BUNDLES = Path(__file__).resolve().parent / 'bundles'
+#: Goal kinds a bundle may hold.
+GOALS = ('position', 'pose')
+
+
+@dataclass
+class GoalModel:
+    """What the solver holds per goal kind: the network, its configs and its table.
+
+    Attributes:
+        model: the SIK/PSIK module, in eval mode.
+        cfg: its :class:`~sik_ros.models.ModelConfig`.
+        norm: its :class:`~sik_ros.models.Normalizer`.
+        table: the posture indices to decode (an :class:`IndexTable` or another
+            :class:`PostureTable`).
+    """
+
+    model: torch.nn.Module
+    cfg: object
+    norm: object
+    table: PostureTable
+
+
+def resolve_bundle(bundle: Union[str, Path]) -> Path:
+    """A bundle directory from a path or the name of a bundled one (``panda``).
+
+    Raises:
+        CorruptArtifact: neither a directory nor a bundled name.
+    """
+    path = Path(bundle)
+    if path.is_dir():
+        return path
+    if (BUNDLES / str(bundle)).is_dir():
+        return BUNDLES / str(bundle)
+    known = sorted(p.name for p in BUNDLES.iterdir() if p.is_dir()) if BUNDLES.is_dir() else []
+    raise CorruptArtifact(f'no bundle {bundle!r}: not a directory, and the bundled models are '
+                          f'{known}')
+
+
+def read_bundle_manifest(path: Path) -> Dict:
+    """``bundle.json`` of a bundle directory, checked for the keys and types it must have.
+
+    Raises:
+        CorruptArtifact: missing, unreadable or malformed, naming the file and the key.
+    """
+    file = Path(path) / 'bundle.json'
+    manifest = read_json(file, f'bundle {path}')
+    if not isinstance(manifest, dict) or manifest.get('kind') != 'sik_bundle':
+        raise CorruptArtifact(f'{file} is not a sik_ros bundle manifest')
+    robot = manifest.get('robot')
+    if not isinstance(robot, dict) or not all(
+            isinstance(robot.get(k), str) for k in ('robot', 'base_frame', 'tip_frame')):
+        raise CorruptArtifact(f'{file}: "robot" must be a robot manifest with robot, base_frame '
+                              f'and tip_frame')
+    models = manifest.get('models')
+    if not isinstance(models, dict) or not models:
+        raise CorruptArtifact(f'{file}: "models" must map goal kinds to their files')
+    for goal, files in models.items():
+        if goal not in GOALS or not isinstance(files, dict) or not all(
+                isinstance(files.get(k), str) for k in ('model', 'table')):
+            raise CorruptArtifact(f'{file}: models[{goal!r}] must be a goal kind {GOALS} with '
+                                  f'"model" and "table" file names')
+    return manifest
+
+
+def load_bundle(bundle: Union[str, Path]) -> Tuple[Path, Robot, Dict[str, GoalModel]]:
+    """The directory, robot and per-goal models of a bundle, every file checked.
+
+    Raises:
+        CorruptArtifact: a missing or damaged file.
+        ArtifactMismatch: files made for another robot or model.
+    """
+    path = resolve_bundle(bundle)
+    manifest = read_bundle_manifest(path)
+    rm = manifest['robot']
+    robot = load_robot(rm['robot'], rm.get('urdf'), rm['base_frame'], rm['tip_frame'])
+    check_robot_manifest(f'bundle {path}', robot.manifest(), rm)
+    models = {}
+    for goal, files in manifest['models'].items():
+        ckpt = load_checkpoint(path / files['model'])
+        check_robot_manifest(f'model {files["model"]}', robot.manifest(), ckpt['robot'])
+        model, cfg, norm = model_from_checkpoint(ckpt)
+        if cfg.goal != goal or cfg.kind not in ('sik', 'psik'):
+            raise ArtifactMismatch(f'bundle {path}: model for {goal} goals', goal,
+                                   f'{cfg.kind}/{cfg.goal}')
+        table = IndexTable.load(path / files['table'], robot.manifest(), model_signature(ckpt))
+        models[goal] = GoalModel(model, cfg, norm, table)
+    return path, robot, models
+
+
+def bundle_files(goal: str) -> Dict[str, str]:
+    """The file names of a goal kind's model and table inside a bundle."""
+    return {'model': f'sik_{goal}.pt', 'table': f'sik_{goal}_table.npz'}
 
 
 def add_to_bundle(bundle: Path, robot_manifest: Dict, goal: str, model_file: Path,
@@ -18,21 +127,48 @@ def add_to_bundle(bundle: Path, robot_manifest: Dict, goal: str, model_file: Pat
     """
     bundle = Path(bundle)
     bundle.mkdir(parents=True, exist_ok=True)
-    manifest_path = bundle / 'bundle.json'
-    if manifest_path.exists():
-        manifest = read_json(manifest_path, f'bundle {bundle}')
+    if (bundle / 'bundle.json').exists():
+        manifest = read_bundle_manifest(bundle)
         if manifest['robot'] != robot_manifest:
             raise ArtifactMismatch(f'bundle {bundle}: robot', manifest['robot'], robot_manifest)
     else:
         manifest = {'kind': 'sik_bundle', 'format_version': FORMAT_VERSION,
                     'robot': robot_manifest, 'models': {}}
-    names = {'model': f'sik_{goal}.pt', 'table': f'sik_{goal}_table.npz'}
+    names = bundle_files(goal)
     for key, src in (('model', model_file), ('table', table_file)):
         dst = bundle / names[key]
-        tmp = bundle / f'.{names[key]}.{os.getpid()}.tmp'
         if Path(src).resolve() != dst.resolve():
-            shutil.copyfile(src, tmp)
-            os.replace(tmp, dst)
+            with atomic_write(dst) as tmp:
+                shutil.copyfile(src, tmp)
     manifest['models'][goal] = names
-    write_json_atomic(manifest_path, manifest)
+    write_json_atomic(bundle / 'bundle.json', manifest)
     return bundle
+
+
+def build_bundle(out: Path, robot: Robot, models: Mapping[str, Path], dataset: Dataset,
+                 cfg: TableConfig = TableConfig(), orientations: bool = True,
+                 progress: Optional[Callable[[int], None]] = None) -> Path:
+    """A bundle from trained models: each one's table built over ``dataset``, then bundled.
+
+    Args:
+        out: the bundle directory (created or added to).
+        robot: the robot of the models and the dataset.
+        models: model or checkpoint file (``.pt``) per goal kind.
+        dataset: the dataset the tables are built from.
+        cfg: the tables' cells.
+        orientations: keep each index's tip orientation in the tables.
+        progress: called with the rows encoded, chunk by chunk.
+
+    Returns:
+        ``out``.
+    """
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    for goal, model_file in models.items():
+        table = build_table(load_checkpoint(model_file), robot, dataset, cfg, orientations,
+                            progress=progress)
+        if table.manifest['goal'] != goal:
+            raise ArtifactMismatch(f'{model_file}: goal', goal, table.manifest['goal'])
+        table_file = table.save(out / bundle_files(goal)['table'])
+        add_to_bundle(out, robot.manifest(), goal, Path(model_file), table_file)
+    return out

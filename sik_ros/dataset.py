@@ -8,14 +8,16 @@ configuration), a ``manifest.json`` and a human-readable ``stats.txt``.
 from dataclasses import dataclass
 import math
 from pathlib import Path
-from typing import Callable, Iterator, List, Optional, Tuple
+from typing import Callable, Dict, Iterator, List, Optional, Tuple
 
 import numpy as np
 
 from sik_ros.artifacts import (atomic_directory, check_robot_manifest, FORMAT_VERSION,
                                library_versions, read_json, write_json_atomic)
+from sik_ros.chain import chain_forward
 from sik_ros.errors import CorruptArtifact, InvalidArgument
-from sik_ros.kinematics import chain_forward, Robot, rotation_to_quaternion
+from sik_ros.kinematics import Robot
+from sik_ros.rotations import rotation_to_quaternion
 
 ARRAYS = {'q': None, 'position': 3, 'quaternion': 4}
 #: Edge of the cells used to report positions per cell in ``stats.txt`` [m].
@@ -274,3 +276,10 @@ def format_stats(robot: Robot, manifest: dict) -> str:
     for name, lo, hi in zip(robot.joint_names, st['q_min'], st['q_max']):
         lines.append(f'  {name}: {lo:+.4f} .. {hi:+.4f}')
     return '\n'.join(lines) + '\n'
+
+
+def dataset_summary(ds: Dataset) -> Dict:
+    """The parts of a dataset manifest a checkpoint records."""
+    m = ds.manifest
+    return {'sampler': m['sampler'], 'params': m['params'], 'count': m['count'],
+            'robot': m['robot']['robot'], 'urdf_sha256': m['robot']['urdf_sha256']}

@@ -17,22 +17,17 @@ iteration and saves the decoder's forward pass (see docs/benchmarks.md).
 """
 
 from dataclasses import dataclass
-import hashlib
 import json
-import os
 from pathlib import Path
-from typing import Callable, Dict, Optional
+from typing import Dict, Optional, Protocol, Tuple
 import zipfile
 
 import numpy as np
 from scipy.spatial import cKDTree
 from scipy.spatial.distance import cdist
-import torch
 
-from sik_ros.artifacts import check_robot_manifest, FORMAT_VERSION
-from sik_ros.dataset import Dataset
+from sik_ros.artifacts import atomic_write, check_robot_manifest, FORMAT_VERSION
 from sik_ros.errors import ArtifactMismatch, CorruptArtifact, InvalidArgument
-from sik_ros.models import make_goal, ModelConfig, Normalizer
 
 TABLE_KEYS = ('centers', 'offsets', 'indices', 'manifest')
 
@@ -57,6 +52,76 @@ class TableConfig:
             raise InvalidArgument(f'invalid table config {self}')
 
 
+class PostureTable(Protocol):
+    """What the solver needs of a table of posture indices.
+
+    :class:`IndexTable` (built from a dataset) and :class:`PriorTable` (draws from a PSIK
+    model's prior, for a model that comes without a table) implement it.
+
+    Attributes:
+        indices: (M, latent) float32 posture indices; a "row" is an index into it.
+        orientations: (M, 4) unit quaternions x y z w of each row's tip, or None.
+        postures: (M, n) each row decoded at its cell's centre [rad], or None.
+    """
+
+    indices: np.ndarray
+    orientations: Optional[np.ndarray]
+    postures: Optional[np.ndarray]
+
+    @property
+    def index_bounds(self) -> Tuple[np.ndarray, np.ndarray]:
+        """Element-wise (min, max) of the indices."""
+
+    def rows_near(self, position: np.ndarray, k_cells: int) -> np.ndarray:
+        """Rows of the indices to try for a goal at ``position`` [m]."""
+
+    def distance_to_data(self, position: np.ndarray) -> float:
+        """How far ``position`` is from the data the table was made of [m]."""
+
+    def oriented_rows(self, position: np.ndarray, quaternion: np.ndarray, count: int,
+                      k_cells: int = 8) -> np.ndarray:
+        """Rows near ``position`` whose tip orientations were nearest ``quaternion``."""
+
+
+class PriorTable:
+    """A :class:`PostureTable` for a PSIK model without a table: draws from its prior.
+
+    PSIK's posture indices are trained towards N(0, I), so a fixed set of draws (the same for
+    every target) stands in for the table's indices near the target. It knows nothing of the
+    workspace: every goal counts as near the data.
+    """
+
+    orientations = None
+    postures = None
+
+    def __init__(self, latent_dim: int, count: int = 48, seed: int = 0):
+        rng = np.random.default_rng(seed)
+        self.indices = rng.standard_normal((count, latent_dim)).astype(np.float32)
+        self.latent_dim = latent_dim
+
+    @property
+    def index_bounds(self) -> Tuple[np.ndarray, np.ndarray]:
+        """Element-wise (min, max) of the draws."""
+        return self.indices.min(axis=0), self.indices.max(axis=0)
+
+    def rows_near(self, position: np.ndarray, k_cells: int) -> np.ndarray:
+        """Every draw, whatever the position."""
+        return np.arange(len(self.indices))
+
+    def distance_to_data(self, position: np.ndarray) -> float:
+        """0: the prior covers every goal."""
+        return 0.0
+
+    def oriented_rows(self, position: np.ndarray, quaternion: np.ndarray, count: int,
+                      k_cells: int = 8) -> np.ndarray:
+        """Refused: prior draws carry no orientation.
+
+        Raises:
+            InvalidArgument: always.
+        """
+        raise InvalidArgument('a prior table keeps no orientations')
+
+
 def farthest_point_subset(points: np.ndarray, k: int, first: int = 0) -> np.ndarray:
     """Indices of ``k`` rows of ``points`` chosen greedily far apart (farthest-point sampling)."""
     n = len(points)
@@ -69,57 +134,6 @@ def farthest_point_subset(points: np.ndarray, k: int, first: int = 0) -> np.ndar
         chosen.append(i)
         np.minimum(dist, cdist(points[i:i + 1], points)[0], out=dist)
     return np.array(chosen)
-
-
-def model_signature(ckpt: Dict) -> Dict:
-    """What ties a table to the model that encoded it."""
-    digest = hashlib.sha256()
-    for name, tensor in sorted(ckpt['model_state'].items()):
-        digest.update(name.encode())
-        digest.update(tensor.detach().cpu().contiguous().numpy().tobytes())
-    sig = {'model_config': ckpt['model_config'], 'step': int(ckpt.get('step', 0)),
-           'weights_sha256': digest.hexdigest()}
-    return json.loads(json.dumps(sig))
-
-
-@torch.no_grad()
-def encode_dataset(model, cfg: ModelConfig, norm: Normalizer, ds: Dataset,
-                   batch: int = 65536, progress: Optional[Callable[[int], None]] = None):
-    """Posture index of every dataset row, (N, latent) float32."""
-    from scipy.spatial.transform import Rotation
-    out = np.empty((len(ds), cfg.latent_dim), dtype=np.float32)
-    for s in range(0, len(ds), batch):
-        pos = np.asarray(ds.position[s:s + batch])
-        rot = Rotation.from_quat(np.asarray(ds.quaternion[s:s + batch])).as_matrix() \
-            if cfg.goal == 'pose' else None
-        goal = torch.from_numpy(make_goal(cfg.goal, pos, rot).astype(np.float32))
-        q = torch.from_numpy(np.asarray(ds.q[s:s + batch], dtype=np.float32))
-        z, _ = model.encode(norm.goal_to_net(goal), norm.q_to_net(q))
-        out[s:s + batch] = z.numpy()
-        if progress:
-            progress(len(q))
-    return out
-
-
-@torch.no_grad()
-def decode_postures(model, cfg: ModelConfig, norm: Normalizer, table: 'IndexTable',
-                    lower: np.ndarray, upper: np.ndarray, batch: int = 65536) -> np.ndarray:
-    """Every index of a position-goal table decoded at its cell's centre, (M, n) clipped [rad].
-
-    Raises:
-        InvalidArgument: a pose-goal model (its goals have an orientation a cell lacks).
-    """
-    if cfg.goal != 'position':
-        raise InvalidArgument(f'decoded postures need a position-goal model; got {cfg.goal!r}')
-    centers = table.cell_centers(np.arange(len(table.indices)))
-    out = np.empty((len(table.indices), len(lower)), dtype=np.float32)
-    for s in range(0, len(out), batch):
-        goal = torch.from_numpy(make_goal('position', centers[s:s + batch], None)
-                                .astype(np.float32))
-        z = torch.from_numpy(table.indices[s:s + batch])
-        q = norm.q_from_net(model.decode(norm.goal_to_net(goal), z)).double().numpy()
-        out[s:s + batch] = np.clip(q, lower, upper)
-    return out
 
 
 class IndexTable:
@@ -264,7 +278,6 @@ class IndexTable:
     def save(self, path: Path) -> Path:
         """Write the table atomically as a compressed ``.npz`` (indices stored as float16)."""
         path = Path(path)
-        tmp = path.with_name(f'.{path.name}.{os.getpid()}.tmp.npz')
         extra = {}
         if self.orientations is not None:  # 8-bit quaternions: ~1 degree, enough to choose
             extra['orientations'] = np.round(self.orientations * 127).astype(np.int8)
@@ -272,11 +285,11 @@ class IndexTable:
             lower, upper = (np.array(self.manifest['postures'][k]) for k in ('lower', 'upper'))
             codes = np.round((self.postures - lower) / (upper - lower) * 255)
             extra['postures'] = np.clip(codes, 0, 255).astype(np.uint8)
-        np.savez_compressed(tmp, centers=self.centers.astype(np.float32), offsets=self.offsets,
-                            indices=self.indices.astype(np.float16),
-                            manifest=np.array(json.dumps(self.manifest, sort_keys=True)),
-                            **extra)
-        os.replace(tmp, path)
+        with atomic_write(path) as tmp:
+            np.savez_compressed(tmp, centers=self.centers.astype(np.float32),
+                                offsets=self.offsets, indices=self.indices.astype(np.float16),
+                                manifest=np.array(json.dumps(self.manifest, sort_keys=True)),
+                                **extra)
         return path
 
     @classmethod

@@ -2,22 +2,22 @@
 
 A :class:`Robot` is a serial chain of revolute joints from a fixed base frame to a tip frame,
 extracted from a Pinocchio model (example-robot-data or a URDF). Joints off the base-to-tip path
-(the Panda's fingers) are locked. Batched forward kinematics is vectorised over configurations and
-written once for NumPy and PyTorch (:func:`chain_forward`); it is tested against Pinocchio's own
-frame placements.
+(a gripper's fingers) are locked. Its constant geometry is a :class:`~sik_ros.chain.SerialChain`,
+whose batched forward kinematics (:func:`~sik_ros.chain.chain_forward`) is tested against
+Pinocchio's own frame placements.
 """
 
-from dataclasses import dataclass
 import functools
 import hashlib
 from pathlib import Path
-from typing import Any, Optional, Sequence, Tuple
+from typing import Optional, Sequence, Tuple
 
 import numpy as np
 import pinocchio as pin
-from scipy.spatial.transform import Rotation
 
+from sik_ros.chain import chain_forward, SerialChain
 from sik_ros.errors import FrameNotFound, InvalidArgument, InvalidModel, RobotNotFound
+from sik_ros.rotations import rotation_to_quaternion, z_to_axis
 
 #: Default base and tip frames of the robots sik_ros knows by name.
 KNOWN_FRAMES = {
@@ -33,98 +33,6 @@ _REVOLUTE_AXES = {
     'JointModelRY': (0.0, 1.0, 0.0),
     'JointModelRZ': (0.0, 0.0, 1.0),
 }
-
-
-@dataclass(frozen=True)
-class SerialChain:
-    """Constant geometry of a revolute serial chain [m, rad].
-
-    Attributes:
-        joint_rotations: (n, 3, 3) rotation of each joint frame in its parent joint frame; the
-            frames are turned so that every joint rotates about its own z axis.
-        joint_translations: (n, 3) translation of each joint frame in its parent [m].
-        axes: (n, 3) the joints' axes as the URDF gives them (for reference).
-        base_rotation: (3, 3) rotation of the world in the base frame.
-        base_translation: (3,) translation of the world in the base frame [m].
-        tip_rotation: (3, 3) rotation of the tip in the last joint frame.
-        tip_translation: (3,) translation of the tip in the last joint frame [m].
-    """
-
-    joint_rotations: np.ndarray
-    joint_translations: np.ndarray
-    axes: np.ndarray
-    base_rotation: np.ndarray
-    base_translation: np.ndarray
-    tip_rotation: np.ndarray
-    tip_translation: np.ndarray
-
-    @property
-    def dof(self) -> int:
-        """Number of joints."""
-        return len(self.axes)
-
-
-def chain_forward(chain: Any, q: Any, xp: Any = np, frames: bool = False, first: int = 0,
-                  start: Optional[Tuple[Any, Any]] = None, tip: bool = True):
-    """Forward kinematics of a serial chain for a batch of configurations.
-
-    Every joint of a :class:`SerialChain` turns about its own z axis (the extraction rotates
-    joint frames so that this holds), so a joint's rotation only mixes two columns. Works for
-    NumPy arrays (``xp=numpy``) and torch tensors (``xp=torch``, with the chain's arrays as
-    tensors), so the training loss and the solver share it.
-
-    Args:
-        chain: a :class:`SerialChain` (or an object with the same array attributes).
-        q: (N, n) joint positions [rad].
-        xp: the array module, ``numpy`` or ``torch``.
-        frames: also return every joint's world position and axis.
-        first: index of the joint that ``q[:, 0]`` drives (to continue a partial chain).
-        start: ``(positions, rotations)`` of joint ``first - 1``'s frame; the base if None.
-        tip: apply the tip offset; else return the frame of the last joint computed.
-
-    Returns:
-        ``(p, R)``: tip positions (N, 3) [m] and rotations (N, 3, 3) in the base frame; with
-        ``frames=True`` also joint origins (N, n, 3) and world axes (N, n, 3).
-    """
-    c = xp.cos(q)
-    s = xp.sin(q)
-    if start is None:
-        rot = chain.base_rotation
-        pos = chain.base_translation + 0 * q[:, :1]
-    else:
-        pos, rot = start
-    origins, axes_world = [], []
-    for col in range(q.shape[1]):
-        i = first + col
-        pos = pos + rot @ chain.joint_translations[i]
-        a = rot @ chain.joint_rotations[i]
-        ci, si = c[:, col, None], s[:, col, None]
-        a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
-        rot = xp.stack([ci * a0 + si * a1, ci * a1 - si * a0, a2 + 0 * ci], -1)
-        if frames:
-            origins.append(pos)
-            axes_world.append(a2 + 0 * ci)
-    if tip:
-        pos, rot = pos + rot @ chain.tip_translation, rot @ chain.tip_rotation
-    if frames:
-        return pos, rot, xp.stack(origins, 1), xp.stack(axes_world, 1)
-    return pos, rot
-
-
-def _z_to_axis(axis: np.ndarray) -> np.ndarray:
-    """A rotation that maps the z axis onto a unit ``axis``."""
-    z = np.array([0.0, 0.0, 1.0])
-    v = np.cross(z, axis)
-    sin, cos = np.linalg.norm(v), float(z @ axis)
-    if sin < 1e-12:
-        return np.eye(3) if cos > 0 else np.diag([1.0, -1.0, -1.0])
-    return Rotation.from_rotvec(v / sin * np.arctan2(sin, cos)).as_matrix()
-
-
-def rotation_to_quaternion(rot: np.ndarray) -> np.ndarray:
-    """Rotation matrices (N, 3, 3) to unit quaternions (N, 4), x y z w, w >= 0."""
-    quat = Rotation.from_matrix(rot).as_quat()
-    return np.where(quat[:, 3:4] < 0, -quat, quat)
 
 
 def sha256_file(path: Path) -> str:
@@ -213,7 +121,7 @@ class Robot:
             trans.append(placement.translation.copy())
             axes.append(axis / np.linalg.norm(axis))
         # turn every joint about its own z axis: R_i <- A_{i-1}^T R_i A_i, t_i <- A_{i-1}^T t_i
-        align = [_z_to_axis(a) for a in axes]
+        align = [z_to_axis(a) for a in axes]
         prev = np.eye(3)
         for i, al in enumerate(align):
             rots[i] = prev.T @ rots[i] @ al

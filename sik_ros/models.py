@@ -12,8 +12,8 @@ import numpy as np
 import torch
 from torch import nn
 
+from sik_ros.chain import chain_forward, SerialChain
 from sik_ros.errors import InvalidArgument
-from sik_ros.kinematics import chain_forward, SerialChain
 
 MODEL_KINDS = ('sik', 'psik', 'fcn', 'anfis')
 GOAL_KINDS = ('position', 'pose')

@@ -7,7 +7,6 @@ else and a resumed run continues exactly where it stopped.
 
 from dataclasses import asdict, dataclass, replace
 import math
-import os
 from pathlib import Path
 import time
 from typing import Callable, Dict, Optional
@@ -16,10 +15,10 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 import torch
 
-from sik_ros.artifacts import check_robot_manifest, FORMAT_VERSION, library_versions
-from sik_ros.dataset import Dataset
-from sik_ros.errors import (ArtifactMismatch, CorruptArtifact, InvalidArgument,
-                            TrainingDiverged)
+from sik_ros.artifacts import (atomic_write, check_robot_manifest, FORMAT_VERSION,
+                               library_versions)
+from sik_ros.dataset import Dataset, dataset_summary
+from sik_ros.errors import ArtifactMismatch, InvalidArgument, TrainingDiverged
 from sik_ros.kinematics import Robot
 from sik_ros.models import (anfis_forward, build_model, kl_normal, make_goal, ModelConfig,
                             Normalizer, TorchChain)
@@ -114,11 +113,6 @@ def default_normalizer(robot: Robot, ds: Dataset) -> Normalizer:
     scale = float(np.sqrt(((sub - center) ** 2).sum(axis=1).mean()))
     return Normalizer(tuple(robot.lower.tolist()), tuple(robot.upper.tolist()),
                       tuple(center.tolist()), scale)
-
-
-def _normalizer_from_dict(d: Dict) -> Normalizer:
-    return Normalizer(tuple(d['lower']), tuple(d['upper']), tuple(d['position_center']),
-                      float(d['position_scale']), dict(d.get('extra', {})))
 
 
 def lr_at(cfg: TrainConfig, step: int) -> float:
@@ -227,33 +221,25 @@ class Trainer:
 
     def run(self, max_time: Optional[float] = None,
             progress: Optional[Callable[[int, Dict], None]] = None) -> Dict:
-        """Train until ``cfg.steps`` or ``max_time`` seconds of this call; checkpoint on exit."""
-        if self.model_cfg.kind == 'anfis':
-            return self._run_pso(max_time, progress)
+        """Train until ``cfg.steps`` or ``max_time`` seconds of this call; checkpoint on exit.
+
+        One loop for both optimisers: a gradient step (SIK, PSIK, FCN) or a particle swarm
+        step (ANFIS, the paper's solver), then validation, checkpoints and progress.
+        """
+        pso = self.model_cfg.kind == 'anfis'
+        step = self._pso_step if pso else self._gradient_step
         t0 = time.perf_counter()
         start_elapsed = self.elapsed
         self.model.train()
         last = {}
         while self.step < self.cfg.steps:
-            for group in self.opt.param_groups:
-                group['lr'] = lr_at(self.cfg, self.step)
-            pick = torch.randint(len(self.train_idx), (self.cfg.batch_size,), generator=self.gen)
-            out = self.losses(self.train_idx[pick])
-            if not torch.isfinite(out['loss']):
-                bad = float(out['loss'].detach())
-                raise TrainingDiverged(
-                    f'loss became {bad} at step {self.step}; the last good '
-                    f'checkpoint is kept in {self.out_dir} (lower --lr or resume from it)')
-            self.opt.zero_grad(set_to_none=True)
-            out['loss'].backward()
-            self.opt.step()
+            last = step()
             self.step += 1
             self.elapsed = start_elapsed + time.perf_counter() - t0
-            last = {k: float(v.detach()) if torch.is_tensor(v) else float(v)
-                    for k, v in out.items()}
             if self.step % self.cfg.eval_every == 0 or self.step == self.cfg.steps:
-                rec = {'step': self.step, 'elapsed_s': round(self.elapsed, 1),
-                       'lr': lr_at(self.cfg, self.step - 1), **last, **self.validate()}
+                lr = {} if pso else {'lr': lr_at(self.cfg, self.step - 1)}
+                rec = {'step': self.step, 'elapsed_s': round(self.elapsed, 1), **lr, **last,
+                       **self.validate()}
                 self.history.append(rec)
                 last = rec
             if self.step % self.cfg.checkpoint_every == 0:
@@ -265,59 +251,62 @@ class Trainer:
         self.save()
         return last
 
-    def _run_pso(self, max_time, progress) -> Dict:
-        """Particle swarm optimisation of an ANFIS (the paper's solver)."""
-        cfg = self.cfg
-        gen = self.gen
-        flat = self.model.params_flat.detach()
-        n_par = cfg.pso_particles
+    def _gradient_step(self) -> Dict[str, float]:
+        """One optimiser step on a random batch; the losses it saw."""
+        for group in self.opt.param_groups:
+            group['lr'] = lr_at(self.cfg, self.step)
+        pick = torch.randint(len(self.train_idx), (self.cfg.batch_size,), generator=self.gen)
+        out = self.losses(self.train_idx[pick])
+        if not torch.isfinite(out['loss']):
+            bad = float(out['loss'].detach())
+            raise TrainingDiverged(
+                f'loss became {bad} at step {self.step}; the last good '
+                f'checkpoint is kept in {self.out_dir} (lower --lr or resume from it)')
+        self.opt.zero_grad(set_to_none=True)
+        out['loss'].backward()
+        self.opt.step()
+        return {k: float(v.detach()) if torch.is_tensor(v) else float(v) for k, v in out.items()}
+
+    def _pso_state(self) -> Dict[str, torch.Tensor]:
+        """The swarm (created around the current parameters on first use)."""
         state = getattr(self, '_pso', None)
         if state is None:
+            flat = self.model.params_flat.detach()
+            n_par = self.cfg.pso_particles
             spread = torch.ones_like(flat)
             spread[3 * self.model_cfg.goal_dim * self.model_cfg.anfis_mfs:] = 1.0
-            pos = flat[None] + spread[None] * (torch.rand(n_par, len(flat), generator=gen) * 2 - 1)
+            pos = flat[None] + spread[None] * (
+                torch.rand(n_par, len(flat), generator=self.gen) * 2 - 1)
             pos[0] = flat
             state = {'pos': pos, 'vel': torch.zeros_like(pos), 'best': pos.clone(),
                      'best_f': torch.full((n_par,), float('inf')), 'gbest': flat.clone(),
                      'gbest_f': torch.tensor(float('inf'))}
             self._pso = state
-        t0 = time.perf_counter()
-        start_elapsed = self.elapsed
-        last = {}
-        with torch.no_grad():
-            while self.step < cfg.steps:
-                pick = torch.randint(len(self.train_idx), (cfg.pso_batch,), generator=gen)
-                q, goal, _, _ = self._batch(self.train_idx[pick])
-                x = self.norm.q_to_net(q)
-                g = self.norm.goal_to_net(goal)
-                f = ((anfis_forward(self.model_cfg, state['pos'], g) - x[None]) ** 2).mean((1, 2))
-                f = torch.nan_to_num(f, nan=float('inf'))
-                better = f < state['best_f']
-                state['best'][better] = state['pos'][better]
-                state['best_f'][better] = f[better]
-                i = int(torch.argmin(state['best_f']))
-                state['gbest'] = state['best'][i].clone()
-                state['gbest_f'] = state['best_f'][i].clone()
-                r1 = torch.rand(state['pos'].shape, generator=gen)
-                r2 = torch.rand(state['pos'].shape, generator=gen)
-                state['vel'] = (0.72 * state['vel'] + 1.49 * r1 * (state['best'] - state['pos'])
-                                + 1.49 * r2 * (state['gbest'][None] - state['pos']))
-                state['pos'] = (state['pos'] + state['vel']).clamp(-10.0, 10.0)
-                self.model.params_flat.copy_(state['gbest'])
-                self.step += 1
-                self.elapsed = start_elapsed + time.perf_counter() - t0
-                last = {'loss': float(state['gbest_f'])}
-                if self.step % cfg.eval_every == 0 or self.step == cfg.steps:
-                    rec = {'step': self.step, 'elapsed_s': round(self.elapsed, 1), **last,
-                           **self.validate()}
-                    self.history.append(rec)
-                    last = rec
-                if progress:
-                    progress(self.step, last)
-                if max_time is not None and time.perf_counter() - t0 >= max_time:
-                    break
-        self.save()
-        return last
+        return state
+
+    @torch.no_grad()
+    def _pso_step(self) -> Dict[str, float]:
+        """One particle swarm step of an ANFIS; the best loss so far."""
+        state, gen = self._pso_state(), self.gen
+        pick = torch.randint(len(self.train_idx), (self.cfg.pso_batch,), generator=gen)
+        q, goal, _, _ = self._batch(self.train_idx[pick])
+        x = self.norm.q_to_net(q)
+        g = self.norm.goal_to_net(goal)
+        f = ((anfis_forward(self.model_cfg, state['pos'], g) - x[None]) ** 2).mean((1, 2))
+        f = torch.nan_to_num(f, nan=float('inf'))
+        better = f < state['best_f']
+        state['best'][better] = state['pos'][better]
+        state['best_f'][better] = f[better]
+        i = int(torch.argmin(state['best_f']))
+        state['gbest'] = state['best'][i].clone()
+        state['gbest_f'] = state['best_f'][i].clone()
+        r1 = torch.rand(state['pos'].shape, generator=gen)
+        r2 = torch.rand(state['pos'].shape, generator=gen)
+        state['vel'] = (0.72 * state['vel'] + 1.49 * r1 * (state['best'] - state['pos'])
+                        + 1.49 * r2 * (state['gbest'][None] - state['pos']))
+        state['pos'] = (state['pos'] + state['vel']).clamp(-10.0, 10.0)
+        self.model.params_flat.copy_(state['gbest'])
+        return {'loss': float(state['gbest_f'])}
 
     # -- checkpoints -------------------------------------------------------------------------
 
@@ -341,9 +330,8 @@ class Trainer:
         """Write ``last.pt`` atomically in the output directory."""
         self.out_dir.mkdir(parents=True, exist_ok=True)
         path = self.out_dir / 'last.pt'
-        tmp = self.out_dir / f'.last.pt.{os.getpid()}.tmp'
-        torch.save(self.checkpoint(), tmp)
-        os.replace(tmp, path)
+        with atomic_write(path) as tmp:
+            torch.save(self.checkpoint(), tmp)
         return path
 
     def restore(self, ckpt: Dict) -> None:
@@ -365,62 +353,6 @@ class Trainer:
         self.gen.set_state(ckpt['rng']['batches'])
         if 'pso' in ckpt:
             self._pso = {k: v.clone() for k, v in ckpt['pso'].items()}
-
-
-def dataset_summary(ds: Dataset) -> Dict:
-    """The parts of a dataset manifest a checkpoint records."""
-    m = ds.manifest
-    return {'sampler': m['sampler'], 'params': m['params'], 'count': m['count'],
-            'robot': m['robot']['robot'], 'urdf_sha256': m['robot']['urdf_sha256']}
-
-
-def load_checkpoint(path: Path) -> Dict:
-    """Read and check a checkpoint (or exported model) file.
-
-    Raises:
-        CorruptArtifact: unreadable, truncated, or not a sik_ros checkpoint.
-    """
-    path = Path(path)
-    if not path.is_file():
-        raise CorruptArtifact(f'checkpoint {path} does not exist')
-    try:
-        ckpt = torch.load(path, map_location='cpu', weights_only=True)
-    except Exception as exc:  # torch raises many types for a damaged file
-        raise CorruptArtifact(f'cannot read checkpoint {path}: {exc}') from exc
-    if not isinstance(ckpt, dict) or ckpt.get('kind') not in ('sik_checkpoint', 'sik_model'):
-        raise CorruptArtifact(f'{path} is not a sik_ros checkpoint')
-    if ckpt.get('format_version') != FORMAT_VERSION:
-        raise ArtifactMismatch(f'{path} format version', FORMAT_VERSION,
-                               ckpt.get('format_version'))
-    for key in ('model_config', 'normalizer', 'robot', 'model_state'):
-        if key not in ckpt:
-            raise CorruptArtifact(f'checkpoint {path} lacks {key!r}')
-    return ckpt
-
-
-def model_from_checkpoint(ckpt: Dict):
-    """Rebuild ``(module in eval mode, ModelConfig, Normalizer)`` from a checkpoint dict."""
-    cfg = ModelConfig.from_dict(ckpt['model_config'])
-    model = build_model(cfg)
-    try:
-        model.load_state_dict(ckpt['model_state'])
-    except RuntimeError as exc:
-        raise CorruptArtifact(f'checkpoint weights do not fit its config: {exc}') from exc
-    model.eval()
-    return model, cfg, _normalizer_from_dict(ckpt['normalizer'])
-
-
-def export_model(ckpt: Dict, path: Path) -> Path:
-    """Write the inference part of a checkpoint (no optimiser) atomically to ``path``."""
-    keep = ('model_config', 'train_config', 'normalizer', 'robot', 'dataset', 'model_state',
-            'step', 'elapsed_s', 'history', 'versions')
-    out = {k: ckpt[k] for k in keep if k in ckpt}
-    out.update(kind='sik_model', format_version=FORMAT_VERSION)
-    path = Path(path)
-    tmp = path.with_name(f'.{path.name}.{os.getpid()}.tmp')
-    torch.save(out, tmp)
-    os.replace(tmp, path)
-    return path
 
 
 def with_overrides(cfg: TrainConfig, **kw) -> TrainConfig:

@@ -31,12 +31,12 @@ def uniform_small(panda, tmp_path_factory):
 
 def build_tiny_bundle(robot, dataset, out, steps=400):
     """Train tiny SIK position and pose models on ``dataset`` and bundle them with their tables."""
-    from sik_ros.bundle import add_to_bundle
-    from sik_ros.index_table import (decode_postures, encode_dataset, IndexTable,
-                                     model_signature, TableConfig)
+    from sik_ros.bundle import build_bundle
+    from sik_ros.checkpoints import export_model
+    from sik_ros.index_table import TableConfig
     from sik_ros.models import ModelConfig, PRESETS
-    from sik_ros.training import (dataset_summary, export_model, model_from_checkpoint,
-                                  TrainConfig, Trainer)
+    from sik_ros.training import TrainConfig, Trainer
+    models = {}
     for goal, latent in (('position', 4), ('pose', 1)):
         cfg = ModelConfig(goal=goal, latent_dim=latent, encoder=PRESETS['small'][0],
                           decoder=PRESETS['small'][1])
@@ -45,21 +45,9 @@ def build_tiny_bundle(robot, dataset, out, steps=400):
                                       eval_every=steps, checkpoint_every=steps, val_rows=500,
                                       threads=1), out / f'run_{goal}')
         trainer.run()
-        ckpt = trainer.checkpoint()
-        model_path = export_model(ckpt, out / f'{goal}.pt')
-        model, mcfg, norm = model_from_checkpoint(ckpt)
-        z = encode_dataset(model, mcfg, norm, dataset)
-        table = IndexTable.build(z, dataset.position, TableConfig(cell=0.08),
-                                 {'robot': robot.manifest(), 'model': model_signature(ckpt),
-                                  'dataset': dataset_summary(dataset), 'goal': goal},
-                                 dataset.quaternion)
-        if goal == 'position':  # the position table keeps decoded postures, as bundled
-            table = table.with_postures(
-                decode_postures(model, mcfg, norm, table, robot.lower, robot.upper),
-                robot.lower, robot.upper)
-        table_path = table.save(out / f'{goal}_table.npz')
-        add_to_bundle(out / 'bundle', robot.manifest(), goal, model_path, table_path)
-    return out / 'bundle'
+        models[goal] = export_model(trainer.checkpoint(), out / f'{goal}.pt')
+    # the position table keeps decoded postures, as bundled
+    return build_bundle(out / 'bundle', robot, models, dataset, TableConfig(cell=0.08))
 
 
 @pytest.fixture(scope='session')

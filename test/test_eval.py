@@ -7,25 +7,32 @@ import re
 import numpy as np
 import pytest
 
+from sik_ros.checkpoints import export_model
 from sik_ros.cli.eval import main
-from sik_ros.evaluation import Baseline, position_errors
+from sik_ros.eval import Baseline, load_baselines, position_errors
+from sik_ros.index_table import PriorTable
 from sik_ros.models import ModelConfig, PRESETS
 from sik_ros.solver import SelectiveIK
-from sik_ros.training import export_model, TrainConfig, Trainer
+from sik_ros.training import TrainConfig, Trainer
 
 PNG_MAGIC = b'\x89PNG\r\n\x1a\n'
+
+
+def train_baseline(robot, dataset, kind, out):
+    """Train a tiny position model of ``kind`` for a few steps; export it as ``out/<kind>.pt``."""
+    cfg = ModelConfig(kind=kind, encoder=PRESETS['tiny'][0], decoder=PRESETS['tiny'][1])
+    t = Trainer(robot, dataset, cfg,
+                TrainConfig(steps=20, batch_size=256, warmup=5, eval_every=20,
+                            checkpoint_every=20, val_rows=500, fk_weight=0.0), out / f'run_{kind}')
+    t.run()
+    return export_model(t.checkpoint(), out / f'{kind}.pt')
 
 
 @pytest.fixture(scope='module')
 def baselines(panda, uniform_small, tmp_path_factory):
     """A folder with a tiny FCN (trained for a few steps) as the only baseline."""
     out = tmp_path_factory.mktemp('baselines')
-    cfg = ModelConfig(kind='fcn', encoder=PRESETS['tiny'][0], decoder=PRESETS['tiny'][1])
-    t = Trainer(panda, uniform_small, cfg,
-                TrainConfig(steps=20, batch_size=256, warmup=5, eval_every=20,
-                            checkpoint_every=20, val_rows=500, fk_weight=0.0), out / 'run')
-    t.run()
-    export_model(t.checkpoint(), out / 'fcn.pt')
+    train_baseline(panda, uniform_small, 'fcn', out)
     return out
 
 
@@ -103,3 +110,33 @@ def test_missing_folder_is_refused(tiny_bundle, tmp_path, capsys):
     assert rc == 2
     assert 'not a directory' in capsys.readouterr().err
     assert not Path(tmp_path / 'results.md').exists()
+
+
+def test_psik_without_table_solves_and_is_reported(tiny_bundle, panda, uniform_small, tmp_path):
+    """A PSIK model given alone (``psik.pt``): its prior-draw table serves every solve."""
+    train_baseline(panda, uniform_small, 'psik', tmp_path)
+    out = tmp_path / 'eval'
+    rc = main(['--quick', '--bundle', str(tiny_bundle), '--baselines', str(tmp_path),
+               '--out', str(out), '--targets', '1', '--samples', '20000', '--quiet'])
+    assert rc == 0
+    text = (out / 'results.md').read_text()
+    assert f'- PSIK: `{tmp_path / "psik.pt"}` (no index table given' in text
+    header, rows = radius_table(text)
+    for row in rows:
+        for name in ('PSIK raw 1st', 'PSIK refined'):
+            assert np.isfinite(float(row[header.index(name)])), (name, row)
+    assert re.search(r'\| PSIK raw: `solve\(refine=False, num_solutions=1\)` \| \d+\.\d+ \|', text)
+    assert '### PSIK: distance errors [cm] (paper Table 4)' in text
+    data = json.loads((out / 'results.json').read_text())
+    assert 'psik_raw_1' in data['timing_ms'] and len(data['diversity']['psik']) == 4
+    found, missing = load_baselines(tmp_path, panda)
+    psik = found['psik']
+    assert isinstance(psik.models['position'].table, PriorTable) and 'psik' not in missing
+    targets = np.array(data['workspace']['targets'])
+    for p, reported in zip(targets, data['workspace']['errors_m']['psik']['raw_first']):
+        sols = psik.solve(p, num_solutions=10, refine=False).solutions
+        assert sols
+        errors = position_errors(panda, np.array([s.q for s in sols]), p)
+        assert np.all(np.isfinite(errors))
+        assert errors[0] == pytest.approx(reported, rel=1e-5, abs=1e-7)
+        assert psik.solve(p, num_solutions=1).solutions

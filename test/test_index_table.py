@@ -105,8 +105,8 @@ def test_decoded_postures_are_the_decoder_at_the_cell_centres(tiny_bundle, tmp_p
     import json
     import torch
     from sik_ros.errors import InvalidArgument
-    from sik_ros.index_table import decode_postures
-    from sik_ros.training import load_checkpoint, model_from_checkpoint
+    from sik_ros.indexing import decode_postures
+    from sik_ros.checkpoints import load_checkpoint, model_from_checkpoint
     panda = load_robot('panda')
     table = IndexTable.load(tiny_bundle / 'sik_position_table.npz')
     assert table.postures is not None and table.postures.shape == (len(table.indices), 7)

@@ -1,4 +1,4 @@
-"""The built sik_interfaces package matches the contract (docs: INTERFACES.md, section 4)."""
+"""The built sik_interfaces package matches the contract (docs/interfaces.md, section 4)."""
 
 import math
 

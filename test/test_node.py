@@ -1,4 +1,4 @@
-"""End to end: a real sik_node subprocess answering over DDS (INTERFACES.md, section 4).
+"""End to end: a real sik_node subprocess answering over DDS (docs/interfaces.md, section 4).
 
 One node per module, on a random ROS_DOMAIN_ID (discovery on localhost), pointed at the tiny test
 bundle with ``-p model_dir:=...``. A tiny model is not accurate, so answers are checked by FK of
@@ -27,7 +27,7 @@ from visualization_msgs.msg import Marker, MarkerArray
 
 from sik_interfaces.msg import IKSolutionArray
 from sik_interfaces.srv import SolveIK
-from sik_ros import demo
+from sik_ros.ros import demo
 
 pytestmark = pytest.mark.timeout(120)
 

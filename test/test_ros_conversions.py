@@ -1,4 +1,4 @@
-"""Message <-> library conversions of the ROS layer (sik_ros.ros_conversions), without a node."""
+"""Message <-> library conversions of the ROS layer (sik_ros.ros.conversions), without a node."""
 
 import math
 
@@ -14,8 +14,8 @@ from visualization_msgs.msg import Marker
 
 from sik_interfaces.msg import IKSolutionArray
 from sik_interfaces.srv import SolveIK
-from sik_ros import ros_conversions as conv
 from sik_ros.errors import InvalidArgument, InvalidGoal, InvalidSeed, JointLimitViolation
+from sik_ros.ros import conversions as conv
 from sik_ros.solver import Solution
 
 R = SolveIK.Response

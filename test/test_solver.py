@@ -8,10 +8,11 @@ import sys
 import numpy as np
 import pytest
 
+from sik_ros.chain import chain_forward
 from sik_ros.errors import ArtifactMismatch, InvalidArgument, InvalidGoal, InvalidSeed
-from sik_ros.kinematics import chain_forward
 from sik_ros.objectives import CollisionChecker, ElbowHeight, Obstacle
 from sik_ros.solver import SelectiveIK
+from sik_ros.solver.ranking import converged
 
 
 @pytest.fixture(scope='module')
@@ -150,7 +151,7 @@ def test_refinement_stops_once_enough_distinct_solutions_are_exact(panda, ik, ta
         z, rows = ik.candidates('position', p, None, None, 16, True, 0)
         q0 = ik.starting_postures('position', p, None, z, rows)
         full_q, full_p, full_o = ik.refine(q0, p, None)
-        full_exact = ik._converged(full_p, full_o, 'position')
+        full_exact = converged(full_p, full_o, 'position', ik.config)
         k = int(ik.distinct_mask(full_q[full_exact], 'position').sum()) // 2
         if k < 1:
             continue

@@ -6,10 +6,10 @@ import sys
 import pytest
 import torch
 
+from sik_ros.checkpoints import export_model, load_checkpoint, model_from_checkpoint
 from sik_ros.errors import ArtifactMismatch, CorruptArtifact, TrainingDiverged
 from sik_ros.models import ModelConfig, PRESETS
-from sik_ros.training import (export_model, load_checkpoint, model_from_checkpoint,
-                              TrainConfig, Trainer)
+from sik_ros.training import TrainConfig, Trainer
 
 TINY = ModelConfig(encoder=PRESETS['tiny'][0], decoder=PRESETS['tiny'][1])
 
@@ -124,3 +124,23 @@ def test_cli_bad_arguments(uniform_small, tmp_path, args, message):
                         '--steps', '2', *args], capture_output=True, text=True, timeout=120)
     assert r.returncode != 0
     assert message in r.stderr
+
+
+def test_pso_trains_an_anfis_through_the_same_loop(panda, uniform_small, tmp_path):
+    """Particle swarm steps of an ANFIS never raise its best loss, and a resume continues them."""
+    anfis = ModelConfig(kind='anfis', anfis_mfs=2)
+    whole = trainer(panda, uniform_small, tmp_path / 'whole', model=anfis, steps=20,
+                    eval_every=10, checkpoint_every=10, pso_particles=16, pso_batch=256)
+    losses = []
+    whole.run(progress=lambda step, rec: losses.append(rec['loss']))
+    assert len(losses) == 20 and all(b <= a for a, b in zip(losses, losses[1:])), losses
+    assert [r['step'] for r in whole.history] == [10, 20]
+    part = trainer(panda, uniform_small, tmp_path / 'part', model=anfis, steps=20,
+                   eval_every=10, checkpoint_every=10, pso_particles=16, pso_batch=256)
+    part.run(max_time=0.0)
+    rest = trainer(panda, uniform_small, tmp_path / 'part', model=anfis, steps=20,
+                   eval_every=10, checkpoint_every=10, pso_particles=16, pso_batch=256)
+    rest.restore(load_checkpoint(tmp_path / 'part' / 'last.pt'))
+    rest.run()
+    assert rest.step == 20
+    assert torch.equal(rest.model.params_flat, whole.model.params_flat)

@@ -7,13 +7,13 @@ from typing import List, Optional
 from tqdm import tqdm
 
 from sik_ros.bundle import add_to_bundle
+from sik_ros.checkpoints import load_checkpoint
 from sik_ros.cli import argv_or_default, run_cli
 from sik_ros.dataset import Dataset
 from sik_ros.errors import ArtifactExists, InvalidArgument
-from sik_ros.index_table import (decode_postures, encode_dataset, IndexTable,
-                                 model_signature, TableConfig)
+from sik_ros.index_table import TableConfig
+from sik_ros.indexing import build_table
 from sik_ros.kinematics import load_robot
-from sik_ros.training import dataset_summary, load_checkpoint, model_from_checkpoint
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -53,33 +53,20 @@ def main(argv: Optional[List[str]] = None) -> int:
             raise InvalidArgument(f'--out must end in .npz; got {out}')
         cfg = TableConfig(args.cell, args.dedup, args.max_per_cell)
         ckpt = load_checkpoint(args.model)
-        model, mcfg, norm = model_from_checkpoint(ckpt)
-        if mcfg.kind not in ('sik', 'psik'):
-            raise InvalidArgument(f'{args.model} is a {mcfg.kind} model; tables need sik/psik')
-        postures = mcfg.goal == 'position' if args.postures is None else args.postures
-        if postures and mcfg.goal != 'position':
-            raise InvalidArgument('--postures needs a position-goal model (a pose goal has an '
-                                  'orientation that a cell centre lacks)')
         rm = ckpt['robot']
         robot = load_robot(rm['robot'], None, rm['base_frame'], rm['tip_frame'])
         ds = Dataset.load(args.dataset, robot)
         t0 = time.perf_counter()
         with tqdm(total=len(ds), unit='rows', unit_scale=True, disable=args.quiet,
                   desc='encode') as bar:
-            z = encode_dataset(model, mcfg, norm, ds, progress=bar.update)
-        manifest = {'robot': robot.manifest(), 'model': model_signature(ckpt),
-                    'dataset': dataset_summary(ds), 'goal': mcfg.goal}
-        table = IndexTable.build(z, ds.position, cfg, manifest,
-                                 ds.quaternion if args.orientations else None)
-        if postures:
-            table = table.with_postures(
-                decode_postures(model, mcfg, norm, table, robot.lower, robot.upper),
-                robot.lower, robot.upper)
+            table = build_table(ckpt, robot, ds, cfg, args.orientations, args.postures,
+                                progress=bar.update)
         table.save(out)
         print(f'{table.manifest["cells"]} cells, {table.manifest["entries"]} indices '
               f'({out.stat().st_size / 1e6:.2f} MB) in {time.perf_counter() - t0:.1f} s')
         if args.bundle:
-            add_to_bundle(Path(args.bundle), robot.manifest(), mcfg.goal, Path(args.model), out)
+            add_to_bundle(Path(args.bundle), robot.manifest(), table.manifest['goal'],
+                          Path(args.model), out)
             print(f'added to bundle {args.bundle}')
         return 0
     return run_cli('sik-index', body)

@@ -7,13 +7,13 @@ from typing import List, Optional
 
 from tqdm import tqdm
 
+from sik_ros.checkpoints import export_model, load_checkpoint
 from sik_ros.cli import argv_or_default, run_cli
 from sik_ros.dataset import Dataset
 from sik_ros.errors import ArtifactExists, InvalidArgument
 from sik_ros.kinematics import load_robot
 from sik_ros.models import DEFAULT_LATENT, ModelConfig, PRESETS
-from sik_ros.training import (export_model, load_checkpoint, TrainConfig, Trainer,
-                              with_overrides)
+from sik_ros.training import TrainConfig, Trainer, with_overrides
 
 
 def build_parser() -> argparse.ArgumentParser:

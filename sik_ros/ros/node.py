@@ -2,7 +2,7 @@
 
 Service ``~/solve_ik`` (``sik_interfaces/srv/SolveIK``), topics ``~/goal`` -> ``~/solutions``,
 ``joint_states`` (optional seed) and ``~/markers`` (RViz). Run it with
-``sik_node --ros-args --params-file config/panda.yaml``. See INTERFACES.md, section 4.
+``sik_node --ros-args --params-file config/panda.yaml``. See docs/interfaces.md, section 4.
 
 Concurrency: a :class:`MultiThreadedExecutor` runs the service and goal callbacks in a reentrant
 callback group. Each callback hands its solve to one of ``solver_processes`` solver processes
@@ -13,8 +13,7 @@ parallel requests never share mutable state.
 """
 
 from contextlib import contextmanager
-from dataclasses import dataclass, fields, replace
-import math
+from dataclasses import fields, replace
 import queue
 import signal
 import traceback
@@ -22,9 +21,10 @@ from typing import Iterator, List, Optional, Tuple
 
 from geometry_msgs.msg import PoseStamped
 import numpy as np
-from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
+from rcl_interfaces.msg import SetParametersResult
 import rclpy
 from rclpy.callback_groups import ReentrantCallbackGroup
+from rclpy.exceptions import InvalidParameterValueException
 from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
@@ -37,8 +37,9 @@ from visualization_msgs.msg import MarkerArray
 
 from sik_interfaces.msg import IKSolution, IKSolutionArray
 from sik_interfaces.srv import SolveIK
-from sik_ros import ros_conversions as conv
 from sik_ros.errors import SikError
+from sik_ros.ros import conversions as conv
+from sik_ros.ros.params import declarations, NodeParams, validate
 from sik_ros.solver import IKResult, SelectiveIK
 from sik_ros.solver_pool import SolverCrashed, SolverPool
 
@@ -50,93 +51,8 @@ SPIN_PERIOD = 0.1
 Response = SolveIK.Response
 
 
-@dataclass(frozen=True)
-class NodeParams:
-    """The node's parameters (defaults as in ``config/panda.yaml``).
-
-    Attributes:
-        robot: bundled model to load when ``model_dir`` is empty; also the robot the bundle
-            must be made for.
-        model_dir: a bundle directory; empty for the bundled model named by ``robot``.
-        base_frame: frame of targets, obstacles and answers; must be the bundle's base frame.
-        tip_frame: the frame placed on the target; must be the bundle's tip frame.
-        num_solutions: solutions returned when a request asks for 0.
-        max_solutions_cap: most solutions returned; larger requests are clamped.
-        position_tolerance: a solution is exact within this position error [m].
-        orientation_tolerance: ... and this orientation error (pose goals) [rad].
-        refine: refine decoded solutions numerically.
-        timeout: time budget of a request that gives none [s].
-        use_joint_states: seed requests without a seed with the latest ``joint_states``.
-        goal_use_orientation: ``~/goal`` poses are pose goals (else position goals).
-        publish_markers: publish the ranked postures on ``~/markers`` (when subscribed).
-        solver_processes: solver processes serving requests in parallel; 0: solve in the
-            executor's threads.
-    """
-
-    robot: str = 'panda'
-    model_dir: str = ''
-    base_frame: str = 'panda_link0'
-    tip_frame: str = 'panda_hand_tcp'
-    num_solutions: int = 16
-    max_solutions_cap: int = 64
-    position_tolerance: float = 1e-4
-    orientation_tolerance: float = 1e-3
-    refine: bool = True
-    timeout: float = 0.05
-    use_joint_states: bool = False
-    goal_use_orientation: bool = False
-    publish_markers: bool = True
-    solver_processes: int = 0
-
-
-#: Parameter descriptions; read-only ones identify the loaded bundle (change them by restarting).
-DESCRIPTIONS = {
-    'robot': 'bundled model to load when model_dir is empty (read-only)',
-    'model_dir': 'bundle directory to load; empty: the bundled model of `robot` (read-only)',
-    'base_frame': 'frame of targets, obstacles and answers; the bundle\'s base (read-only)',
-    'tip_frame': 'frame placed on the target; the bundle\'s tip frame (read-only)',
-    'num_solutions': 'solutions returned when a request asks for 0; 1..max_solutions_cap',
-    'max_solutions_cap': 'most solutions per answer; larger requests are clamped; 1..1024',
-    'position_tolerance': 'a solution is exact within this position error [m]; (0, 0.1]',
-    'orientation_tolerance': 'and within this orientation error for pose goals [rad]; (0, pi]',
-    'refine': 'refine decoded solutions numerically (false: raw network output)',
-    'timeout': 'time budget of a request whose timeout is 0 [s]; (0, 60]',
-    'use_joint_states': 'seed requests that have no seed with the latest joint_states',
-    'goal_use_orientation': '~/goal poses are pose goals (false: position goals)',
-    'publish_markers': 'publish the ranked postures on ~/markers for RViz',
-    'solver_processes': 'solver processes serving requests in parallel (beyond the GIL); 0: '
-                        'solve in the executor threads; 0..16 (read-only)',
-}
-READ_ONLY = ('robot', 'model_dir', 'base_frame', 'tip_frame', 'solver_processes')
-#: Most solver processes.
-MAX_SOLVER_PROCESSES = 16
-
-
 class StartupError(SikError):
     """The node cannot start: bad parameters or an unusable bundle."""
-
-
-def validate(p: NodeParams) -> Optional[str]:
-    """Why a set of parameter values is unusable, or None if it is fine."""
-    if not p.robot and not p.model_dir:
-        return 'robot and model_dir are both empty: name a bundled model or a bundle directory'
-    if not p.base_frame or not p.tip_frame:
-        return 'base_frame and tip_frame must not be empty'
-    if not 0 <= p.solver_processes <= MAX_SOLVER_PROCESSES:
-        return (f'solver_processes must be in 0..{MAX_SOLVER_PROCESSES}; got '
-                f'{p.solver_processes}')
-    if not 1 <= p.max_solutions_cap <= 1024:
-        return f'max_solutions_cap must be in 1..1024; got {p.max_solutions_cap}'
-    if not 1 <= p.num_solutions <= p.max_solutions_cap:
-        return (f'num_solutions must be in 1..max_solutions_cap ({p.max_solutions_cap}); got '
-                f'{p.num_solutions}')
-    checks = (('position_tolerance', p.position_tolerance, 0.1, 'm'),
-              ('orientation_tolerance', p.orientation_tolerance, math.pi, 'rad'),
-              ('timeout', p.timeout, 60.0, 's'))
-    for name, value, upper, unit in checks:
-        if not (math.isfinite(value) and 0.0 < value <= upper):
-            return f'{name} must be in (0, {upper:g}] {unit}; got {value}'
-    return None
 
 
 class SikNode(Node):
@@ -192,12 +108,15 @@ class SikNode(Node):
     # -- parameters ------------------------------------------------------------------------------
 
     def _declare_parameters(self) -> None:
-        defaults = NodeParams()
-        self.declare_parameters('', [
-            (f.name, getattr(defaults, f.name),
-             ParameterDescriptor(description=DESCRIPTIONS[f.name],
-                                 read_only=f.name in READ_ONLY))
-            for f in fields(NodeParams)])
+        """Declare every parameter of :data:`~sik_ros.ros.params.SPECS` with its descriptor.
+
+        Raises:
+            StartupError: a value given at start-up is out of its declared range.
+        """
+        try:
+            self.declare_parameters('', declarations())
+        except InvalidParameterValueException as exc:
+            raise StartupError(f'bad parameters: {exc}') from exc
 
     def _read_parameters(self) -> NodeParams:
         return NodeParams(**{f.name: self.get_parameter(f.name).value

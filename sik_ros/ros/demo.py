@@ -29,11 +29,11 @@ from shape_msgs.msg import SolidPrimitive
 
 from sik_interfaces.msg import IKSolutionArray
 from sik_interfaces.srv import SolveIK
-from sik_ros.client import SolveIKClient
-from sik_ros.ros_conversions import ERROR_NAMES
+from sik_ros.ros.client import SolveIKClient
+from sik_ros.ros.conversions import ERROR_NAMES
 
 NODE = '/sik_node'
-REPO = Path(__file__).resolve().parents[1]
+REPO = Path(__file__).resolve().parents[2]
 #: Arm configurations whose tip poses serve as reachable demo targets [rad].
 READY = (0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785)
 REACH_LEFT = (0.5, -0.3, 0.2, -2.0, 0.1, 1.9, 0.6)
@@ -67,7 +67,7 @@ def ros_env(domain_id: Optional[int] = None) -> Dict[str, str]:
 
 def launch_node(model_dir: Optional[str] = None, params: Sequence[str] = (),
                 env: Optional[Dict[str, str]] = None, **popen) -> subprocess.Popen:
-    """Start ``python -m sik_ros.node`` with ``config/panda.yaml`` and ``-p`` overrides.
+    """Start ``python -m sik_ros.ros.node`` with ``config/panda.yaml`` and ``-p`` overrides.
 
     Args:
         model_dir: a bundle directory (None: the bundled model).
@@ -75,7 +75,7 @@ def launch_node(model_dir: Optional[str] = None, params: Sequence[str] = (),
         env: the process environment (see :func:`ros_env`).
         **popen: passed to :class:`subprocess.Popen` (e.g. ``stdout``).
     """
-    cmd = [sys.executable, '-m', 'sik_ros.node', '--ros-args', '--params-file',
+    cmd = [sys.executable, '-m', 'sik_ros.ros.node', '--ros-args', '--params-file',
            str(params_file())]
     overrides = ([f'model_dir:={model_dir}'] if model_dir else []) + list(params)
     for item in overrides:
@@ -160,7 +160,11 @@ def format_answer(title: str, answer, seconds: Optional[float] = None, rows: int
 
 def bundle_goals(model_dir: Optional[str]) -> List[str]:
     """Goal kinds (``position``, ``pose``) a bundle has models for; empty if unreadable."""
-    path = Path(model_dir) if model_dir else Path(__file__).resolve().parent / 'models' / 'panda'
+    if model_dir:
+        path = Path(model_dir)
+    else:
+        from sik_ros.bundle import BUNDLES  # imported here: it loads torch
+        path = BUNDLES / 'panda'
     try:
         return sorted(json.loads((path / 'bundle.json').read_text())['models'])
     except (OSError, ValueError, KeyError, TypeError):
@@ -189,8 +193,8 @@ def topic_goal(node: Node, position: Sequence[float], timeout: float = 10.0):
 def run_demo(node: Node, client: 'SolveIKClient', goals: List[str]) -> bool:
     """Send the demo goals and print the answers; True if every request was answered.
 
-    Service calls go through ``client`` (spun in its own thread, see :mod:`sik_ros.client`);
-    the topic goal through ``node``.
+    Service calls go through ``client`` (spun in its own thread, see
+    :mod:`sik_ros.ros.client`); the topic goal through ``node``.
     """
     from sik_ros.kinematics import load_robot
     robot = load_robot('panda')
@@ -235,8 +239,8 @@ def run_demo(node: Node, client: 'SolveIKClient', goals: List[str]) -> bool:
 
 
 def main(argv: Optional[List[str]] = None) -> int:
-    """Entry point of ``python -m sik_ros.demo``."""
-    parser = argparse.ArgumentParser(prog='python -m sik_ros.demo', description=__doc__.split(
+    """Entry point of ``python -m sik_ros.ros.demo``."""
+    parser = argparse.ArgumentParser(prog='python -m sik_ros.ros.demo', description=__doc__.split(
         '\n')[0])
     parser.add_argument('--model-dir', help='bundle directory (default: the bundled panda model)')
     parser.add_argument('--domain-id', type=int, help='ROS_DOMAIN_ID (default: a random one)')

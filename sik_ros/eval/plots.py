@@ -1,10 +1,9 @@
 """Figures of the evaluation report: arm postures in 3D, error against radius, training curves.
 
 Figures are drawn on matplotlib's Agg canvas directly (no pyplot, no global state) and written
-as PNG files atomically: under a temporary name in the target folder, then renamed.
+as PNG files atomically (:func:`sik_ros.artifacts.atomic_write`).
 """
 
-import os
 from pathlib import Path
 from typing import Dict, List, Optional, Sequence, Tuple
 
@@ -14,9 +13,10 @@ from mpl_toolkits.mplot3d.art3d import Poly3DCollection
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from sik_ros.evaluation import arm_points
+from sik_ros.artifacts import atomic_write
+from sik_ros.collision import Obstacle
+from sik_ros.eval.metrics import arm_points
 from sik_ros.kinematics import Robot
-from sik_ros.objectives import Obstacle
 
 #: Colours of several postures in one picture.
 COLORS = ('tab:blue', 'tab:orange', 'tab:green', 'tab:purple', 'tab:brown', 'tab:pink',
@@ -31,16 +31,11 @@ def new_figure(width: float, height: float) -> Figure:
 
 
 def save_figure(fig: Figure, path: Path) -> Path:
-    """Write a figure as PNG atomically (temporary name in the same folder, then rename)."""
+    """Write a figure as PNG atomically, creating its folder; returns ``path``."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f'.{path.stem}.{os.getpid()}.tmp.png')
-    try:
+    with atomic_write(path) as tmp:
         fig.savefig(tmp, format='png')
-        os.replace(tmp, path)
-    finally:
-        if tmp.exists():
-            tmp.unlink()
     return path
 
 

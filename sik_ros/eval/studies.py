@@ -1,0 +1,372 @@
+"""The paper's accuracy experiments as functions returning typed results (no printing).
+
+Sections of the paper's "Experiments" and the function for each:
+
+1. distance error over the workspace and per radius: :func:`workspace_targets`,
+   :func:`sphere_targets`, :func:`distance_error_study`;
+2. computing time: :mod:`sik_ros.eval.timing`;
+3. diversity of ten far-apart postures per target: :func:`diversity_study`;
+4. posture indices: :func:`element_sweep`, and the latent-size study (a training study) in
+   :mod:`sik_ros.eval.histories`;
+5. orientation as goal: :func:`orientation_study`;
+6. obstacle avoidance with Algorithm 2: :mod:`sik_ros.eval.obstacle`.
+
+Every distance error here is recomputed from the joint angles by forward kinematics: the distance
+between the target and the tip the angles reach [m].
+"""
+
+from dataclasses import dataclass
+from typing import Callable, Dict, List, Optional, Sequence, Tuple
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from sik_ros.eval.baselines import Baseline, Method
+from sik_ros.eval.metrics import mean_cm, orientation_cosine, position_errors
+from sik_ros.eval.paper import DIVERSITY_TARGETS, RADII, SWEEP_TARGET
+from sik_ros.index_table import farthest_point_subset, PostureTable
+from sik_ros.kinematics import Robot
+from sik_ros.solver import SelectiveIK
+
+#: Called with how many steps of work were just done.
+Progress = Optional[Callable[[int], None]]
+#: Per-target distance errors [m] by variant (``raw_first``, ``raw_mean``, ``refined``, ...).
+Errors = Dict[str, np.ndarray]
+
+
+def table_pool(table: PostureTable, position: np.ndarray, k_cells: int) -> np.ndarray:
+    """The posture indices a table holds near a position [m], (M, latent)."""
+    return table.indices[table.rows_near(np.asarray(position, dtype=float), k_cells)]
+
+
+# -- 1. distance error ----------------------------------------------------------------------------
+
+@dataclass
+class SphereTargets:
+    """Reachable targets near one sphere around the base origin.
+
+    Attributes:
+        positions: (k, 3) targets [m].
+        q: (k, n) joint angles reaching them [rad].
+        available: how many sampled tips lay near the sphere (k is at most the number asked).
+    """
+
+    positions: np.ndarray
+    q: np.ndarray
+    available: int
+
+
+@dataclass
+class DistanceErrors:
+    """Experiment 1: per-target distance errors [m] of every model.
+
+    Attributes:
+        workspace: ``{model: {variant: (N,)}}`` over the workspace targets.
+        radius: ``{model: {variant: [(k,) per radius]}}`` over the sphere targets.
+    """
+
+    workspace: Dict[str, Errors]
+    radius: Dict[str, Dict[str, List[np.ndarray]]]
+
+    def radius_means_cm(self) -> Dict[str, Dict[str, List[float]]]:
+        """Mean error [cm] per radius: ``{model: {variant: [per radius]}}``."""
+        return {name: {v: [mean_cm(e) for e in per] for v, per in variants.items()}
+                for name, variants in self.radius.items()}
+
+
+def workspace_targets(robot: Robot, count: int, seed: int = 0) -> Tuple[np.ndarray, np.ndarray]:
+    """Targets uniform over the workspace: FK of joint angles uniform within the limits.
+
+    Returns:
+        positions (count, 3) [m] and the configurations (count, n) [rad] that reach them.
+    """
+    rng = np.random.default_rng(seed)
+    q = rng.uniform(robot.lower, robot.upper, (count, robot.dof))
+    return robot.fk_rot(q)[0], q
+
+
+def sphere_targets(robot: Robot, radii: Sequence[float] = RADII, per_radius: int = 100,
+                   samples: int = 1_000_000, tol: float = 0.01, seed: int = 1,
+                   chunk: int = 200_000) -> Dict[float, SphereTargets]:
+    """Reachable targets near spheres around the base origin.
+
+    Draws ``samples`` joint configurations uniformly within the limits, keeps the tips whose
+    distance from the base origin is within ``tol`` [m] of a radius [m], and picks
+    ``per_radius`` of them at random (all of them when fewer exist).
+
+    Returns:
+        ``{radius: SphereTargets}``.
+    """
+    rng = np.random.default_rng(seed)
+    radii = np.asarray(radii, dtype=float)
+    pos_parts, q_parts = [], []
+    for start in range(0, samples, chunk):
+        q = rng.uniform(robot.lower, robot.upper, (min(chunk, samples - start), robot.dof))
+        p, _ = robot.fk_rot(q)
+        near = np.abs(np.linalg.norm(p, axis=1)[:, None] - radii[None]).min(axis=1) < tol
+        pos_parts.append(p[near])
+        q_parts.append(q[near])
+    pos, qs = np.concatenate(pos_parts), np.concatenate(q_parts)
+    dist = np.linalg.norm(pos, axis=1)
+    out = {}
+    for r in radii:
+        rows = np.flatnonzero(np.abs(dist - r) < tol)
+        pick = rng.permutation(rows)[:per_radius]
+        out[float(r)] = SphereTargets(pos[pick], qs[pick], int(len(rows)))
+    return out
+
+
+def sik_errors(ik: SelectiveIK, targets: np.ndarray, progress: Progress = None,
+               num_raw: int = 10) -> Errors:
+    """Distance errors [m] of a SelectiveIK (SIK or PSIK) on position targets (N, 3) [m].
+
+    Returns:
+        per target: ``raw_first`` (first-ranked solution of ``solve(refine=False)``),
+        ``raw_mean`` (mean over its up to ``num_raw`` solutions), ``raw_count`` (how many it
+        returned), ``refined`` (first-ranked solution of ``solve(refine=True)``).
+    """
+    keys = ('raw_first', 'raw_mean', 'raw_count', 'refined')
+    out = {k: np.empty(len(targets)) for k in keys}
+    for i, p in enumerate(np.asarray(targets, dtype=float)):
+        raw = ik.solve(p, num_solutions=num_raw, refine=False)
+        q_raw = np.array([s.q for s in raw.solutions])
+        e_raw = position_errors(ik.robot, q_raw, p)
+        ref = ik.solve(p, num_solutions=1, refine=True)
+        out['raw_first'][i] = e_raw[0]
+        out['raw_mean'][i] = e_raw.mean()
+        out['raw_count'][i] = len(e_raw)
+        out['refined'][i] = position_errors(ik.robot, ref.solutions[0].q, p)[0]
+        if progress:
+            progress(1)
+    return out
+
+
+def baseline_errors(base: Baseline, targets: np.ndarray) -> np.ndarray:
+    """Distance errors [m] of a single-solution baseline's predictions, (N,)."""
+    targets = np.asarray(targets, dtype=float)
+    return position_errors(base.robot, base.predict(targets), targets)
+
+
+def model_errors(model: Method, targets: np.ndarray, progress: Progress = None) -> Errors:
+    """Per-target errors of a SelectiveIK (see :func:`sik_errors`) or a baseline (``raw``)."""
+    if isinstance(model, SelectiveIK):
+        return sik_errors(model, targets, progress)
+    errs = {'raw': baseline_errors(model, targets)}
+    if progress:
+        progress(len(targets))
+    return errs
+
+
+def distance_error_study(ik: SelectiveIK, baselines: Dict[str, Method], workspace: np.ndarray,
+                         spheres: Dict[float, SphereTargets],
+                         progress: Progress = None) -> DistanceErrors:
+    """Experiment 1: distance errors over the workspace and per radius, every model.
+
+    Args:
+        ik: the SIK solver (position goals).
+        baselines: ``{name: SelectiveIK or Baseline}`` (see
+            :func:`sik_ros.eval.baselines.load_baselines`).
+        workspace: targets uniform over the workspace (N, 3) [m].
+        spheres: output of :func:`sphere_targets`.
+        progress: called per target solved.
+    """
+    models = {'sik': ik, **baselines}
+    out = DistanceErrors({}, {})
+    for name, model in models.items():
+        out.workspace[name] = model_errors(model, workspace, progress)
+        per: Dict[str, List[np.ndarray]] = {}
+        for r in spheres:
+            for variant, e in model_errors(model, spheres[r].positions, progress).items():
+                per.setdefault(variant, []).append(e)
+        out.radius[name] = per
+    return out
+
+
+# -- 3. diversity ---------------------------------------------------------------------------------
+
+@dataclass
+class DiversityTarget:
+    """Experiment 3 at one target: far-apart indices decoded (raw) and refined.
+
+    Attributes:
+        position: the target (3,) [m].
+        z: the posture indices (count, latent).
+        q_raw, q_refined: the solutions (count, n) [rad].
+        err_raw, err_refined: their distance errors (count,) [m].
+        var_raw, var_refined: per-joint population variance of the solutions (n,) [deg^2].
+        distinct_raw, distinct_refined: how many solutions are distinct postures.
+    """
+
+    position: np.ndarray
+    z: np.ndarray
+    q_raw: np.ndarray
+    q_refined: np.ndarray
+    err_raw: np.ndarray
+    err_refined: np.ndarray
+    var_raw: np.ndarray
+    var_refined: np.ndarray
+    distinct_raw: int
+    distinct_refined: int
+
+
+def far_apart_indices(ik: SelectiveIK, position: np.ndarray, count: int,
+                      goal: str = 'position') -> np.ndarray:
+    """``count`` far-apart posture indices from the table cells near a position [m]."""
+    pool = table_pool(ik.models[goal].table, position, ik.config.k_cells)
+    return pool[farthest_point_subset(pool, count)]
+
+
+def diversity_study(ik: SelectiveIK, targets: Sequence = DIVERSITY_TARGETS,
+                    count: int = 10) -> List[DiversityTarget]:
+    """Experiment 3: ten far-apart indices per target [m], decoded (raw) and refined."""
+    out = []
+    for t in targets:
+        pos = np.asarray(t, dtype=float)
+        z = far_apart_indices(ik, pos, count)
+        q_raw = ik.decode('position', pos, None, z)
+        q_ref, _, _ = ik.refine(q_raw, pos, None)
+        out.append(DiversityTarget(
+            pos, z, q_raw, q_ref, position_errors(ik.robot, q_raw, pos),
+            position_errors(ik.robot, q_ref, pos), np.var(np.degrees(q_raw), axis=0),
+            np.var(np.degrees(q_ref), axis=0), int(ik.distinct_mask(q_raw, 'position').sum()),
+            int(ik.distinct_mask(q_ref, 'position').sum())))
+    return out
+
+
+# -- 4. posture indices ---------------------------------------------------------------------------
+
+@dataclass
+class SweepElement:
+    """One index element varied over its range.
+
+    Attributes:
+        values: the element's values (steps,).
+        q_raw, q_refined: the solutions (steps, n) [rad].
+        err_raw, err_refined: their distance errors (steps,) [m].
+    """
+
+    values: np.ndarray
+    q_raw: np.ndarray
+    q_refined: np.ndarray
+    err_raw: np.ndarray
+    err_refined: np.ndarray
+
+
+@dataclass
+class Sweep:
+    """Experiment 4's element sweep at one target.
+
+    Attributes:
+        position: the target (3,) [m].
+        median: the index the elements vary around (latent,).
+        pool_size: how many table indices near the target the range comes from.
+        elements: one :class:`SweepElement` per index element.
+    """
+
+    position: np.ndarray
+    median: np.ndarray
+    pool_size: int
+    elements: List[SweepElement]
+
+
+def element_sweep(ik: SelectiveIK, target: Sequence[float] = SWEEP_TARGET,
+                  steps: int = 6) -> Sweep:
+    """Experiment 4: vary one index element at a time over its range near the target [m].
+
+    The other elements stay at the median of the table's indices near the target; each element
+    takes ``steps`` evenly spaced values between the minimum and maximum of those indices.
+    """
+    pos = np.asarray(target, dtype=float)
+    pool = table_pool(ik.models['position'].table, pos, ik.config.k_cells).astype(np.float64)
+    median = np.median(pool, axis=0)
+    elements = []
+    for d in range(pool.shape[1]):
+        values = np.linspace(pool[:, d].min(), pool[:, d].max(), steps)
+        z = np.repeat(median[None], steps, axis=0)
+        z[:, d] = values
+        q_raw = ik.decode('position', pos, None, z)
+        q_ref, _, _ = ik.refine(q_raw, pos, None)
+        elements.append(SweepElement(values, q_raw, q_ref, position_errors(ik.robot, q_raw, pos),
+                                     position_errors(ik.robot, q_ref, pos)))
+    return Sweep(pos, median, len(pool), elements)
+
+
+# -- 5. orientation -------------------------------------------------------------------------------
+
+@dataclass
+class OrientedTarget:
+    """Experiment 5 at one pose target.
+
+    Attributes:
+        position: the target position (3,) [m]; ``quaternion`` its orientation (x y z w).
+        z: the posture indices (postures, latent).
+        q_raw, q_refined: the solutions (postures, n) [rad].
+        err_raw, err_refined: their distance errors [m].
+        cos_raw, cos_refined: their orientation cosine similarities (see
+            :func:`sik_ros.eval.metrics.orientation_cosine`).
+        angle_raw, angle_refined: their orientation errors [rad].
+    """
+
+    position: np.ndarray
+    quaternion: np.ndarray
+    z: np.ndarray
+    q_raw: np.ndarray
+    err_raw: np.ndarray
+    cos_raw: np.ndarray
+    angle_raw: np.ndarray
+    q_refined: np.ndarray
+    err_refined: np.ndarray
+    cos_refined: np.ndarray
+    angle_refined: np.ndarray
+
+
+@dataclass
+class Orientation:
+    """Experiment 5: every target, and the means over every posture of every target.
+
+    Attributes:
+        targets: one :class:`OrientedTarget` each.
+        err_raw, err_refined: mean distance errors [m].
+        cos_raw, cos_refined: mean cosine similarities.
+        angle_raw, angle_refined: mean orientation errors [rad].
+    """
+
+    targets: List[OrientedTarget]
+    err_raw: float
+    cos_raw: float
+    angle_raw: float
+    err_refined: float
+    cos_refined: float
+    angle_refined: float
+
+
+def orientation_study(ik: SelectiveIK, targets: int = 4, postures: int = 5,
+                      seed: int = 5, min_height: float = 0.1) -> Orientation:
+    """Experiment 5: pose goals (position and orientation held) with the pose model.
+
+    Targets are reachable poses: FK of seeded uniform joint samples, the first ``targets`` whose
+    tip is higher than ``min_height`` [m] above the base (above the table). Per target, the indices
+    are the 0, 25, 50, 75 and 100 % quantiles (``postures`` of them) of the table's indices near
+    the target's position (for a 1-d index, evenly spread along its range).
+    """
+    rng = np.random.default_rng(seed)
+    q_goal = rng.uniform(ik.robot.lower, ik.robot.upper, (50 * targets, ik.robot.dof))
+    pos_all, rot_all = ik.robot.fk_rot(q_goal)
+    above = np.flatnonzero(pos_all[:, 2] > min_height)[:targets]
+    pos_all, rot_all = pos_all[above], rot_all[above]
+    out = []
+    for pos, rot in zip(pos_all, rot_all):
+        pool = table_pool(ik.models['pose'].table, pos, ik.config.k_cells).astype(np.float64)
+        z = np.quantile(pool, np.linspace(0, 1, postures), axis=0)
+        q_raw = ik.decode('pose', pos, rot, z)
+        q_ref, _, _ = ik.refine(q_raw, pos, rot)
+        rec = {}
+        for tag, q in (('raw', q_raw), ('refined', q_ref)):
+            p, r = ik.robot.fk_rot(q)
+            cos, angle = orientation_cosine(rot, r)
+            rec.update({f'q_{tag}': q, f'err_{tag}': np.linalg.norm(p - pos, axis=1),
+                        f'cos_{tag}': cos, f'angle_{tag}': angle})
+        out.append(OrientedTarget(pos, Rotation.from_matrix(rot).as_quat(), z, **rec))
+    means = {f'{key}_{tag}': float(np.mean([getattr(t, f'{key}_{tag}') for t in out]))
+             for tag in ('raw', 'refined') for key in ('err', 'cos', 'angle')}
+    return Orientation(out, **means)

@@ -1,0 +1,96 @@
+"""Building a posture-index table from a trained model and its dataset.
+
+Every dataset row is encoded to its posture index (:func:`encode_dataset`), the indices are grouped
+into cells (:meth:`IndexTable.build`), and a position-goal table may keep each index decoded at
+its cell's centre (:func:`decode_postures`). :func:`build_table` does all of it for a checkpoint.
+"""
+
+from typing import Callable, Dict, Optional
+
+import numpy as np
+import torch
+
+from sik_ros.checkpoints import model_from_checkpoint, model_signature
+from sik_ros.dataset import Dataset, dataset_summary
+from sik_ros.errors import InvalidArgument
+from sik_ros.index_table import IndexTable, TableConfig
+from sik_ros.kinematics import Robot
+from sik_ros.models import make_goal, ModelConfig, Normalizer
+
+Progress = Optional[Callable[[int], None]]
+
+
+@torch.no_grad()
+def encode_dataset(model, cfg: ModelConfig, norm: Normalizer, ds: Dataset,
+                   batch: int = 65536, progress: Progress = None):
+    """Posture index of every dataset row, (N, latent) float32."""
+    from scipy.spatial.transform import Rotation
+    out = np.empty((len(ds), cfg.latent_dim), dtype=np.float32)
+    for s in range(0, len(ds), batch):
+        pos = np.asarray(ds.position[s:s + batch])
+        rot = Rotation.from_quat(np.asarray(ds.quaternion[s:s + batch])).as_matrix() \
+            if cfg.goal == 'pose' else None
+        goal = torch.from_numpy(make_goal(cfg.goal, pos, rot).astype(np.float32))
+        q = torch.from_numpy(np.asarray(ds.q[s:s + batch], dtype=np.float32))
+        z, _ = model.encode(norm.goal_to_net(goal), norm.q_to_net(q))
+        out[s:s + batch] = z.numpy()
+        if progress:
+            progress(len(q))
+    return out
+
+
+@torch.no_grad()
+def decode_postures(model, cfg: ModelConfig, norm: Normalizer, table: 'IndexTable',
+                    lower: np.ndarray, upper: np.ndarray, batch: int = 65536) -> np.ndarray:
+    """Every index of a position-goal table decoded at its cell's centre, (M, n) clipped [rad].
+
+    Raises:
+        InvalidArgument: a pose-goal model (its goals have an orientation a cell lacks).
+    """
+    if cfg.goal != 'position':
+        raise InvalidArgument(f'decoded postures need a position-goal model; got {cfg.goal!r}')
+    centers = table.cell_centers(np.arange(len(table.indices)))
+    out = np.empty((len(table.indices), len(lower)), dtype=np.float32)
+    for s in range(0, len(out), batch):
+        goal = torch.from_numpy(make_goal('position', centers[s:s + batch], None)
+                                .astype(np.float32))
+        z = torch.from_numpy(table.indices[s:s + batch])
+        q = norm.q_from_net(model.decode(norm.goal_to_net(goal), z)).double().numpy()
+        out[s:s + batch] = np.clip(q, lower, upper)
+    return out
+
+
+def build_table(ckpt: Dict, robot: Robot, ds: Dataset, cfg: TableConfig = TableConfig(),
+                orientations: bool = True, postures: Optional[bool] = None,
+                progress: Progress = None) -> IndexTable:
+    """The index table of a checkpoint's model over a dataset.
+
+    Args:
+        ckpt: a SIK or PSIK checkpoint (or exported model) dict.
+        robot: the robot of the checkpoint and the dataset.
+        ds: the dataset to encode.
+        cfg: cell size and per-cell limits.
+        orientations: keep each index's tip orientation.
+        postures: keep each index decoded at its cell's centre; None: for position models.
+        progress: called with the number of rows encoded so far, chunk by chunk.
+
+    Raises:
+        InvalidArgument: not a SIK/PSIK model, or postures asked for a pose model.
+    """
+    model, mcfg, norm = model_from_checkpoint(ckpt)
+    if mcfg.kind not in ('sik', 'psik'):
+        raise InvalidArgument(f'a {mcfg.kind} model has no posture index; tables need sik/psik')
+    postures = mcfg.goal == 'position' if postures is None else postures
+    if postures and mcfg.goal != 'position':
+        raise InvalidArgument('--postures needs a position-goal model (a pose goal has an '
+                              'orientation that a cell centre lacks)')
+    z = encode_dataset(model, mcfg, norm, ds, progress=progress)
+    manifest = {'robot': robot.manifest(), 'model': model_signature(ckpt),
+                'dataset': dataset_summary(ds), 'goal': mcfg.goal}
+    table = IndexTable.build(z, ds.position, cfg, manifest,
+                             ds.quaternion if orientations else None)
+    if postures:
+        table = table.with_postures(
+            decode_postures(model, mcfg, norm, table, robot.lower, robot.upper),
+            robot.lower, robot.upper)
+    return table

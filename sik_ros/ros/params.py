@@ -1,0 +1,195 @@
+"""sik_node's parameters, declared once: name, type, default, description, range, read-only.
+
+:data:`SPECS` is the single source of truth. From it derive
+
+- :class:`NodeParams`, the frozen dataclass of parameter values (defaults as in
+  ``config/panda.yaml``);
+- :func:`descriptors`, the ``rcl_interfaces/ParameterDescriptor`` of each parameter, with a real
+  ``integer_range`` / ``floating_point_range`` and ``read_only``, so that rclpy itself rejects
+  values of the wrong type, out of range or for a read-only parameter;
+- :func:`validate`, the rules a range cannot express: a bound set by another parameter
+  (``num_solutions <= max_solutions_cap``), open lower bounds (``timeout > 0``: a ROS range is
+  closed, so the descriptor says ``[0, 60]`` and :func:`validate` excludes 0), non-finite values
+  and parameters that must not be empty.
+"""
+
+from dataclasses import dataclass, field, make_dataclass
+import math
+from typing import Dict, Optional, Tuple, Union
+
+from rcl_interfaces.msg import (FloatingPointRange, IntegerRange, ParameterDescriptor,
+                                ParameterType)
+
+Number = Union[int, float]
+
+
+@dataclass(frozen=True)
+class ParamSpec:
+    """The declaration of one node parameter.
+
+    Attributes:
+        name: the ROS parameter name (and the :class:`NodeParams` field).
+        type: ``str``, ``int``, ``float`` or ``bool``.
+        default: the value when none is given (as in ``config/panda.yaml``).
+        description: what it does, with units in brackets and the accepted values.
+        min: lowest value (ints and floats); the descriptor's ``from_value``.
+        max: highest value (ints and floats); the descriptor's ``to_value``.
+        min_open: ``min`` itself is excluded (checked by :func:`validate`, not by rclpy).
+        unit: unit of a float, for messages (``m``, ``rad``, ``s``).
+        max_param: another parameter whose value also bounds this one from above.
+        read_only: fixed at start-up (it identifies the loaded bundle or the solver processes).
+    """
+
+    name: str
+    type: type
+    default: Union[str, int, float, bool]
+    description: str
+    min: Optional[Number] = None
+    max: Optional[Number] = None
+    min_open: bool = False
+    unit: str = ''
+    max_param: str = ''
+    read_only: bool = False
+
+    @property
+    def numeric(self) -> bool:
+        """Whether the parameter is an int or a float (and so has a range)."""
+        return self.type in (int, float)
+
+    def constraints(self) -> str:
+        """The bounds beyond the descriptor's range, as ``additional_constraints`` text."""
+        rules = []
+        if self.min_open:
+            rules.append(f'> {self.min:g}')
+        if self.max_param:
+            rules.append(f'<= {self.max_param}')
+        return '; '.join(rules)
+
+
+#: Most solver processes.
+MAX_SOLVER_PROCESSES = 16
+#: Most solutions per answer (the highest ``max_solutions_cap``).
+MAX_SOLUTIONS = 1024
+
+#: Every node parameter, in declaration order (the order of :class:`NodeParams`' fields).
+SPECS: Tuple[ParamSpec, ...] = (
+    ParamSpec('robot', str, 'panda',
+              'bundled model to load when model_dir is empty (read-only)',
+              read_only=True),
+    ParamSpec('model_dir', str, '',
+              'bundle directory to load; empty: the bundled model of `robot` (read-only)',
+              read_only=True),
+    ParamSpec('base_frame', str, 'panda_link0',
+              'frame of targets, obstacles and answers; the bundle\'s base (read-only)',
+              read_only=True),
+    ParamSpec('tip_frame', str, 'panda_hand_tcp',
+              'frame placed on the target; the bundle\'s tip frame (read-only)',
+              read_only=True),
+    ParamSpec('num_solutions', int, 16,
+              'solutions returned when a request asks for 0; 1..max_solutions_cap',
+              min=1, max=MAX_SOLUTIONS, max_param='max_solutions_cap'),
+    ParamSpec('max_solutions_cap', int, 64,
+              'most solutions per answer; larger requests are clamped; 1..1024',
+              min=1, max=MAX_SOLUTIONS),
+    ParamSpec('position_tolerance', float, 1e-4,
+              'a solution is exact within this position error [m]; (0, 0.1]',
+              min=0.0, max=0.1, min_open=True, unit='m'),
+    ParamSpec('orientation_tolerance', float, 1e-3,
+              'and within this orientation error for pose goals [rad]; (0, pi]',
+              min=0.0, max=math.pi, min_open=True, unit='rad'),
+    ParamSpec('refine', bool, True,
+              'refine decoded solutions numerically (false: raw network output)'),
+    ParamSpec('timeout', float, 0.05,
+              'time budget of a request whose timeout is 0 [s]; (0, 60]',
+              min=0.0, max=60.0, min_open=True, unit='s'),
+    ParamSpec('use_joint_states', bool, False,
+              'seed requests that have no seed with the latest joint_states'),
+    ParamSpec('goal_use_orientation', bool, False,
+              '~/goal poses are pose goals (false: position goals)'),
+    ParamSpec('publish_markers', bool, True,
+              'publish the ranked postures on ~/markers for RViz'),
+    ParamSpec('solver_processes', int, 0,
+              'solver processes serving requests in parallel (beyond the GIL); 0: solve in the '
+              'executor threads; 0..16 (read-only)',
+              min=0, max=MAX_SOLVER_PROCESSES, read_only=True),
+)
+#: The declarations by name.
+SPEC: Dict[str, ParamSpec] = {s.name: s for s in SPECS}
+#: Parameter descriptions; read-only ones identify the loaded bundle (change them by restarting).
+DESCRIPTIONS: Dict[str, str] = {s.name: s.description for s in SPECS}
+READ_ONLY: Tuple[str, ...] = tuple(s.name for s in SPECS if s.read_only)
+
+NodeParams = make_dataclass(
+    'NodeParams', [(s.name, s.type, field(default=s.default)) for s in SPECS], frozen=True)
+NodeParams.__module__ = __name__
+NodeParams.__doc__ = '\n'.join(
+    ['The node\'s parameters (defaults as in ``config/panda.yaml``), made from :data:`SPECS`.',
+     '', 'Attributes:'] + [f'    {s.name}: {s.description}.' for s in SPECS])
+
+_ROS_TYPES = {str: ParameterType.PARAMETER_STRING, int: ParameterType.PARAMETER_INTEGER,
+              float: ParameterType.PARAMETER_DOUBLE, bool: ParameterType.PARAMETER_BOOL}
+
+
+def descriptor(spec: ParamSpec) -> ParameterDescriptor:
+    """The ROS descriptor of one parameter: type, description, range, read-only."""
+    d = ParameterDescriptor(name=spec.name, type=_ROS_TYPES[spec.type],
+                            description=spec.description,
+                            additional_constraints=spec.constraints(),
+                            read_only=spec.read_only)
+    if spec.type is int:
+        d.integer_range = [IntegerRange(from_value=int(spec.min), to_value=int(spec.max),
+                                        step=1)]
+    elif spec.type is float:
+        d.floating_point_range = [FloatingPointRange(from_value=float(spec.min),
+                                                     to_value=float(spec.max), step=0.0)]
+    return d
+
+
+def descriptors() -> Dict[str, ParameterDescriptor]:
+    """Descriptor of every parameter, by name (a fresh one each call: rclpy modifies them)."""
+    return {s.name: descriptor(s) for s in SPECS}
+
+
+def declarations(defaults: Optional['NodeParams'] = None) -> list:
+    """``(name, default, descriptor)`` of every parameter, for ``Node.declare_parameters``."""
+    defaults = defaults if defaults is not None else NodeParams()
+    return [(s.name, getattr(defaults, s.name), descriptor(s)) for s in SPECS]
+
+
+def _range_text(spec: ParamSpec, upper: Number) -> str:
+    if spec.type is int:
+        return f'{spec.min}..{upper}'
+    return f'{"(" if spec.min_open else "["}{spec.min:g}, {upper:g}] {spec.unit}'.rstrip()
+
+
+def _check_range(spec: ParamSpec, value: Number, p: 'NodeParams') -> Optional[str]:
+    upper = spec.max
+    if spec.max_param:
+        upper = min(upper, getattr(p, spec.max_param))
+        limits = f'{spec.min}..{spec.max_param} ({getattr(p, spec.max_param)})'
+    else:
+        limits = _range_text(spec, upper)
+    low_ok = value > spec.min if spec.min_open else value >= spec.min
+    if not (math.isfinite(value) and low_ok and value <= upper):
+        return f'{spec.name} must be in {limits}; got {value}'
+    return None
+
+
+def validate(p: 'NodeParams') -> Optional[str]:
+    """Why a set of parameter values is unusable, or None if it is fine.
+
+    Checks what no descriptor can (non-empty strings, bounds set by another parameter, open
+    lower bounds, non-finite values) and, again, the ranges of :data:`SPECS` (rclpy checks those
+    one parameter at a time), so that a whole set of values is checked at once.
+    """
+    if not p.robot and not p.model_dir:
+        return 'robot and model_dir are both empty: name a bundled model or a bundle directory'
+    if not p.base_frame or not p.tip_frame:
+        return 'base_frame and tip_frame must not be empty'
+    # ints before floats; a number bounded by another parameter after that parameter
+    for s in sorted((s for s in SPECS if s.numeric),
+                    key=lambda s: (s.type is float, bool(s.max_param))):
+        reason = _check_range(s, getattr(p, s.name), p)
+        if reason is not None:
+            return reason
+    return None

@@ -1,0 +1,40 @@
+"""Rotation helpers: quaternions, the SO(3) logarithm and the angle between rotations."""
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+
+def z_to_axis(axis: np.ndarray) -> np.ndarray:
+    """A rotation that maps the z axis onto a unit ``axis``."""
+    z = np.array([0.0, 0.0, 1.0])
+    v = np.cross(z, axis)
+    sin, cos = np.linalg.norm(v), float(z @ axis)
+    if sin < 1e-12:
+        return np.eye(3) if cos > 0 else np.diag([1.0, -1.0, -1.0])
+    return Rotation.from_rotvec(v / sin * np.arctan2(sin, cos)).as_matrix()
+
+
+def rotation_to_quaternion(rot: np.ndarray) -> np.ndarray:
+    """Rotation matrices (N, 3, 3) to unit quaternions (N, 4), x y z w, w >= 0."""
+    quat = Rotation.from_matrix(rot).as_quat()
+    return np.where(quat[:, 3:4] < 0, -quat, quat)
+
+
+def rotation_log(rot: np.ndarray) -> np.ndarray:
+    """Rotation vectors (N, 3) [rad] of rotation matrices (N, 3, 3) (the SO(3) logarithm)."""
+    v = 0.5 * np.stack([rot[:, 2, 1] - rot[:, 1, 2], rot[:, 0, 2] - rot[:, 2, 0],
+                        rot[:, 1, 0] - rot[:, 0, 1]], axis=1)
+    sin = np.sqrt((v * v).sum(1))
+    cos = np.clip((rot[:, 0, 0] + rot[:, 1, 1] + rot[:, 2, 2] - 1) / 2, -1.0, 1.0)
+    angle = np.arctan2(sin, cos)
+    out = v * np.where(sin > 1e-9, angle / np.maximum(sin, 1e-12), 1.0)[:, None]
+    near_pi = (sin < 1e-6) & (cos < 0)
+    if near_pi.any():  # the skew part vanishes at pi: take the axis from R + I
+        out[near_pi] = Rotation.from_matrix(rot[near_pi]).as_rotvec()
+    return out
+
+
+def rotation_angle(target: np.ndarray, rot: np.ndarray) -> np.ndarray:
+    """Angles [rad] between a rotation (3, 3) and rotations (N, 3, 3): |log(target^T rot)|."""
+    cos = (np.einsum('ij,nij->n', target, rot) - 1) / 2
+    return np.arccos(np.clip(cos, -1.0, 1.0))

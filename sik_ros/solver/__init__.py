@@ -1,0 +1,235 @@
+"""SelectiveIK: several distinct, exact, ranked joint solutions per target.
+
+:class:`SelectiveIK` is a facade over a pipeline of short stages, one module each
+(:mod:`~sik_ros.solver.pipeline` runs them in order):
+
+- :mod:`~sik_ros.solver.candidates`: posture indices from the table near the goal, the seed's
+  own index, oriented postures for pose goals, and the postures they stand for;
+- :mod:`~sik_ros.solver.codec`: the networks at a goal (decode, encode);
+- :mod:`~sik_ros.solver.refine`: batched damped least squares on the chain's Jacobians;
+- :mod:`~sik_ros.solver.explore`: restarts and the self-motion walk;
+- :mod:`~sik_ros.solver.ranking`: the one score, distinct postures, tiers and ranking;
+- :mod:`~sik_ros.solver.adjust`: the paper's Algorithm 2 (index adjustment around obstacles).
+
+Settings are :class:`SolverConfig` (:mod:`~sik_ros.solver.config`), answers
+:class:`IKResult` and :class:`Solution` (:mod:`~sik_ros.solver.results`). See the paper's
+"Posture index selection" and Algorithm 2, and docs/interfaces.md for the public contract.
+"""
+
+from dataclasses import fields, replace
+from pathlib import Path
+import threading
+import time
+from typing import Dict, List, Optional, Sequence, Tuple, Union
+
+import numpy as np
+
+from sik_ros.bundle import GoalModel, load_bundle
+from sik_ros.collision import CollisionChecker, Obstacle
+from sik_ros.errors import InvalidArgument, InvalidGoal
+from sik_ros.kinematics import Robot
+from sik_ros.objectives import Objective
+from sik_ros.solver import candidates as _candidates, codec, pipeline
+from sik_ros.solver.adjust import adjust_index
+from sik_ros.solver.config import SolverConfig
+from sik_ros.solver.context import Context, Goal
+from sik_ros.solver.inputs import check_goal, check_num_solutions, check_seed
+from sik_ros.solver.ranking import distinct_mask
+from sik_ros.solver.refine import errors, refine
+from sik_ros.solver.results import dumps, IKResult, result_to_dict, Solution
+
+__all__ = ['dumps', 'GoalModel', 'IKResult', 'result_to_dict', 'SelectiveIK', 'Solution',
+           'SolverConfig']
+
+
+class SelectiveIK:
+    """Multi-solution IK from trained SIK models and their posture-index tables.
+
+    Not thread-safe per instance (Pinocchio data); :meth:`clone` gives an instance sharing the
+    models and tables for another thread. Calls on one instance are serialised by a lock.
+    """
+
+    def __init__(self, robot: Robot, models: Dict[str, GoalModel],
+                 config: Optional[SolverConfig] = None, bundle: Optional[Path] = None):
+        self.robot = robot
+        self.models = models
+        self.config = config or SolverConfig()
+        self.bundle = bundle
+        self.checker = CollisionChecker(robot)
+        self._lock = threading.Lock()
+        self._ctx = Context(robot, models, self.config, robot.model.createData(), self.checker)
+
+    # -- loading ---------------------------------------------------------------------------------
+
+    @classmethod
+    def load(cls, bundle: Union[str, Path] = 'panda',
+             config: Optional[SolverConfig] = None) -> 'SelectiveIK':
+        """Load a bundle: a name of the bundled models (``panda``) or a bundle directory.
+
+        Raises:
+            CorruptArtifact: a missing or damaged file.
+            ArtifactMismatch: files made for another robot or model.
+        """
+        path, robot, models = load_bundle(bundle)
+        return cls(robot, models, config, path)
+
+    def clone(self) -> 'SelectiveIK':
+        """An instance sharing models and tables, with its own Pinocchio/coal data."""
+        return SelectiveIK(self.robot, self.models, self.config, self.bundle)
+
+    def with_config(self, **changes) -> 'SelectiveIK':
+        """An instance with some :class:`SolverConfig` fields changed.
+
+        Raises:
+            InvalidArgument: an unknown field or a bad value.
+        """
+        unknown = sorted(set(changes) - {f.name for f in fields(SolverConfig)})
+        if unknown:
+            raise InvalidArgument(f'unknown SolverConfig fields {unknown}')
+        return SelectiveIK(self.robot, self.models, replace(self.config, **changes), self.bundle)
+
+    # -- what it is ------------------------------------------------------------------------------
+
+    @property
+    def joint_names(self) -> List[str]:
+        """Arm joint names, in the order of every ``q``."""
+        return list(self.robot.joint_names)
+
+    @property
+    def goals(self) -> List[str]:
+        """Goal kinds this bundle answers (``position``, ``pose``)."""
+        return sorted(self.models)
+
+    def fk(self, q: np.ndarray):
+        """Tip position (3,) [m] and quaternion (4,) x y z w of a configuration (n,)."""
+        q = np.asarray(q, dtype=float)
+        if q.shape != (self.robot.dof,):
+            raise InvalidArgument(f'q must have shape ({self.robot.dof},); got {q.shape}')
+        return self.robot.fk(q)
+
+    def check_seed(self, seed) -> np.ndarray:
+        """A seed as a (n,) array, or :class:`InvalidSeed` saying what is wrong with it."""
+        return check_seed(self.robot, seed)
+
+    # -- solving ---------------------------------------------------------------------------------
+
+    def solve(self, position, orientation=None, num_solutions: int = 16, seed=None,
+              obstacles: Sequence[Obstacle] = (), refine: bool = True,
+              objective: Optional[Objective] = None, timeout: Optional[float] = None
+              ) -> IKResult:
+        """Ranked joint solutions for one target.
+
+        Args:
+            position: target tip position in the base frame (3,) [m].
+            orientation: None for a position goal; else a quaternion (x, y, z, w).
+            num_solutions: most solutions returned (1 to ``max_solutions_cap``).
+            seed: current joint configuration (n,) [rad]: its posture index is tried first and
+                ranking prefers solutions near it.
+            obstacles: :class:`Obstacle` list; colliding solutions never rank above free ones.
+            refine: refine the decoded solutions numerically (False: raw decoder output).
+            objective: custom ranking cost (lower is better); default: distance to the seed
+                if given, else closeness to the joint limits.
+            timeout: give up refining after this many seconds [s].
+
+        Raises:
+            InvalidGoal, InvalidSeed, InvalidArgument: bad input (see docs/interfaces.md).
+        """
+        t0 = time.perf_counter()
+        goal = check_goal(position, orientation, self.goals)
+        num = check_num_solutions(num_solutions, self.config.max_solutions_cap)
+        q_seed = None if seed is None else check_seed(self.robot, seed)
+        obstacles = [o if isinstance(o, Obstacle) else Obstacle(**o) for o in obstacles]
+        deadline = None if timeout is None else t0 + timeout
+        with self._lock:
+            result = pipeline.solve(self._ctx, goal, num, q_seed, obstacles, refine, objective,
+                                    deadline)
+        result.elapsed = time.perf_counter() - t0
+        return result
+
+    def solve_batch(self, positions, orientations=None, **kw) -> List[IKResult]:
+        """:meth:`solve` for many targets: positions (N, 3), orientations (N, 4) or None."""
+        positions = np.asarray(positions, dtype=float)
+        if positions.ndim != 2 or positions.shape[1] != 3:
+            raise InvalidGoal(f'positions must have shape (N, 3); got {positions.shape}')
+        if orientations is not None:
+            orientations = np.asarray(orientations, dtype=float)
+            if orientations.shape != (len(positions), 4):
+                raise InvalidGoal(f'orientations must have shape ({len(positions)}, 4); got '
+                                  f'{orientations.shape}')
+        return [self.solve(p, None if orientations is None else orientations[i], **kw)
+                for i, p in enumerate(positions)]
+
+    # -- the stages, for studies and benchmarks --------------------------------------------------
+    # ``goal`` is the goal kind ('position' or 'pose'), ``pos`` (3,) [m], ``rot`` (3, 3) or None.
+
+    def candidates(self, goal: str, pos: np.ndarray, rot, q_seed, num_solutions: int = 16,
+                   refine: bool = True, others: int = 0) -> Tuple[np.ndarray, np.ndarray]:
+        """Posture indices to decode and their table rows (-1: not from the table).
+
+        See :func:`sik_ros.solver.candidates.table_candidates`.
+        """
+        return _candidates.table_candidates(self._ctx, self._goal(goal, pos, rot), q_seed,
+                                            num_solutions, refine, others)
+
+    def candidate_indices(self, goal: str, pos: np.ndarray, rot, q_seed,
+                          num_solutions: int = 16, refine: bool = True,
+                          others: int = 0) -> np.ndarray:
+        """The indices of :meth:`candidates`."""
+        return self.candidates(goal, pos, rot, q_seed, num_solutions, refine, others)[0]
+
+    def starting_postures(self, goal: str, pos: np.ndarray, rot, z: np.ndarray,
+                          rows: np.ndarray) -> np.ndarray:
+        """See :func:`sik_ros.solver.candidates.starting_postures`."""
+        return _candidates.starting_postures(self._ctx, self._goal(goal, pos, rot), z, rows)
+
+    def oriented_postures(self, pos: np.ndarray, rot: np.ndarray, count: int) -> np.ndarray:
+        """See :func:`sik_ros.solver.candidates.oriented_postures`."""
+        return _candidates.oriented_postures(self._ctx, Goal(np.asarray(pos, float), rot), count)
+
+    def align_last_joint(self, q: np.ndarray, rot: np.ndarray) -> np.ndarray:
+        """See :func:`sik_ros.solver.candidates.align_last_joint`."""
+        return _candidates.align_last_joint(self._ctx, q, rot)
+
+    def decode(self, goal: str, pos: np.ndarray, rot, z: np.ndarray) -> np.ndarray:
+        """Joint solutions (M, n) [rad] decoded from posture indices (M, latent), clipped."""
+        return codec.decode(self._ctx, self._goal(goal, pos, rot), z)
+
+    def encode(self, goal: str, pos: np.ndarray, rot, q: np.ndarray) -> np.ndarray:
+        """Posture indices (M, latent) of configurations (M, n) for a goal."""
+        return codec.encode(self._ctx, self._goal(goal, pos, rot), q)
+
+    def errors(self, q: np.ndarray, pos: np.ndarray, rot) -> Tuple[np.ndarray, np.ndarray]:
+        """Position errors [m] and orientation errors [rad] (zeros without ``rot``), (M,)."""
+        return errors(self._ctx, q, Goal(np.asarray(pos, float), rot))
+
+    def refine(self, q: np.ndarray, pos: np.ndarray, rot, deadline: Optional[float] = None,
+               iterations: Optional[int] = None, prune: bool = False,
+               enough: Optional[int] = None) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Refined configurations (M, n), position errors [m], orientation errors [rad].
+
+        See :func:`sik_ros.solver.refine.refine`.
+        """
+        r = refine(self._ctx, q, Goal(np.asarray(pos, float), rot), deadline, iterations,
+                   prune, enough)
+        return r.q, r.perr, r.oerr
+
+    def distinct_mask(self, q: np.ndarray, goal: str,
+                      threshold: Optional[float] = None) -> np.ndarray:
+        """Greedy keep-mask of rows at least ``threshold`` apart (default: the config's)."""
+        return distinct_mask(q, goal, self.config.distinct_threshold if threshold is None
+                             else threshold)
+
+    def adjust_index(self, goal: str, pos: np.ndarray, rot, sols: List[Solution],
+                     obstacles: Sequence[Obstacle], deadline=None,
+                     step: float = 0.25) -> Optional[List[Solution]]:
+        """Algorithm 2: see :func:`sik_ros.solver.adjust.adjust_index`."""
+        return adjust_index(self._ctx, self._goal(goal, pos, rot), sols, obstacles, deadline,
+                            step)
+
+    @staticmethod
+    def _goal(kind: str, pos: np.ndarray, rot) -> Goal:
+        goal = Goal(np.asarray(pos, dtype=float), rot)
+        if goal.kind != kind:
+            raise InvalidArgument(f'a {kind} goal needs {"no " if kind == "position" else ""}'
+                                  f'rotation')
+        return goal

@@ -1,0 +1,109 @@
+"""Where refinement starts: posture indices from the table and the postures they stand for.
+
+The table's indices in the cells near the goal, with the seed's own index first, thinned to a
+far-apart subset (:func:`table_candidates`); their postures, from the table's decoded postures
+when it keeps them, else decoded at the goal (:func:`starting_postures`); and for pose goals the
+position model's postures whose tips had the goal's orientation, the last joint turned towards it
+(:func:`oriented_postures`, :func:`align_last_joint`).
+"""
+
+import math
+from typing import Optional, Tuple
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from sik_ros.index_table import farthest_point_subset
+from sik_ros.solver.codec import decode, encode
+from sik_ros.solver.context import Context, Goal, POSITION
+
+
+def table_candidates(ctx: Context, goal: Goal, q_seed: Optional[np.ndarray],
+                     num_solutions: int = 16, refine: bool = True,
+                     others: int = 0) -> Tuple[np.ndarray, np.ndarray]:
+    """Posture indices to decode, the seed's own index first, and the table row of each.
+
+    Args:
+        ctx: the solver's parts.
+        goal: the target.
+        q_seed: the current configuration (n,), or None.
+        num_solutions: solutions asked for.
+        refine: False for raw answers, which take a larger pool.
+        others: candidates coming from elsewhere (oriented postures), which count towards the
+            ``candidates_per_solution`` per solution asked for.
+
+    Returns:
+        indices (M, latent) and their table rows (M,) (-1: not from the table).
+    """
+    cfg = ctx.config
+    count = max(cfg.num_candidates if goal.kind == POSITION else cfg.pose_candidates,
+                math.ceil(cfg.candidates_per_solution * num_solutions) - others)
+    if not refine:
+        count = max(count, cfg.raw_candidates)
+    table = ctx.models[goal.kind].table
+    rows = table.rows_near(goal.position, cfg.k_cells)
+    pool = table.indices[rows]
+    if pool.shape[1] == 1:
+        # a 1-d index is a line: also sweep it over the range the table holds
+        lo, hi = table.index_bounds
+        pool = np.concatenate([pool, np.linspace(lo, hi, count)])
+        rows = np.concatenate([rows, np.full(count, -1)])
+    if q_seed is not None:
+        z_seed = encode(ctx, goal, q_seed[None])[0]
+        pool = np.concatenate([z_seed[None], pool])
+        rows = np.concatenate([[-1], rows])
+    pick = farthest_point_subset(pool, count)
+    return pool[pick], rows[pick]
+
+
+def starting_postures(ctx: Context, goal: Goal, z: np.ndarray, rows: np.ndarray) -> np.ndarray:
+    """Postures (M, n) to refine from, for indices ``z`` from table ``rows`` (-1: none).
+
+    Table rows take the table's decoded postures (when it keeps them and
+    ``config.cached_postures``); the others are decoded at the goal.
+    """
+    postures = ctx.models[goal.kind].table.postures
+    if postures is None or not ctx.config.cached_postures:
+        return decode(ctx, goal, z)
+    cached = rows >= 0
+    q = np.empty((len(z), ctx.robot.dof))
+    # float32 storage: clip back onto the limits
+    q[cached] = np.clip(postures[rows[cached]], ctx.robot.lower, ctx.robot.upper)
+    if not cached.all():
+        q[~cached] = decode(ctx, goal, z[~cached])
+    return q
+
+
+def oriented_postures(ctx: Context, goal: Goal, count: int) -> np.ndarray:
+    """Postures (M, n) for a pose goal from the position model's orientation-aware table.
+
+    The position model's indices whose dataset rows had tip orientations nearest the goal
+    keep those postures when decoded near the goal position (the table's decoded posture at
+    the cell centre, or a decode at the goal); the last joint, free for a position goal, is
+    then set in closed form to bring the tip orientation closest to the goal. Empty when the
+    bundle has no position model or its table keeps no orientations.
+    """
+    gm = ctx.models.get(POSITION)
+    if gm is None or gm.table.orientations is None or count < 1:
+        return np.empty((0, ctx.robot.dof))
+    quat = Rotation.from_matrix(goal.rotation).as_quat()
+    rows = gm.table.oriented_rows(goal.position, quat, count, ctx.config.oriented_cells)
+    q = starting_postures(ctx, Goal(goal.position), gm.table.indices[rows], rows)
+    return align_last_joint(ctx, q, goal.rotation)
+
+
+def align_last_joint(ctx: Context, q: np.ndarray, rot: np.ndarray) -> np.ndarray:
+    """``q`` with the last joint turned (within its limits) towards the orientation ``rot``.
+
+    Every joint turns about its own z axis, so with ``a`` the last joint's frame at zero and
+    ``B`` the fixed tip rotation, ``a Rz(t) B = rot`` is best met by the angle of
+    ``Rz(t) ~ B R0^T rot B^T`` about z, where ``R0 = a B``.
+    """
+    q = q.copy()
+    q[:, -1] = 0.0
+    _, r0 = ctx.robot.fk_loop(q, ctx.data)
+    b = ctx.robot.chain.tip_rotation
+    m = b @ r0.transpose(0, 2, 1) @ rot @ b.T
+    theta = np.arctan2(m[:, 1, 0] - m[:, 0, 1], m[:, 0, 0] + m[:, 1, 1])
+    q[:, -1] = np.clip(theta, ctx.robot.lower[-1], ctx.robot.upper[-1])
+    return q

@@ -1,0 +1,118 @@
+"""The solver's settings: one frozen dataclass, validated when made."""
+
+from dataclasses import dataclass
+import math
+from typing import Tuple
+
+from sik_ros.errors import InvalidArgument
+
+
+@dataclass(frozen=True)
+class SolverConfig:
+    """Tuning of the solver.
+
+    Attributes:
+        position_tolerance: a solution is exact when its position error is below this [m].
+        orientation_tolerance: ... and its orientation error below this [rad] (pose goals).
+        max_solutions_cap: largest ``num_solutions`` accepted.
+        k_cells: table cells pooled around the goal.
+        num_candidates: posture indices decoded per call for position goals (at least
+            ``candidates_per_solution`` times the solutions asked for).
+        candidates_per_solution: see above.
+        pose_candidates: the same for pose goals (the pose model's indices).
+        oriented_candidates: for pose goals, also this many postures from the position model:
+            the indices of its table (when it keeps orientations) whose rows' tip orientations
+            were nearest the goal's, decoded at the goal position, the last joint then turned
+            in closed form towards the goal orientation. 0 disables it.
+        oriented_cells: table cells pooled around the goal for those.
+        raw_candidates: posture indices decoded when ``refine`` is off: the most accurate
+            distinct decoded postures are returned, so a larger pool gives better raw answers.
+        refine_iterations: most damped least squares iterations.
+        damping: damping of the least squares steps.
+        max_step: largest joint change per iteration [rad].
+        distinct_threshold: solutions closer than this (L2 over the joints that move the tool
+            centre point for position goals) are duplicates [rad].
+        adjust_budget: decodes Algorithm 2 may spend adjusting an index.
+        give_up_after: refinement iterations after which a candidate still ten tolerances away
+            is dropped.
+        reach_margin: a goal farther than this from every table cell is treated as out of
+            reach: a short best-effort refinement, no retries [m].
+        prune_at: refinement iterations at which candidates heading for the same solution
+            are merged (the one with the lower error goes on).
+        prune_radius: joint distance under which two candidates are merged there [rad].
+        stall_window, stall_ratio: a candidate still ten tolerances away whose error is above
+            ``stall_ratio`` times its error ``stall_window`` iterations before is dropped
+            (0 disables it), from iteration ``stall_after`` on; ``give_up_after`` still bounds
+            the rest.
+        early_stop_margin: with the default ranking (no seed, obstacles or objective),
+            refinement stops once ``num_solutions`` plus this many distinct exact solutions are
+            found, instead of refining every candidate to its end; -1 disables it.
+        cached_postures: refine from the table's decoded postures (each index decoded at its
+            cell's centre when the table was built, ``sik-index --postures``) instead of
+            decoding the candidates at the goal at every call; raw answers
+            (``refine=False``) are always decoded at the goal.
+        walk_rounds: pose goals: while fewer than ``num_solutions`` (plus the margin above)
+            distinct exact solutions are found, up to this many rounds of steps along the
+            self-motion manifolds of the found ones (0 disables it): each solution, moved
+            ``walk_step`` [rad] along the null space of its Jacobian (both ways from the
+            refined solutions, then onwards), is refined for at most ``walk_iterations``
+            iterations; the new exact solutions at least ``distinct_threshold`` from every
+            found one are kept and walk on.
+    """
+
+    position_tolerance: float = 1e-4
+    orientation_tolerance: float = 1e-3
+    max_solutions_cap: int = 64
+    k_cells: int = 8
+    num_candidates: int = 20
+    candidates_per_solution: float = 1.25
+    pose_candidates: int = 4
+    oriented_candidates: int = 32
+    oriented_cells: int = 27
+    raw_candidates: int = 192
+    refine_iterations: int = 40
+    damping: float = 1e-3
+    max_step: float = 0.4
+    distinct_threshold: float = 0.5
+    adjust_budget: int = 24
+    reach_margin: float = 0.15
+    give_up_after: int = 15
+    prune_at: Tuple[int, ...] = (3, 6, 10)
+    prune_radius: float = 0.25
+    stall_window: int = 3
+    stall_ratio: float = 0.7
+    stall_after: int = 8
+    early_stop_margin: int = 2
+    cached_postures: bool = True
+    walk_rounds: int = 6
+    walk_step: float = 0.6
+    walk_iterations: int = 4
+
+    def __post_init__(self):
+        """Reject values the solver cannot work with.
+
+        Raises:
+            InvalidArgument: naming the field and the value.
+        """
+        for name in ('position_tolerance', 'orientation_tolerance', 'candidates_per_solution',
+                     'damping', 'max_step', 'distinct_threshold', 'reach_margin',
+                     'prune_radius', 'stall_ratio', 'walk_step'):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, (int, float)) \
+                    or not math.isfinite(value) or value <= 0:
+                raise InvalidArgument(f'SolverConfig.{name} must be a finite number > 0; got '
+                                      f'{value!r}')
+        for name, low in (('max_solutions_cap', 1), ('k_cells', 1), ('num_candidates', 0),
+                          ('pose_candidates', 0), ('oriented_candidates', 0),
+                          ('oriented_cells', 1), ('raw_candidates', 1),
+                          ('refine_iterations', 1), ('adjust_budget', 0), ('give_up_after', 1),
+                          ('stall_window', 0), ('stall_after', 0), ('early_stop_margin', -1),
+                          ('walk_rounds', 0), ('walk_iterations', 1)):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int) or value < low:
+                raise InvalidArgument(f'SolverConfig.{name} must be an integer >= {low}; got '
+                                      f'{value!r}')
+        if not all(isinstance(v, int) and not isinstance(v, bool) and v >= 0
+                   for v in self.prune_at):
+            raise InvalidArgument(f'SolverConfig.prune_at must hold integers >= 0; got '
+                                  f'{self.prune_at!r}')

@@ -1,0 +1,51 @@
+"""What the solver's stages share: the goal of a call and the context of a solver instance."""
+
+from dataclasses import dataclass
+from typing import Dict, Optional
+
+import numpy as np
+import pinocchio as pin
+
+from sik_ros.bundle import GoalModel
+from sik_ros.collision import CollisionChecker
+from sik_ros.kinematics import Robot
+from sik_ros.solver.config import SolverConfig
+
+POSITION, POSE = 'position', 'pose'
+
+
+@dataclass(frozen=True)
+class Goal:
+    """One target.
+
+    Attributes:
+        position: tip position in the base frame (3,) [m].
+        rotation: tip orientation (3, 3), or None for a position goal.
+    """
+
+    position: np.ndarray
+    rotation: Optional[np.ndarray] = None
+
+    @property
+    def kind(self) -> str:
+        """``position`` or ``pose``."""
+        return POSITION if self.rotation is None else POSE
+
+
+@dataclass(frozen=True)
+class Context:
+    """A solver instance's parts, handed to every stage.
+
+    Attributes:
+        robot: the arm.
+        models: the network, configs and table per goal kind.
+        config: the solver's settings.
+        data: Pinocchio data of this instance (not thread-safe: one per thread).
+        checker: collision checker of this instance (not thread-safe either).
+    """
+
+    robot: Robot
+    models: Dict[str, GoalModel]
+    config: SolverConfig
+    data: pin.Data
+    checker: CollisionChecker

@@ -1,0 +1,96 @@
+"""One solve, stage by stage.
+
+1. candidates: the table's indices near the goal (the seed's own first) and, for pose goals,
+   the position model's postures that had the goal's orientation;
+2. their postures (the table's decoded postures, or a decode at the goal; raw answers are
+   always decoded at the goal);
+3. refinement, then restarts when nothing converged, then (pose goals) the self-motion walk;
+4. exact solutions first, one per distinct posture, ranked (collisions, objective);
+5. Algorithm 2 when obstacles leave no free exact solution.
+"""
+
+from typing import List, Optional, Sequence
+
+import numpy as np
+
+from sik_ros.collision import Obstacle
+from sik_ros.objectives import Objective
+from sik_ros.solver.adjust import adjust_index
+from sik_ros.solver.batch import Candidates
+from sik_ros.solver.candidates import oriented_postures, starting_postures, table_candidates
+from sik_ros.solver.codec import decode, encode
+from sik_ros.solver.context import Context, Goal, POSE
+from sik_ros.solver.explore import restart, walk
+from sik_ros.solver.ranking import assess, best_distinct, distinct_mask, merge, rank
+from sik_ros.solver.refine import errors, refine
+from sik_ros.solver.results import IKResult, Solution
+
+
+def initial_postures(ctx: Context, goal: Goal, num: int, q_seed: Optional[np.ndarray],
+                     refined: bool) -> Candidates:
+    """Stages 1 and 2: the starting postures and their indices (errors not yet known).
+
+    Order: the seed's own posture first, then the oriented ones (pose goals), then the
+    table's. Oriented postures have no index of the pose model yet: NaN, encoded once ranked.
+    """
+    extra = oriented_postures(ctx, goal, ctx.config.oriented_candidates) \
+        if goal.kind == POSE and refined else np.empty((0, ctx.robot.dof))
+    z, rows = table_candidates(ctx, goal, q_seed, num, refined, len(extra))
+    q = starting_postures(ctx, goal, z, rows) if refined else decode(ctx, goal, z)
+    if len(extra):
+        head = 1 if q_seed is not None else 0
+        q = np.concatenate([q[:head], extra, q[head:]])
+        z = np.concatenate([z[:head], np.full((len(extra), z.shape[1]), np.nan), z[head:]])
+    unknown = np.full(len(q), np.inf)
+    return Candidates(q, z, unknown, np.zeros(len(q)), np.zeros(len(q), dtype=bool))
+
+
+def fill_indices(ctx: Context, goal: Goal, sols: List[Solution]) -> None:
+    """Posture indices of solutions that came without one: the encoding of their q."""
+    todo = [s for s in sols if np.isnan(s.posture_index).any()]
+    if todo:
+        z = encode(ctx, goal, np.array([s.q for s in todo]))
+        for s, zi in zip(todo, z):
+            s.posture_index = zi.astype(np.float32)
+
+
+def solve(ctx: Context, goal: Goal, num: int, q_seed: Optional[np.ndarray],
+          obstacles: Sequence[Obstacle], refined: bool, objective: Optional[Objective],
+          deadline: Optional[float]) -> IKResult:
+    """Ranked solutions for one checked goal (see the module's stages)."""
+    cfg = ctx.config
+    c = initial_postures(ctx, goal, num, q_seed, refined)
+    timed_out = False
+    # a goal far from every position in the data is out of reach: answer quickly
+    far = ctx.models[goal.kind].table.distance_to_data(goal.position) > cfg.reach_margin
+    if refined:
+        # decoded postures that nearly coincide would refine to the same solution
+        c = c.take(distinct_mask(c.q, goal.kind, cfg.distinct_threshold * 0.5))
+        # ranked by the default objective, the first distinct exact solutions found are as
+        # good as any: stop refining once there are enough
+        enough = None if (q_seed is not None or obstacles or objective is not None
+                          or cfg.early_stop_margin < 0) else num + cfg.early_stop_margin
+        r = refine(ctx, c.q, goal, deadline, 5 if far else None, prune=True, enough=enough)
+        c = assess(r.q, c.z, r.perr, r.oerr, goal.kind, cfg)
+        timed_out = r.cut_short
+        if not far and not c.exact.any():
+            c, cut = restart(ctx, c, goal, deadline)
+            timed_out = timed_out or cut
+        if goal.kind == POSE and not far and cfg.walk_rounds > 0:
+            c = walk(ctx, c, goal, deadline, num + max(cfg.early_stop_margin, 0))
+    else:
+        c = assess(c.q, c.z, *errors(ctx, c.q, goal), goal.kind, cfg)
+    if c.exact.any():  # with exact solutions, only exact ones are returned
+        c = c.take(c.exact)
+    c = best_distinct(c, goal.kind, cfg.distinct_threshold)
+    sols = rank(ctx, c, q_seed, obstacles, objective, limit=num)
+    fill_indices(ctx, goal, sols)
+    if obstacles and refined and not any(s.converged and not s.in_collision for s in sols):
+        extra = adjust_index(ctx, goal, sols, obstacles, deadline)
+        if extra is not None:
+            sols = merge(ctx, sols, extra, goal.kind, q_seed, obstacles, objective)[:num]
+    success = any(s.converged for s in sols)
+    msg = '' if success else (
+        'no solution within tolerance (best-effort solutions returned)' if sols else
+        'no solution')
+    return IKResult(success, sols, goal.kind, timed_out, message=msg)

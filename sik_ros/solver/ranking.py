@@ -1,0 +1,120 @@
+"""Scores, distinct postures, and the ranking of candidates into solutions.
+
+One score orders candidates everywhere (:func:`pose_score`: the position error plus the
+orientation error weighted by :data:`ORIENTATION_WEIGHT`). Ranking puts solutions in tiers —
+free and exact, free and inexact, colliding and exact, colliding and inexact — and orders each
+tier by the objective (exact ones) or the score (inexact ones).
+"""
+
+from typing import List, Optional, Sequence
+
+import numpy as np
+from scipy.spatial.distance import cdist
+
+from sik_ros.collision import Obstacle
+from sik_ros.objectives import JointLimitMargin, Objective, SeedDistance
+from sik_ros.solver.batch import Candidates
+from sik_ros.solver.config import SolverConfig
+from sik_ros.solver.context import Context, POSITION
+from sik_ros.solver.results import Solution
+
+#: Metres of position error that one radian of orientation error counts as [m/rad].
+ORIENTATION_WEIGHT = 0.1
+#: Ranking cost of an inexact solution per metre of score [1/m].
+INEXACT_COST = 100.0
+#: Ranking offsets of the tiers: inexact solutions, then colliding ones, behind the rest.
+INEXACT_TIER, COLLIDING_TIER = 1e3, 2e3
+
+
+def pose_score(perr: np.ndarray, oerr: np.ndarray) -> np.ndarray:
+    """How far candidates are from the goal [m]: position error + weighted orientation error."""
+    return perr + ORIENTATION_WEIGHT * oerr
+
+
+def converged(perr: np.ndarray, oerr: np.ndarray, kind: str, cfg: SolverConfig) -> np.ndarray:
+    """Whether each candidate meets the tolerances of a ``kind`` goal, (M,) bool."""
+    ok = perr <= cfg.position_tolerance
+    if kind != POSITION:
+        ok &= oerr <= cfg.orientation_tolerance
+    return ok
+
+
+def assess(q: np.ndarray, z: np.ndarray, perr: np.ndarray, oerr: np.ndarray, kind: str,
+           cfg: SolverConfig) -> Candidates:
+    """A :class:`Candidates` batch with its ``exact`` flags computed."""
+    return Candidates(q, z, perr, oerr, converged(perr, oerr, kind, cfg))
+
+
+def distinct_mask(q: np.ndarray, kind: str, threshold: float) -> np.ndarray:
+    """Greedy keep-mask of rows (in their order) at least ``threshold`` apart [rad].
+
+    For position goals the last joint, which turns the tool about its own axis, is left out
+    of the distance.
+    """
+    cols = slice(0, q.shape[1] - 1) if kind == POSITION else slice(None)
+    near = cdist(q[:, cols], q[:, cols]) < threshold
+    mask = np.zeros(len(q), dtype=bool)
+    covered = np.zeros(len(q), dtype=bool)  # rows near an already kept one
+    for i in range(len(q)):
+        if not covered[i]:
+            mask[i] = True
+            covered |= near[i]
+    return mask
+
+
+def best_distinct(c: Candidates, kind: str, threshold: float) -> Candidates:
+    """Exact candidates first, then by score; one per distinct posture."""
+    c = c.take(np.lexsort((pose_score(c.perr, c.oerr), ~c.exact)))
+    return c.take(distinct_mask(c.q, kind, threshold))
+
+
+def rank(ctx: Context, c: Candidates, q_seed: Optional[np.ndarray],
+         obstacles: Sequence[Obstacle], objective: Optional[Objective],
+         limit: Optional[int] = None) -> List[Solution]:
+    """Solutions ranked best first; with ``limit``, only the best ``limit`` of them.
+
+    The default objective is the distance to the seed when there is one, else the closeness
+    to the joint limits. Self-collision is checked lazily in ranking order: a self-colliding
+    posture drops behind every free one, so checking stops once ``limit`` free postures are
+    found.
+    """
+    if len(c) == 0:
+        return []
+    clear = ctx.checker.clearance(c.q, obstacles)
+    if objective is None:
+        objective = SeedDistance(q_seed) if q_seed is not None else JointLimitMargin(ctx.robot)
+    cost = np.asarray(objective(c.q), dtype=float)
+    inexact_cost = np.where(c.exact, 0.0, pose_score(c.perr, c.oerr) * INEXACT_COST)
+    base = inexact_cost + np.where(c.exact, cost, 0.0) + INEXACT_TIER * ~c.exact
+    score = base + COLLIDING_TIER * (clear <= 0.0)
+    selfc = np.zeros(len(c), dtype=bool)
+    limit = len(c) if limit is None else limit
+    free = 0
+    for i in np.argsort(score, kind='stable'):
+        if free >= limit:
+            break
+        selfc[i] = ctx.checker.self_collision(c.q[i:i + 1])[0]
+        free += not selfc[i]
+    score = base + COLLIDING_TIER * ((clear <= 0.0) | selfc)
+    order = np.argsort(score, kind='stable')[:limit]
+    return [Solution(c.q[i].copy(), float(c.perr[i]), float(c.oerr[i]),
+                     c.z[i].astype(np.float32), float(score[i]), float(clear[i]),
+                     bool(selfc[i]), bool(c.exact[i]))
+            for i in order]
+
+
+def from_solutions(sols: Sequence[Solution]) -> Candidates:
+    """The candidates that ranked solutions came from."""
+    return Candidates(np.array([s.q for s in sols]), np.array([s.posture_index for s in sols]),
+                      np.array([s.position_error for s in sols]),
+                      np.array([s.orientation_error for s in sols]),
+                      np.array([s.converged for s in sols], dtype=bool))
+
+
+def merge(ctx: Context, sols: Sequence[Solution], extra: Sequence[Solution], kind: str,
+          q_seed: Optional[np.ndarray], obstacles: Sequence[Obstacle],
+          objective: Optional[Objective]) -> List[Solution]:
+    """Two lists of solutions ranked together, one per distinct posture."""
+    c = best_distinct(from_solutions(list(sols) + list(extra)), kind,
+                      ctx.config.distinct_threshold)
+    return rank(ctx, c, q_seed, obstacles, objective)

@@ -1,0 +1,157 @@
+"""Refinement: batched damped least squares towards a goal, within the joint limits.
+
+Every candidate takes steps ``J^T (J J^T + lambda^2 I)^-1 e`` on the chain's Jacobian at once;
+joints at a limit that the descent direction pushes further out leave the step (active set).
+Candidates that reach the goal, stall far from it, or head for the same solution as a better one
+stop early (see :class:`~sik_ros.solver.config.SolverConfig`).
+"""
+
+from dataclasses import dataclass
+import time
+from typing import Optional, Tuple
+
+import numpy as np
+
+from sik_ros.rotations import rotation_angle, rotation_log
+from sik_ros.solver.context import Context, Goal
+from sik_ros.solver.ranking import distinct_mask, pose_score
+
+
+@dataclass(frozen=True)
+class Refined:
+    """The result of :func:`refine`.
+
+    Attributes:
+        q: refined configurations (M, n) [rad].
+        perr: their position errors (M,) [m].
+        oerr: their orientation errors (M,) [rad] (zeros for position goals).
+        cut_short: the deadline stopped refinement before every candidate had finished.
+    """
+
+    q: np.ndarray
+    perr: np.ndarray
+    oerr: np.ndarray
+    cut_short: bool = False
+
+
+def errors(ctx: Context, q: np.ndarray, goal: Goal) -> Tuple[np.ndarray, np.ndarray]:
+    """Position errors [m] and orientation errors [rad] (zeros for position goals), (M,)."""
+    robot = ctx.robot
+    p, r = robot.fk_loop(q, ctx.data) if len(q) <= 256 else robot.fk_rot(q)
+    perr = np.linalg.norm(p - goal.position, axis=1)
+    if goal.rotation is None:
+        return perr, np.zeros(len(q))
+    return perr, rotation_angle(goal.rotation, r)
+
+
+def dls_step(j: np.ndarray, err: np.ndarray, lam2: float, eye: np.ndarray) -> np.ndarray:
+    """Damped least squares steps J^T (J J^T + lambda^2 I)^-1 e for a batch."""
+    jjt = j @ j.transpose(0, 2, 1) + lam2 * eye
+    return (j.transpose(0, 2, 1) @ np.linalg.solve(jjt, err[..., None]))[..., 0]
+
+
+def refine(ctx: Context, q: np.ndarray, goal: Goal, deadline: Optional[float] = None,
+           iterations: Optional[int] = None, prune: bool = False,
+           enough: Optional[int] = None) -> Refined:
+    """Batched damped least squares from ``q`` (M, n) towards ``goal``, within the limits.
+
+    With ``prune``, at the iterations in ``config.prune_at`` a candidate closer than
+    ``config.prune_radius`` to one with a lower error (converged ones included) stops there:
+    both are heading for the same solution, which the final duplicate removal would keep only
+    once. Its row is returned as it was when it stopped. With ``enough``, it stops as soon as
+    ``enough`` distinct rows meet the tolerances (the others are returned where they are, with
+    their errors).
+
+    Args:
+        ctx: the solver's parts.
+        q: starting configurations (M, n) [rad].
+        goal: the target.
+        deadline: a ``time.perf_counter()`` value after which no iteration starts.
+        iterations: most iterations (default: ``config.refine_iterations``).
+        prune: merge candidates heading for the same solution.
+        enough: stop once this many distinct candidates are exact.
+    """
+    cfg = ctx.config
+    pos, rot = goal.position, goal.rotation
+    q = q.copy()
+    n = len(q)
+    rows = 3 if rot is None else 6
+    lower, upper = ctx.robot.lower, ctx.robot.upper
+    lam2 = cfg.damping ** 2
+    eye = np.eye(rows)
+    active = np.ones(n, dtype=bool)
+    given_up = np.zeros(n, dtype=bool)
+    perr_all, oerr_all = np.full(n, np.inf), np.zeros(n)
+    stale = np.ones(n, dtype=bool)  # rows moved since their errors were computed
+    score = np.full(n, np.inf)  # latest error of each row, to choose between neighbours
+    window = cfg.stall_window
+    history = np.full((window, n), np.inf)  # errors of the last ``window`` iterations
+    exact = np.zeros(n, dtype=bool)
+    cut_short = False
+    for it in range(iterations or cfg.refine_iterations):
+        if prune and it in cfg.prune_at:
+            alive = np.flatnonzero(~given_up)
+            order = alive[np.argsort(score[alive], kind='stable')]
+            keep = distinct_mask(q[order], goal.kind, cfg.prune_radius)
+            active[order[~keep]] = False
+        idx = np.flatnonzero(active)
+        if len(idx) == 0:
+            break
+        if deadline is not None and time.perf_counter() > deadline:
+            cut_short = True
+            break
+        p, r, jac = ctx.robot.jacobian_loop(q[idx], ctx.data)
+        err = pos - p
+        perr = np.sqrt((err * err).sum(1))
+        done = perr < cfg.position_tolerance * 0.5
+        stuck = perr > 10 * cfg.position_tolerance
+        if rot is not None:
+            rot_err = rotation_log(rot @ r.transpose(0, 2, 1))
+            oerr = np.sqrt((rot_err * rot_err).sum(1))
+            err = np.concatenate([err, rot_err], axis=1)
+            done &= oerr < cfg.orientation_tolerance * 0.5
+            stuck |= oerr > 10 * cfg.orientation_tolerance
+            oerr_all[idx] = oerr
+            score[idx] = pose_score(perr, oerr)
+        else:
+            score[idx] = perr
+        perr_all[idx] = perr
+        stale[idx] = False
+        if enough and done.any():
+            exact[idx[done]] = True
+            found = np.flatnonzero(exact)
+            if len(found) >= enough and (
+                    distinct_mask(q[found], goal.kind, cfg.distinct_threshold).sum() >= enough):
+                break
+        if window and it >= max(window, cfg.stall_after):
+            # far from the goal and hardly closer than ``window`` iterations ago: stalled
+            stalled = stuck & (score[idx] > cfg.stall_ratio * history[it % window, idx])
+        else:
+            stalled = None
+        if window:
+            history[it % window, idx] = score[idx]
+        if it >= cfg.give_up_after or (stalled is not None and stalled.any()):
+            # far from the goal this late: a local minimum or a joint limit, not worth more
+            if it < cfg.give_up_after:
+                stuck = stalled
+            given_up[idx[stuck & ~done]] = True
+            done |= stuck
+        if done.any():
+            active[idx[done]] = False
+            go = ~done
+            if not go.any():
+                continue
+            idx, jac, err = idx[go], jac[go], err[go]
+        j, e, qa = jac[:, :rows], err, q[idx]
+        # joints at a limit that the descent direction J^T e pushes further out leave the
+        # problem (active set)
+        g = np.einsum('nrj,nr->nj', j, e)
+        blocked = ((qa <= lower + 1e-9) & (g < 0)) | ((qa >= upper - 1e-9) & (g > 0))
+        dq = dls_step(j * ~blocked[:, None, :], e, lam2, eye)
+        scale = np.maximum(1.0, np.abs(dq).max(axis=1) / cfg.max_step)
+        q[idx] = np.clip(qa + dq / scale[:, None], lower, upper)
+        stale[idx] = True
+    moved = np.flatnonzero(stale)
+    if len(moved):
+        perr_all[moved], oerr_all[moved] = errors(ctx, q[moved], goal)
+    return Refined(q, perr_all, oerr_all, cut_short)

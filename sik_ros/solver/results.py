@@ -1,0 +1,70 @@
+"""What a solve returns: ranked :class:`Solution` s in an :class:`IKResult`, and its JSON view."""
+
+from dataclasses import dataclass, field
+import json
+from typing import Dict, List, Sequence
+
+import numpy as np
+
+
+@dataclass
+class Solution:
+    """One joint solution.
+
+    Attributes:
+        q: joint positions (n,) [rad], within the limits.
+        position_error: distance from the tip to the target [m].
+        orientation_error: angle between tip and target orientation [rad] (0 for position goals).
+        posture_index: the posture index that produced it.
+        score: ranking score, lower is better.
+        min_obstacle_distance: clearance from the obstacles [m] (+inf without obstacles).
+        self_collision: whether the posture collides with itself.
+        converged: whether it meets the tolerances.
+    """
+
+    q: np.ndarray
+    position_error: float
+    orientation_error: float
+    posture_index: np.ndarray
+    score: float = 0.0
+    min_obstacle_distance: float = float('inf')
+    self_collision: bool = False
+    converged: bool = False
+
+    @property
+    def in_collision(self) -> bool:
+        """Whether it touches an obstacle or itself."""
+        return self.self_collision or self.min_obstacle_distance <= 0.0
+
+
+@dataclass
+class IKResult:
+    """The answer to one target: ranked solutions, best first."""
+
+    success: bool
+    solutions: List[Solution] = field(default_factory=list)
+    goal: str = 'position'
+    timed_out: bool = False
+    elapsed: float = 0.0
+    message: str = ''
+
+
+def result_to_dict(res: IKResult, joint_names: Sequence[str]) -> Dict:
+    """A JSON-ready view of a result (for ``sik-solve --json``)."""
+    return {
+        'success': res.success, 'goal': res.goal, 'timed_out': res.timed_out,
+        'elapsed_s': res.elapsed, 'message': res.message, 'joint_names': list(joint_names),
+        'solutions': [{
+            'q': s.q.tolist(), 'position_error': s.position_error,
+            'orientation_error': s.orientation_error,
+            'posture_index': [float(v) for v in s.posture_index], 'score': s.score,
+            'min_obstacle_distance': (None if not np.isfinite(s.min_obstacle_distance)
+                                      else s.min_obstacle_distance),
+            'self_collision': s.self_collision, 'converged': s.converged,
+        } for s in res.solutions],
+    }
+
+
+def dumps(res: IKResult, joint_names: Sequence[str]) -> str:
+    """:func:`result_to_dict` as a JSON string."""
+    return json.dumps(result_to_dict(res, joint_names), indent=2)

@@ -1,0 +1,194 @@
+"""sik_node's parameter table (sik_ros.ros.params): NodeParams, descriptors, validate, the YAML."""
+
+import dataclasses
+import math
+from pathlib import Path
+import random
+
+import pytest
+from rcl_interfaces.msg import ParameterType
+import rclpy
+from rclpy.context import Context
+from rclpy.exceptions import InvalidParameterValueException
+from rclpy.parameter import Parameter
+from rclpy.signals import SignalHandlerOptions
+import yaml
+
+from sik_ros.ros import params
+from sik_ros.ros.params import NodeParams, SPEC, SPECS, validate
+
+REPO = Path(__file__).resolve().parents[1]
+#: The node's parameters before the table existed: name, type, default (must not change).
+EXPECTED = [
+    ('robot', str, 'panda'), ('model_dir', str, ''), ('base_frame', str, 'panda_link0'),
+    ('tip_frame', str, 'panda_hand_tcp'), ('num_solutions', int, 16),
+    ('max_solutions_cap', int, 64), ('position_tolerance', float, 1e-4),
+    ('orientation_tolerance', float, 1e-3), ('refine', bool, True), ('timeout', float, 0.05),
+    ('use_joint_states', bool, False), ('goal_use_orientation', bool, False),
+    ('publish_markers', bool, True), ('solver_processes', int, 0)]
+READ_ONLY = {'robot', 'model_dir', 'base_frame', 'tip_frame', 'solver_processes'}
+
+
+def yaml_parameters():
+    """The ``ros__parameters`` of ``config/panda.yaml``."""
+    doc = yaml.safe_load((REPO / 'config' / 'panda.yaml').read_text())
+    return doc['/**']['ros__parameters']
+
+
+def in_range(spec, value):
+    """Whether a number lies within its declared (closed) range."""
+    return spec.min <= value <= spec.max
+
+
+# -- the table and what is derived from it ------------------------------------------------------
+
+def test_node_params_made_from_the_table():
+    """The fields of NodeParams are the table's, in order, with its types and defaults; frozen."""
+    got = [(f.name, f.type, f.default) for f in dataclasses.fields(NodeParams)]
+    assert got == [(s.name, s.type, s.default) for s in SPECS]
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        NodeParams().timeout = 1.0
+    assert dataclasses.replace(NodeParams(), timeout=1.0).timeout == 1.0
+
+
+def test_node_params_unchanged():
+    """Field names, types, defaults and read-only flags are those sik_node always had."""
+    assert [(f.name, f.type, f.default) for f in dataclasses.fields(NodeParams)] == EXPECTED
+    assert set(params.READ_ONLY) == READ_ONLY
+    assert set(params.DESCRIPTIONS) == {name for name, _, _ in EXPECTED}
+
+
+def test_table_is_consistent():
+    """Defaults have their type and lie in range; units are in the descriptions; ranges sane."""
+    for s in SPECS:
+        assert type(s.default) is s.type, s
+        assert s.description, s
+        assert s.numeric == (s.type in (int, float)), s
+        if s.numeric:
+            assert s.min is not None and s.max is not None and s.min < s.max, s
+            assert in_range(s, s.default) and (not s.min_open or s.default > s.min), s
+        else:
+            assert s.min is None and s.max is None and not s.min_open, s
+        if s.unit:
+            assert f'[{s.unit}]' in s.description, s
+        if s.max_param:
+            assert SPEC[s.max_param].type is s.type, s
+            assert s.max >= SPEC[s.max_param].max, s
+    assert validate(NodeParams()) is None
+
+
+def test_numeric_descriptors_carry_a_range():
+    """Every int or float descriptor has exactly one range with the table's bounds."""
+    descriptors = params.descriptors()
+    assert list(descriptors) == [s.name for s in SPECS]
+    for s in SPECS:
+        d = descriptors[s.name]
+        assert d.name == s.name and d.description == s.description
+        assert d.read_only == s.read_only
+        if s.type is int:
+            assert d.type == ParameterType.PARAMETER_INTEGER
+            assert len(d.integer_range) == 1 and not d.floating_point_range, s.name
+            r = d.integer_range[0]
+            assert (r.from_value, r.to_value, r.step) == (s.min, s.max, 1)
+        elif s.type is float:
+            assert d.type == ParameterType.PARAMETER_DOUBLE
+            assert len(d.floating_point_range) == 1 and not d.integer_range, s.name
+            r = d.floating_point_range[0]
+            assert (r.from_value, r.to_value, r.step) == (s.min, s.max, 0.0)
+        else:
+            assert not d.integer_range and not d.floating_point_range, s.name
+        if s.min_open:
+            assert '>' in d.additional_constraints, s.name
+        if s.max_param:
+            assert s.max_param in d.additional_constraints, s.name
+
+
+# -- config/panda.yaml --------------------------------------------------------------------------
+
+def test_panda_yaml_names_exactly_the_declared_parameters():
+    """config/panda.yaml sets every declared parameter, and nothing else."""
+    assert set(yaml_parameters()) == {s.name for s in SPECS}
+
+
+def test_panda_yaml_values_are_valid():
+    """Its values have the declared types, lie in the declared ranges and pass validate()."""
+    values = yaml_parameters()
+    for name, value in values.items():
+        s = SPEC[name]
+        assert type(value) is s.type, (name, value)
+        if s.numeric:
+            assert in_range(s, value) and (not s.min_open or value > s.min), (name, value)
+    assert validate(NodeParams(**values)) is None
+
+
+# -- validate -----------------------------------------------------------------------------------
+
+@pytest.mark.parametrize('changes, message', [
+    ({'robot': '', 'model_dir': ''}, 'robot and model_dir are both empty'),
+    ({'tip_frame': ''}, 'base_frame and tip_frame must not be empty'),
+    ({'solver_processes': 17}, 'solver_processes must be in 0..16; got 17'),
+    ({'max_solutions_cap': 0}, 'max_solutions_cap must be in 1..1024; got 0'),
+    ({'num_solutions': 65}, 'num_solutions must be in 1..max_solutions_cap (64); got 65'),
+    ({'num_solutions': 0}, 'num_solutions must be in 1..max_solutions_cap (64); got 0'),
+    ({'position_tolerance': 0.0}, 'position_tolerance must be in (0, 0.1] m; got 0.0'),
+    ({'orientation_tolerance': math.nan}, 'orientation_tolerance must be in (0, 3.14159] rad'),
+    ({'timeout': 0.0}, 'timeout must be in (0, 60] s; got 0.0'),
+    ({'timeout': 61.0}, 'timeout must be in (0, 60] s; got 61.0'),
+])
+def test_validate_rejects_with_a_reason(changes, message):
+    """Each rule that a descriptor cannot express (or that it does) is checked by validate()."""
+    reason = validate(dataclasses.replace(NodeParams(), **changes))
+    assert reason is not None and reason.startswith(message), reason
+
+
+def test_validate_accepts_edges():
+    """Closed upper bounds and a model_dir instead of robot are fine."""
+    for changes in ({'robot': '', 'model_dir': '/some/bundle'}, {'timeout': 60.0},
+                    {'num_solutions': 3, 'max_solutions_cap': 3}, {'solver_processes': 16},
+                    {'orientation_tolerance': math.pi}, {'position_tolerance': 0.1}):
+        assert validate(dataclasses.replace(NodeParams(), **changes)) is None, changes
+
+
+# -- rclpy enforces the descriptors -------------------------------------------------------------
+
+@pytest.fixture
+def context(monkeypatch):
+    """A private rclpy context on a random domain, discovery on localhost."""
+    monkeypatch.setenv('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
+    ctx = Context()
+    rclpy.init(context=ctx, domain_id=random.SystemRandom().randint(1, 100),
+               signal_handler_options=SignalHandlerOptions.NO)
+    yield ctx
+    rclpy.try_shutdown(context=ctx)
+
+
+def test_rclpy_rejects_values_out_of_range(context):
+    """With the descriptors declared, rclpy rejects wrong types, ranges and read-only sets."""
+    node = rclpy.create_node('sik_params_test', context=context, enable_rosout=False,
+                             start_parameter_services=False)
+    try:
+        node.declare_parameters('', params.declarations())
+        for name, value in (('num_solutions', 0), ('max_solutions_cap', 1025),
+                            ('position_tolerance', -1.0), ('orientation_tolerance', math.nan),
+                            ('timeout', 61.0), ('num_solutions', 'many'),
+                            ('model_dir', '/elsewhere'), ('solver_processes', 2)):
+            [result] = node.set_parameters([Parameter(name, value=value)])
+            assert not result.successful and result.reason, (name, value)
+        [result] = node.set_parameters([Parameter('timeout', value=60.0)])
+        assert result.successful, result.reason
+        described = node.describe_parameter('timeout')
+        assert described.floating_point_range[0].to_value == 60.0
+    finally:
+        node.destroy_node()
+
+
+def test_rclpy_rejects_an_override_out_of_range(context):
+    """A start-up value out of range fails the declaration (sik_node reports bad parameters)."""
+    node = rclpy.create_node('sik_params_test', context=context, enable_rosout=False,
+                             start_parameter_services=False,
+                             parameter_overrides=[Parameter('timeout', value=-1.0)])
+    try:
+        with pytest.raises(InvalidParameterValueException, match='timeout'):
+            node.declare_parameters('', params.declarations())
+    finally:
+        node.destroy_node()
