@@ -29,7 +29,7 @@ from rclpy.signals import SignalHandlerOptions
 import torch
 
 from sik_interfaces.srv import SolveIK
-from sik_ros.kinematics import load_robot
+from sik_ros.robots import load_robot
 from sik_ros.ros import demo
 from sik_ros.ros.client import SolveIKClient
 from sik_ros.solver import SelectiveIK

@@ -12,7 +12,8 @@ from sik_ros.errors import (  # noqa: E402
     ArtifactError, ArtifactExists, ArtifactMismatch, CorruptArtifact, FrameNotFound,
     InvalidArgument, InvalidGoal, InvalidModel, InvalidSeed, JointLimitViolation,
     RobotNotFound, SikError, TrainingDiverged)
-from sik_ros.kinematics import load_robot, Robot  # noqa: E402
+from sik_ros.kinematics import Robot
+from sik_ros.robots import load_robot  # noqa: E402
 from sik_ros.solver import IKResult, SelectiveIK, Solution, SolverConfig  # noqa: E402
 
 __all__ = [

@@ -20,7 +20,8 @@ from sik_ros.dataset import Dataset
 from sik_ros.errors import ArtifactMismatch, CorruptArtifact
 from sik_ros.index_table import IndexTable, PostureTable, TableConfig
 from sik_ros.indexing import build_table
-from sik_ros.kinematics import load_robot, Robot
+from sik_ros.kinematics import Robot
+from sik_ros.robots import robot_from_manifest
 
 #: The bundles shipped inside the package, one directory per robot name.
 BUNDLES = Path(__file__).resolve().parent / 'bundles'
@@ -98,8 +99,7 @@ def load_bundle(bundle: Union[str, Path]) -> Tuple[Path, Robot, Dict[str, GoalMo
     path = resolve_bundle(bundle)
     manifest = read_bundle_manifest(path)
     rm = manifest['robot']
-    robot = load_robot(rm['robot'], rm.get('urdf'), rm['base_frame'], rm['tip_frame'])
-    check_robot_manifest(f'bundle {path}', robot.manifest(), rm)
+    robot = robot_from_manifest(rm, f'bundle {path}')
     models = {}
     for goal, files in manifest['models'].items():
         ckpt = load_checkpoint(path / files['model'])

@@ -8,6 +8,8 @@ configuration), a ``manifest.json`` and a human-readable ``stats.txt``.
 from dataclasses import dataclass
 import math
 from pathlib import Path
+import shutil
+import time
 from typing import Callable, Dict, Iterator, List, Optional, Tuple
 
 import numpy as np
@@ -24,12 +26,18 @@ ARRAYS = {'q': None, 'position': 3, 'quaternion': 4}
 STATS_CELL = 0.05
 
 
-def grid_values(lower: np.ndarray, upper: np.ndarray, interval_deg: float) -> List[np.ndarray]:
+def grid_values(lower: np.ndarray, upper: np.ndarray, interval_deg: float,
+                periodic: Optional[np.ndarray] = None) -> List[np.ndarray]:
     """Joint values of Algorithm 1: from each lower limit in steps while at or below the upper.
+
+    A periodic joint (range of a turn or more) is swept over one turn only, centred in its
+    range and without its end (``c - pi`` up to, not including, ``c + pi``): q and q + 2 pi are
+    the same posture, which the solver adds back.
 
     Args:
         lower, upper: joint limits [rad].
         interval_deg: step [deg].
+        periodic: which joints are periodic (default: none).
 
     Raises:
         InvalidArgument: a step that is not positive or larger than a joint's range.
@@ -37,20 +45,88 @@ def grid_values(lower: np.ndarray, upper: np.ndarray, interval_deg: float) -> Li
     if not math.isfinite(interval_deg) or interval_deg <= 0:
         raise InvalidArgument(f'interval must be a positive number of degrees; got {interval_deg}')
     step = math.radians(interval_deg)
-    ranges = np.asarray(upper) - np.asarray(lower)
+    lower, upper = np.asarray(lower, dtype=float), np.asarray(upper, dtype=float)
+    periodic = np.zeros(len(lower), dtype=bool) if periodic is None else np.asarray(periodic)
+    ranges = upper - lower
     too_big = [i for i, r in enumerate(ranges) if step > r + 1e-12]
     if too_big:
         i = too_big[0]
         raise InvalidArgument(
             f'interval {interval_deg} deg is larger than the range of joint {i + 1} '
             f'({math.degrees(ranges[i]):.2f} deg)')
-    counts = np.floor(ranges / step + 1e-9).astype(int) + 1
-    return [lo + step * np.arange(c) for lo, c in zip(lower, counts)]
+    values = []
+    for lo, hi, turn in zip(lower, upper, periodic):
+        if turn:
+            start = (lo + hi) / 2 - math.pi
+            values.append(start + step * np.arange(math.ceil(2 * math.pi / step - 1e-9)))
+        else:
+            values.append(lo + step * np.arange(math.floor((hi - lo) / step + 1e-9) + 1))
+    return values
 
 
-def grid_count(lower: np.ndarray, upper: np.ndarray, interval_deg: float) -> int:
+def grid_count(lower: np.ndarray, upper: np.ndarray, interval_deg: float,
+               periodic: Optional[np.ndarray] = None) -> int:
     """Number of configurations of the Algorithm 1 grid, without materialising it."""
-    return int(np.prod([len(v) for v in grid_values(lower, upper, interval_deg)], dtype=np.int64))
+    return int(np.prod([len(v) for v in grid_values(lower, upper, interval_deg, periodic)],
+                       dtype=np.int64))
+
+
+#: Intervals ``--interval auto`` chooses from [deg] (divisors of 360, finest first).
+AUTO_INTERVALS = (5, 6, 8, 9, 10, 12, 15, 18, 20, 24, 30, 36, 40, 45, 60, 72, 90, 120, 180)
+#: Default row budget of a collection.
+MAX_ROWS = 20_000_000
+
+
+def finest_interval(robot: Robot, max_rows: int) -> Optional[float]:
+    """The finest of :data:`AUTO_INTERVALS` whose grid has at most ``max_rows`` rows."""
+    for interval in AUTO_INTERVALS:
+        try:
+            if grid_count(robot.lower, robot.upper, interval, robot.periodic) <= max_rows:
+                return float(interval)
+        except InvalidArgument:  # larger than a joint's range
+            return None
+    return None
+
+
+def row_bytes(robot: Robot) -> int:
+    """Bytes one dataset row takes on disk (float64 joints, position, quaternion)."""
+    return 8 * (robot.dof + sum(c for c in ARRAYS.values() if c))
+
+
+def check_budget(robot: Robot, rows: int, max_rows: int, disk_free: Optional[int] = None,
+                 sampler: str = 'grid') -> None:
+    """Refuse a collection above the row budget or the free disk space, with what would fit.
+
+    Raises:
+        InvalidArgument: naming the rows and the suggestions.
+    """
+    if rows > max_rows:
+        fit = finest_interval(robot, max_rows)
+        fit_rows = grid_count(robot.lower, robot.upper, fit, robot.periodic) if fit else 0
+        grid = f'--interval {fit:g} ({fit_rows:,} rows) or --interval auto, ' if fit else ''
+        raise InvalidArgument(
+            f'{sampler} of {rows:,} rows is above the budget of {max_rows:,} (--max-rows); '
+            f'try {grid}or --sampler uniform --samples {min(max_rows, 5_000_000):,}')
+    need = rows * row_bytes(robot)
+    if disk_free is not None and need > 0.95 * disk_free:
+        raise InvalidArgument(f'{rows:,} rows need {need / 1e9:.2f} GB; only '
+                              f'{disk_free / 1e9:.2f} GB are free there')
+
+
+def estimate_seconds(robot: Robot, rows: int, probe: int = 1 << 14) -> float:
+    """Seconds a collection of ``rows`` rows takes here, from timing FK of ``probe`` rows."""
+    q = np.random.default_rng(0).uniform(robot.lower, robot.upper, (probe, robot.dof))
+    t0 = time.perf_counter()
+    robot.fk_batch(q)
+    return (time.perf_counter() - t0) / probe * rows
+
+
+def free_disk(path: Path) -> int:
+    """Free bytes on the file system that holds ``path`` (or its nearest existing parent)."""
+    path = Path(path).resolve()
+    while not path.exists() and path != path.parent:
+        path = path.parent
+    return shutil.disk_usage(path).free
 
 
 def _cartesian(values: List[np.ndarray]) -> np.ndarray:
@@ -70,7 +146,7 @@ def iter_grid(robot: Robot, interval_deg: float, chunk: int = 1 << 18) -> Iterat
     The transforms of the leading joints are shared by many rows, so they are computed once per
     prefix and only the last two joints are evaluated per row.
     """
-    values = grid_values(robot.lower, robot.upper, interval_deg)
+    values = grid_values(robot.lower, robot.upper, interval_deg, robot.periodic)
     n_tail = min(2, robot.dof)
     head, tail = values[:robot.dof - n_tail], values[robot.dof - n_tail:]
     q_head = _cartesian(head)
@@ -155,7 +231,8 @@ class Dataset:
 
 def collect(robot: Robot, out: Path, sampler: str = 'grid', interval_deg: float = 30.0,
             samples: int = 0, seed: int = 0, force: bool = False,
-            progress: Optional[Callable[[int], None]] = None, chunk: int = 1 << 18) -> Dataset:
+            progress: Optional[Callable[[int], None]] = None, chunk: int = 1 << 18,
+            max_rows: int = MAX_ROWS) -> Dataset:
     """Collect a dataset of tip poses and write it atomically to ``out``.
 
     Args:
@@ -168,12 +245,13 @@ def collect(robot: Robot, out: Path, sampler: str = 'grid', interval_deg: float 
         force: replace an existing ``out``.
         progress: called with the number of rows written after each chunk.
         chunk: rows computed at a time.
+        max_rows: refuse (before writing anything) a collection of more rows.
 
     Returns:
         the dataset, loaded from its final location.
     """
     if sampler == 'grid':
-        count = grid_count(robot.lower, robot.upper, interval_deg)
+        count = grid_count(robot.lower, robot.upper, interval_deg, robot.periodic)
         chunks = iter_grid(robot, interval_deg, chunk)
         params = {'interval_deg': interval_deg}
     elif sampler == 'uniform':
@@ -184,6 +262,7 @@ def collect(robot: Robot, out: Path, sampler: str = 'grid', interval_deg: float 
         params = {'samples': samples, 'seed': seed}
     else:
         raise InvalidArgument(f'unknown sampler {sampler!r}; use grid or uniform')
+    check_budget(robot, count, max_rows, free_disk(out), sampler)
     with atomic_directory(out, force=force) as tmp:
         arrays = {
             name: np.lib.format.open_memmap(tmp / f'{name}.npy', mode='w+', dtype=np.float64,

@@ -7,7 +7,6 @@ whose batched forward kinematics (:func:`~sik_ros.chain.chain_forward`) is teste
 Pinocchio's own frame placements.
 """
 
-import functools
 import hashlib
 from pathlib import Path
 from typing import Optional, Sequence, Tuple
@@ -16,17 +15,8 @@ import numpy as np
 import pinocchio as pin
 
 from sik_ros.chain import chain_forward, SerialChain
-from sik_ros.errors import FrameNotFound, InvalidArgument, InvalidModel, RobotNotFound
+from sik_ros.errors import FrameNotFound, InvalidArgument, InvalidModel
 from sik_ros.rotations import rotation_to_quaternion, z_to_axis
-
-#: Default base and tip frames of the robots sik_ros knows by name.
-KNOWN_FRAMES = {
-    'panda': ('panda_link0', 'panda_hand_tcp'),
-}
-#: Simplified collision geometry (capsules, spheres) used for a named robot when available.
-COLLISION_VARIANTS = {
-    'panda': 'panda_collision',
-}
 
 _REVOLUTE_AXES = {
     'JointModelRX': (1.0, 0.0, 0.0),
@@ -38,6 +28,46 @@ _REVOLUTE_AXES = {
 def sha256_file(path: Path) -> str:
     """Hex SHA-256 of a file's bytes."""
     return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+
+
+#: Frame types in the order an ambiguous frame name resolves to (a body before its joint).
+FRAME_PREFERENCE = ('BODY', 'OP_FRAME', 'FIXED_JOINT', 'JOINT', 'SENSOR')
+#: Joint types that can only be a floating or planar root: locked at their neutral value.
+ROOT_JOINTS = ('JointModelFreeFlyer', 'JointModelPlanar', 'JointModelSpherical',
+               'JointModelSphericalZYX', 'JointModelTranslation')
+
+
+def find_frame(model: pin.Model, name: str) -> int:
+    """The id of the frame called ``name``; a body (or fixed frame) when several share it.
+
+    Raises:
+        FrameNotFound: no frame has that name (the message lists the frames).
+    """
+    ids = [i for i, f in enumerate(model.frames) if f.name == name]
+    if not ids:
+        raise FrameNotFound(name, [f.name for f in model.frames])
+    rank = {t: k for k, t in enumerate(FRAME_PREFERENCE)}
+    return min(ids, key=lambda i: (rank.get(str(model.frames[i].type).split('.')[-1], 99), i))
+
+
+def chain_joint(model: pin.Model, j: int) -> bool:
+    """Whether joint ``j`` is an arm joint of a chain (revolute), False for a root to lock.
+
+    Raises:
+        InvalidModel: a joint sik_ros cannot put in a chain (prismatic, continuous left as
+            such, composite), naming it.
+    """
+    kind = model.joints[j].shortname()
+    if kind in _REVOLUTE_AXES or kind == 'JointModelRevoluteUnaligned':
+        return True
+    if kind in ROOT_JOINTS:
+        return False
+    what = {'JointModelPX': 'prismatic', 'JointModelPY': 'prismatic', 'JointModelPZ':
+            'prismatic', 'JointModelPrismaticUnaligned': 'prismatic'}.get(kind, kind)
+    if kind.startswith('JointModelRUB'):
+        what = 'continuous (load it with sik_ros.robots.load_robot, which makes it periodic)'
+    raise InvalidModel(f'joint {model.names[j]!r} in the chain is {what}; sik_ros supports '
+                       f'chains of revolute joints')
 
 
 class Robot:
@@ -55,30 +85,45 @@ class Robot:
 
     def __init__(self, name: str, urdf_path: Path, full_model: pin.Model, base_frame: str,
                  tip_frame: str, package_dirs: Sequence[str] = (),
-                 collision_urdf: Optional[Path] = None, srdf_path: Optional[Path] = None):
+                 collision_urdf: Optional[Path] = None, srdf_path: Optional[Path] = None,
+                 urdf_source: Optional[Path] = None):
         self.name = name
         self.urdf_path = Path(urdf_path)
         self.urdf_sha256 = sha256_file(self.urdf_path)
+        self.urdf_source = None if urdf_source is None else Path(urdf_source)
         self.base_frame = base_frame
         self.tip_frame = tip_frame
         self._package_dirs = list(package_dirs)
         self._collision_urdf = Path(collision_urdf) if collision_urdf else self.urdf_path
         self._srdf_path = srdf_path
-        frame_names = [f.name for f in full_model.frames]
-        for frame in (base_frame, tip_frame):
-            if not full_model.existFrame(frame):
-                raise FrameNotFound(frame, frame_names)
-        tip_joint = full_model.frames[full_model.getFrameId(tip_frame)].parentJoint
+        base_joint = full_model.frames[find_frame(full_model, base_frame)].parentJoint
+        tip_joint = full_model.frames[find_frame(full_model, tip_frame)].parentJoint
         path = []
         j = tip_joint
-        while j > 0:
+        while j > 0 and j != base_joint:
             path.append(j)
             j = full_model.parents[j]
-        path.reverse()
+        if j != base_joint:
+            raise InvalidModel(f'tip frame {tip_frame!r} is not below base frame {base_frame!r} '
+                               f'in the kinematic tree')
+        path = [j for j in reversed(path) if chain_joint(full_model, j)]
         if not path:
-            raise InvalidModel(f'tip frame {tip_frame!r} is not moved by any joint')
+            raise InvalidModel(f'no revolute joint moves tip frame {tip_frame!r} relative to '
+                               f'{base_frame!r}')
+        # everything else is locked: joints off the chain (grippers, other limbs), those above
+        # the base, and a floating or planar root
         lock = [j for j in range(1, full_model.njoints) if j not in path]
         q_ref = pin.neutral(full_model)
+        bodies = {f.name for f in full_model.frames if f.type == pin.FrameType.BODY}
+        for j in lock:  # a locked joint becomes a fixed frame of its name: keep it unique
+            name_j = full_model.names[j]
+            if name_j in bodies:
+                for i, frame in enumerate(full_model.frames):
+                    if frame.name == name_j and frame.type == pin.FrameType.JOINT:
+                        renamed = full_model.frames[i]
+                        renamed.name = f'{name_j}_locked'
+                        full_model.frames[i] = renamed
+                full_model.names[j] = f'{name_j}_locked'
         self._locked = lock
         self._q_ref_full = q_ref
         self.model = pin.buildReducedModel(full_model, lock, q_ref) if lock else full_model
@@ -88,12 +133,15 @@ class Robot:
         self.upper = np.array(self.model.upperPositionLimit, dtype=float)
         if not (np.all(np.isfinite(self.lower)) and np.all(np.isfinite(self.upper))
                 and np.all(self.upper > self.lower)):
-            raise InvalidModel(
-                f'{name}: every arm joint needs finite limits with lower < upper; got '
-                f'lower={self.lower.tolist()}, upper={self.upper.tolist()}')
+            bad = [n for n, lo, hi in zip(self.joint_names, self.lower, self.upper)
+                   if not (np.isfinite(lo) and np.isfinite(hi) and hi > lo)]
+            raise InvalidModel(f'{name}: joints {bad} need finite limits with lower < upper')
+        #: joints whose range spans a whole turn: q and q +- 2 pi are the same posture
+        self.periodic = self.upper - self.lower >= 2 * np.pi - 1e-6
         self.chain = self._extract_chain()
         self.data = self.model.createData()
-        self._tip_id = self.model.getFrameId(tip_frame)
+        self._tip_id = find_frame(self.model, tip_frame)
+        self._base_id = find_frame(self.model, base_frame)
         self._base_is_world = bool(np.allclose(self.chain.base_rotation, np.eye(3))
                                    and np.allclose(self.chain.base_translation, 0.0))
         self._collision = None
@@ -114,8 +162,8 @@ class Robot:
                 axis = np.array(joint.extract().axis, dtype=float)
             else:
                 raise InvalidModel(
-                    f'{self.name}: joint {m.names[j]!r} is {kind}; only revolute joints with '
-                    f'limits are supported')
+                    f'{self.name}: joint {m.names[j]!r} is {kind}; only revolute joints are '
+                    f'supported in the chain')
             placement = m.jointPlacements[j]
             rots.append(placement.rotation.copy())
             trans.append(placement.translation.copy())
@@ -127,11 +175,11 @@ class Robot:
             rots[i] = prev.T @ rots[i] @ al
             trans[i] = prev.T @ trans[i]
             prev = al
-        base = m.frames[m.getFrameId(self.base_frame)]
+        base = m.frames[find_frame(m, self.base_frame)]
         if base.parentJoint != 0:
             raise InvalidModel(f'base frame {self.base_frame!r} must be fixed to the world')
         base_inv = base.placement.inverse()
-        tip = m.frames[m.getFrameId(self.tip_frame)]
+        tip = m.frames[find_frame(m, self.tip_frame)]
         if tip.parentJoint != m.njoints - 1:
             raise InvalidModel(f'tip frame {self.tip_frame!r} is not on the last arm joint')
         return SerialChain(
@@ -241,16 +289,15 @@ class Robot:
         """Tip placement in the base frame computed by Pinocchio itself (reference)."""
         q = np.asarray(q, dtype=float)
         pin.framesForwardKinematics(self.model, self.data, q)
-        base = self.data.oMf[self.model.getFrameId(self.base_frame)]
-        tip = self.data.oMf[self.model.getFrameId(self.tip_frame)]
+        base = self.data.oMf[self._base_id]
+        tip = self.data.oMf[self._tip_id]
         return base.actInv(tip)
 
     def pin_jacobian(self, q: np.ndarray) -> np.ndarray:
         """Tip Jacobian (6, n) from Pinocchio, LOCAL_WORLD_ALIGNED, base frame = world."""
         q = np.asarray(q, dtype=float)
         return pin.computeFrameJacobian(self.model, self.data, q,
-                                        self.model.getFrameId(self.tip_frame),
-                                        pin.LOCAL_WORLD_ALIGNED)
+                                        self._tip_id, pin.LOCAL_WORLD_ALIGNED)
 
     def _check_q(self, q: np.ndarray) -> np.ndarray:
         q = np.asarray(q, dtype=float)
@@ -282,8 +329,13 @@ class Robot:
         return self._srdf_path
 
     def manifest(self) -> dict:
-        """What identifies this robot in an artifact's manifest."""
-        return {
+        """What identifies this robot in an artifact's manifest.
+
+        ``urdf`` (the file's absolute path) is there for a robot loaded from a URDF file, not
+        for one loaded by its example-robot-data name; ``periodic`` (the names of the joints
+        whose range spans a turn) only when there are some.
+        """
+        out = {
             'robot': self.name,
             'urdf_sha256': self.urdf_sha256,
             'base_frame': self.base_frame,
@@ -292,64 +344,8 @@ class Robot:
             'lower': self.lower.tolist(),
             'upper': self.upper.tolist(),
         }
-
-
-def available_robots() -> list:
-    """Names of the robots example-robot-data can load."""
-    from example_robot_data.robots_loader import ROBOTS
-    return sorted(ROBOTS)
-
-
-@functools.lru_cache(maxsize=8)
-def load_robot(name: str = 'panda', urdf: Optional[str] = None, base: Optional[str] = None,
-               tip: Optional[str] = None) -> Robot:
-    """Load a robot arm by example-robot-data name or from a URDF file.
-
-    Args:
-        name: example-robot-data robot name (ignored for the model when ``urdf`` is given).
-        urdf: path to a URDF file; then ``base`` and ``tip`` are required.
-        base: base frame name (default for known robots: see :data:`KNOWN_FRAMES`).
-        tip: tip frame name.
-
-    Raises:
-        RobotNotFound: unknown robot name (the message lists the available ones).
-        FrameNotFound: a base or tip frame that is not in the model (the message lists frames).
-        InvalidModel: a chain sik_ros cannot handle.
-    """
-    if urdf is not None:
-        path = Path(urdf)
-        if not path.is_file():
-            raise InvalidArgument(f'URDF file not found: {path}')
-        if base is None or tip is None:
-            raise InvalidArgument('a URDF needs --base and --tip frames')
-        try:
-            model = pin.buildModelFromUrdf(str(path))
-        except (RuntimeError, ValueError) as exc:
-            raise InvalidModel(f'cannot parse URDF {path}: {exc}') from exc
-        robot_name = model.name or path.stem
-        return Robot(robot_name, path, model, base, tip, package_dirs=[str(path.parent)])
-    robots = available_robots()
-    if name not in robots:
-        raise RobotNotFound(name, robots)
-    import example_robot_data as erd
-    from example_robot_data.robots_loader import ROBOTS
-    loaded = erd.load(name)
-    default_base, default_tip = KNOWN_FRAMES.get(name, (None, None))
-    base = base or default_base
-    tip = tip or default_tip
-    if base is None or tip is None:
-        raise InvalidArgument(f'robot {name!r} has no default frames: give base and tip')
-    urdf_path = Path(loaded.urdf)
-    share = urdf_path.parents[3] if len(urdf_path.parents) > 3 else urdf_path.parent
-    collision_urdf, srdf = urdf_path, None
-    variant = COLLISION_VARIANTS.get(name)
-    if variant in ROBOTS:
-        collision_urdf = Path(erd.load(variant).urdf)
-    loader = ROBOTS[name]
-    srdf_candidate = urdf_path.parent.parent / 'srdf' / f'{loader.srdf_filename}' \
-        if getattr(loader, 'srdf_filename', None) else None
-    if srdf_candidate is not None and srdf_candidate.is_file():
-        srdf = srdf_candidate
-    return Robot(name, urdf_path, loaded.model, base, tip,
-                 package_dirs=[str(share.parent), str(share)],
-                 collision_urdf=collision_urdf, srdf_path=srdf)
+        if self.urdf_source is not None:
+            out['urdf'] = str(self.urdf_source.resolve())
+        if self.periodic.any():
+            out['periodic'] = [n for n, p in zip(self.joint_names, self.periodic) if p]
+        return out

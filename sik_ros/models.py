@@ -56,8 +56,9 @@ class ModelConfig:
             raise InvalidArgument(f'model kind must be one of {MODEL_KINDS}; got {self.kind!r}')
         if self.goal not in GOAL_KINDS:
             raise InvalidArgument(f'goal must be one of {GOAL_KINDS}; got {self.goal!r}')
-        if not 1 <= self.latent_dim <= 7:
-            raise InvalidArgument(f'latent dimension must be 1 to 7; got {self.latent_dim}')
+        if not 1 <= self.latent_dim <= max(7, self.dof):
+            raise InvalidArgument(f'latent dimension must be 1 to {max(7, self.dof)}; got '
+                                  f'{self.latent_dim}')
         if self.dof < 1:
             raise InvalidArgument(f'dof must be positive; got {self.dof}')
 

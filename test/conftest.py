@@ -5,7 +5,7 @@ import os
 import pytest
 
 from sik_ros.dataset import collect
-from sik_ros.kinematics import load_robot
+from sik_ros.robots import load_robot
 
 os.environ.setdefault('OMP_NUM_THREADS', '1')
 

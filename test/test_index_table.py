@@ -8,7 +8,7 @@ import pytest
 
 from sik_ros.errors import ArtifactMismatch, CorruptArtifact
 from sik_ros.index_table import farthest_point_subset, IndexTable, TableConfig
-from sik_ros.kinematics import load_robot
+from sik_ros.robots import load_robot
 
 
 def small_table(cell=0.1, dedup=0.5, max_per_cell=4):

@@ -5,7 +5,7 @@ import pinocchio as pin
 import pytest
 
 from sik_ros.errors import FrameNotFound, InvalidArgument, RobotNotFound
-from sik_ros.kinematics import load_robot
+from sik_ros.robots import load_robot
 
 
 def test_panda_is_reduced_to_seven_arm_joints(panda):

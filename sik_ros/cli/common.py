@@ -2,7 +2,8 @@
 
 import argparse
 
-from sik_ros.kinematics import load_robot, Robot
+from sik_ros.kinematics import Robot
+from sik_ros.robots import load_robot
 
 
 def add_robot_args(parser: argparse.ArgumentParser) -> None:

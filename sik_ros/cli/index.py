@@ -13,7 +13,7 @@ from sik_ros.dataset import Dataset
 from sik_ros.errors import ArtifactExists, InvalidArgument
 from sik_ros.index_table import TableConfig
 from sik_ros.indexing import build_table
-from sik_ros.kinematics import load_robot
+from sik_ros.robots import robot_from_manifest
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -53,8 +53,7 @@ def main(argv: Optional[List[str]] = None) -> int:
             raise InvalidArgument(f'--out must end in .npz; got {out}')
         cfg = TableConfig(args.cell, args.dedup, args.max_per_cell)
         ckpt = load_checkpoint(args.model)
-        rm = ckpt['robot']
-        robot = load_robot(rm['robot'], None, rm['base_frame'], rm['tip_frame'])
+        robot = robot_from_manifest(ckpt['robot'], f'model {args.model}')
         ds = Dataset.load(args.dataset, robot)
         t0 = time.perf_counter()
         with tqdm(total=len(ds), unit='rows', unit_scale=True, disable=args.quiet,

@@ -11,8 +11,8 @@ from sik_ros.checkpoints import export_model, load_checkpoint
 from sik_ros.cli import argv_or_default, run_cli
 from sik_ros.dataset import Dataset
 from sik_ros.errors import ArtifactExists, InvalidArgument
-from sik_ros.kinematics import load_robot
 from sik_ros.models import DEFAULT_LATENT, ModelConfig, PRESETS
+from sik_ros.robots import robot_from_manifest
 from sik_ros.training import TrainConfig, Trainer, with_overrides
 
 
@@ -71,7 +71,7 @@ def main(argv: Optional[List[str]] = None) -> int:
                 raise ArtifactExists(f'{out}/last.pt exists: use --resume, or another --out')
             latent = args.latent_dim or DEFAULT_LATENT[args.goal]
             enc, dec = PRESETS[args.preset]
-            model_cfg = ModelConfig(kind=args.model, goal=args.goal, dof=7,
+            model_cfg = ModelConfig(kind=args.model, goal=args.goal,
                                     latent_dim=latent, encoder=enc, decoder=dec)
             train_cfg = with_overrides(
                 TrainConfig(), steps=args.steps, batch_size=args.batch_size, lr=args.lr,
@@ -82,8 +82,8 @@ def main(argv: Optional[List[str]] = None) -> int:
                 uni_position=args.uni_position or None)
             if args.model in ('fcn', 'anfis') and args.fk_weight is None:
                 train_cfg = with_overrides(train_cfg, fk_weight=0.0)
-        manifest = Dataset.load(args.dataset).manifest['robot']
-        robot = load_robot(manifest['robot'])
+        robot = robot_from_manifest(Dataset.load(args.dataset).manifest['robot'],
+                                    f'dataset {args.dataset}')
         if model_cfg.dof != robot.dof:
             model_cfg = ModelConfig(**{**model_cfg.__dict__, 'dof': robot.dof})
         ds = Dataset.load(args.dataset, robot)

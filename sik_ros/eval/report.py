@@ -279,7 +279,8 @@ def diversity_section(res: Results) -> List[str]:
             rows.append([tgt, 'ours refined'] + [fmt(v) for v in r.var_refined])
             rows.append([tgt, 'paper'] + [fmt(v) for v in paper_var[i]])
         lines += [f'### {NAMES[name]}: per-joint variance [deg²] (paper Table 3)', '']
-        lines += table(['target', ''] + [f'joint {j + 1}' for j in range(7)], rows) + ['']
+        joints = [f'joint {j + 1}' for j in range(len(recs[0].var_raw))]
+        lines += table(['target', ''] + joints, rows) + ['']
         rows = []
         for i, r in enumerate(recs):
             pos = '(' + ', '.join(f'{v:g}' for v in r.position) + ')'

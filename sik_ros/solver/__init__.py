@@ -216,8 +216,8 @@ class SelectiveIK:
     def distinct_mask(self, q: np.ndarray, goal: str,
                       threshold: Optional[float] = None) -> np.ndarray:
         """Greedy keep-mask of rows at least ``threshold`` apart (default: the config's)."""
-        return distinct_mask(q, goal, self.config.distinct_threshold if threshold is None
-                             else threshold)
+        return distinct_mask(q, self.config.distinct_threshold if threshold is None
+                             else threshold, self._ctx.ignores_last(goal))
 
     def adjust_index(self, goal: str, pos: np.ndarray, rot, sols: List[Solution],
                      obstacles: Sequence[Obstacle], deadline=None,

@@ -49,3 +49,16 @@ class Context:
     config: SolverConfig
     data: pin.Data
     checker: CollisionChecker
+
+    def ignores_last(self, kind: str) -> bool:
+        """Whether postures of a ``kind`` goal are compared without the last joint.
+
+        For position goals, when the tip lies on the last joint's axis: that joint only turns
+        the tool about it, so it tells no postures apart.
+        """
+        return kind == POSITION and tip_on_last_axis(self.robot)
+
+
+def tip_on_last_axis(robot: Robot) -> bool:
+    """Whether the tip lies on the last joint's axis (the last joint does not move it)."""
+    return bool(np.linalg.norm(robot.chain.tip_translation[:2]) < 1e-9)

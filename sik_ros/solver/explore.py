@@ -44,6 +44,33 @@ def restart(ctx: Context, c: Candidates, goal: Goal, deadline, keep: int = 8
     return Candidates.concat(c, new), r.cut_short
 
 
+def periodic_equivalents(ctx: Context, c: Candidates, per_solution: int = 16) -> Candidates:
+    """``c`` and, after each row, its equivalents with periodic joints turned by +-2 pi.
+
+    A periodic joint's q and q +- 2 pi place the arm alike; each equivalent within the joint
+    limits is a further solution (cable wrap, distance to the current state). Per row, at most
+    ``per_solution`` of them, fewest joints turned first.
+    """
+    robot = ctx.robot
+    turns = np.flatnonzero(robot.periodic)
+    if len(turns) == 0 or len(c) == 0:
+        return c
+    rows, shifted = [], []
+    for i, q in enumerate(c.q):
+        options = [[0.0] + [s for s in (2 * np.pi, -2 * np.pi)
+                            if robot.lower[j] - 1e-9 <= q[j] + s <= robot.upper[j] + 1e-9]
+                   for j in turns]
+        combos = np.array(np.meshgrid(*options, indexing='ij')).reshape(len(turns), -1).T
+        combos = combos[np.argsort((combos != 0).sum(1), kind='stable')][:per_solution + 1]
+        for shift in combos:
+            qs = q.copy()
+            qs[turns] += shift
+            rows.append(i)
+            shifted.append(np.clip(qs, robot.lower, robot.upper))
+    out = c.take(np.array(rows))
+    return Candidates(np.array(shifted), out.z, out.perr, out.oerr, out.exact)
+
+
 def walk(ctx: Context, c: Candidates, goal: Goal, deadline, need: int) -> Candidates:
     """``c`` and the distinct exact solutions found along the self-motion of its exact ones.
 
@@ -59,7 +86,8 @@ def walk(ctx: Context, c: Candidates, goal: Goal, deadline, need: int) -> Candid
         return c
     rows = np.flatnonzero(c.exact)
     rows = rows[np.argsort(pose_score(c.perr[rows], c.oerr[rows]), kind='stable')]
-    found = c.q[rows[distinct_mask(c.q[rows], goal.kind, cfg.distinct_threshold)]]
+    roll_free = ctx.ignores_last(goal.kind)
+    found = c.q[rows[distinct_mask(c.q[rows], cfg.distinct_threshold, roll_free)]]
     if len(found) >= need:
         return c
     frontier, heading = found, None
@@ -79,7 +107,7 @@ def walk(ctx: Context, c: Candidates, goal: Goal, deadline, need: int) -> Candid
         if step.exact.any():
             far_enough = cdist(step.q[step.exact], found).min(axis=1) >= cfg.distinct_threshold
             pick = np.flatnonzero(step.exact)[far_enough]
-            pick = pick[distinct_mask(step.q[pick], goal.kind, cfg.distinct_threshold)]
+            pick = pick[distinct_mask(step.q[pick], cfg.distinct_threshold, roll_free)]
         if len(pick) == 0:
             break
         new.append(step.take(pick))

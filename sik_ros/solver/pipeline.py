@@ -4,8 +4,10 @@
    the position model's postures that had the goal's orientation;
 2. their postures (the table's decoded postures, or a decode at the goal; raw answers are
    always decoded at the goal);
-3. refinement, then restarts when nothing converged, then (pose goals) the self-motion walk;
-4. exact solutions first, one per distinct posture, ranked (collisions, objective);
+3. refinement, then restarts when nothing converged, then (pose goals of arms with more than
+   six joints) the self-motion walk;
+4. exact solutions first, one per distinct posture, with the 2 pi equivalents of periodic
+   joints, ranked (collisions, objective);
 5. Algorithm 2 when obstacles leave no free exact solution.
 """
 
@@ -20,7 +22,7 @@ from sik_ros.solver.batch import Candidates
 from sik_ros.solver.candidates import oriented_postures, starting_postures, table_candidates
 from sik_ros.solver.codec import decode, encode
 from sik_ros.solver.context import Context, Goal, POSE
-from sik_ros.solver.explore import restart, walk
+from sik_ros.solver.explore import periodic_equivalents, restart, walk
 from sik_ros.solver.ranking import assess, best_distinct, distinct_mask, merge, rank
 from sik_ros.solver.refine import errors, refine
 from sik_ros.solver.results import IKResult, Solution
@@ -65,7 +67,7 @@ def solve(ctx: Context, goal: Goal, num: int, q_seed: Optional[np.ndarray],
     far = ctx.models[goal.kind].table.distance_to_data(goal.position) > cfg.reach_margin
     if refined:
         # decoded postures that nearly coincide would refine to the same solution
-        c = c.take(distinct_mask(c.q, goal.kind, cfg.distinct_threshold * 0.5))
+        c = c.take(distinct_mask(c.q, cfg.distinct_threshold * 0.5, ctx.ignores_last(goal.kind)))
         # ranked by the default objective, the first distinct exact solutions found are as
         # good as any: stop refining once there are enough
         enough = None if (q_seed is not None or obstacles or objective is not None
@@ -76,13 +78,17 @@ def solve(ctx: Context, goal: Goal, num: int, q_seed: Optional[np.ndarray],
         if not far and not c.exact.any():
             c, cut = restart(ctx, c, goal, deadline)
             timed_out = timed_out or cut
-        if goal.kind == POSE and not far and cfg.walk_rounds > 0:
+        # a pose of a 6-joint arm has isolated solutions: no self-motion to walk along
+        if goal.kind == POSE and not far and cfg.walk_rounds > 0 and ctx.robot.dof > 6:
             c = walk(ctx, c, goal, deadline, num + max(cfg.early_stop_margin, 0))
     else:
         c = assess(c.q, c.z, *errors(ctx, c.q, goal), goal.kind, cfg)
     if c.exact.any():  # with exact solutions, only exact ones are returned
         c = c.take(c.exact)
-    c = best_distinct(c, goal.kind, cfg.distinct_threshold)
+    c = best_distinct(c, cfg.distinct_threshold, ctx.ignores_last(goal.kind))
+    if ctx.robot.periodic.any():
+        c = best_distinct(periodic_equivalents(ctx, c), cfg.distinct_threshold,
+                          ctx.ignores_last(goal.kind))
     sols = rank(ctx, c, q_seed, obstacles, objective, limit=num)
     fill_indices(ctx, goal, sols)
     if obstacles and refined and not any(s.converged and not s.in_collision for s in sols):

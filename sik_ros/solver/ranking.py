@@ -45,13 +45,13 @@ def assess(q: np.ndarray, z: np.ndarray, perr: np.ndarray, oerr: np.ndarray, kin
     return Candidates(q, z, perr, oerr, converged(perr, oerr, kind, cfg))
 
 
-def distinct_mask(q: np.ndarray, kind: str, threshold: float) -> np.ndarray:
+def distinct_mask(q: np.ndarray, threshold: float, ignore_last: bool = False) -> np.ndarray:
     """Greedy keep-mask of rows (in their order) at least ``threshold`` apart [rad].
 
-    For position goals the last joint, which turns the tool about its own axis, is left out
-    of the distance.
+    With ``ignore_last`` the last joint is left out of the distance (for position goals, when
+    it only turns the tool about its own axis: :meth:`Context.ignores_last`).
     """
-    cols = slice(0, q.shape[1] - 1) if kind == POSITION else slice(None)
+    cols = slice(0, q.shape[1] - 1) if ignore_last else slice(None)
     near = cdist(q[:, cols], q[:, cols]) < threshold
     mask = np.zeros(len(q), dtype=bool)
     covered = np.zeros(len(q), dtype=bool)  # rows near an already kept one
@@ -62,10 +62,10 @@ def distinct_mask(q: np.ndarray, kind: str, threshold: float) -> np.ndarray:
     return mask
 
 
-def best_distinct(c: Candidates, kind: str, threshold: float) -> Candidates:
+def best_distinct(c: Candidates, threshold: float, ignore_last: bool) -> Candidates:
     """Exact candidates first, then by score; one per distinct posture."""
     c = c.take(np.lexsort((pose_score(c.perr, c.oerr), ~c.exact)))
-    return c.take(distinct_mask(c.q, kind, threshold))
+    return c.take(distinct_mask(c.q, threshold, ignore_last))
 
 
 def rank(ctx: Context, c: Candidates, q_seed: Optional[np.ndarray],
@@ -115,6 +115,6 @@ def merge(ctx: Context, sols: Sequence[Solution], extra: Sequence[Solution], kin
           q_seed: Optional[np.ndarray], obstacles: Sequence[Obstacle],
           objective: Optional[Objective]) -> List[Solution]:
     """Two lists of solutions ranked together, one per distinct posture."""
-    c = best_distinct(from_solutions(list(sols) + list(extra)), kind,
-                      ctx.config.distinct_threshold)
+    c = best_distinct(from_solutions(list(sols) + list(extra)), ctx.config.distinct_threshold,
+                      ctx.ignores_last(kind))
     return rank(ctx, c, q_seed, obstacles, objective)

@@ -88,11 +88,12 @@ def refine(ctx: Context, q: np.ndarray, goal: Goal, deadline: Optional[float] = 
     history = np.full((window, n), np.inf)  # errors of the last ``window`` iterations
     exact = np.zeros(n, dtype=bool)
     cut_short = False
+    roll_free = ctx.ignores_last(goal.kind)
     for it in range(iterations or cfg.refine_iterations):
         if prune and it in cfg.prune_at:
             alive = np.flatnonzero(~given_up)
             order = alive[np.argsort(score[alive], kind='stable')]
-            keep = distinct_mask(q[order], goal.kind, cfg.prune_radius)
+            keep = distinct_mask(q[order], cfg.prune_radius, ctx.ignores_last(goal.kind))
             active[order[~keep]] = False
         idx = np.flatnonzero(active)
         if len(idx) == 0:
@@ -121,7 +122,7 @@ def refine(ctx: Context, q: np.ndarray, goal: Goal, deadline: Optional[float] = 
             exact[idx[done]] = True
             found = np.flatnonzero(exact)
             if len(found) >= enough and (
-                    distinct_mask(q[found], goal.kind, cfg.distinct_threshold).sum() >= enough):
+                    distinct_mask(q[found], cfg.distinct_threshold, roll_free).sum() >= enough):
                 break
         if window and it >= max(window, cfg.stall_after):
             # far from the goal and hardly closer than ``window`` iterations ago: stalled
