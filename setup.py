@@ -50,6 +50,7 @@ setup(
             'sik-index = sik_ros.cli.index:main',
             'sik-solve = sik_ros.cli.solve:main',
             'sik-eval = sik_ros.cli.eval:main',
+            'sik-build = sik_ros.cli.build:main',
             'sik_node = sik_ros.ros.node:main',
         ],
     },

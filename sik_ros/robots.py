@@ -268,3 +268,50 @@ def robot_from_manifest(manifest: Mapping, what: str = 'artifact') -> Robot:
         raise ArtifactMismatch(f'{what}: frame', exc.frame, 'not in the robot model') from exc
     check_robot_manifest(what, robot.manifest(), manifest)
     return robot
+
+
+def chain_differences(robot: Robot, urdf_text: str, tol: float = 1e-6) -> List[str]:
+    """How the base-to-tip chain of a URDF (a string) differs from ``robot``'s; empty if alike.
+
+    Compared: the joint names, axes, placements and limits of the chain between the robot's
+    base and tip frames, and the base and tip placements.
+
+    Raises:
+        InvalidModel: the text is not a URDF Pinocchio can read.
+    """
+    import tempfile
+    import numpy as np
+    text, _ = prepare_urdf(urdf_text)
+    try:
+        model = unique_frame_names(pin.buildModelFromXML(text))
+    except (RuntimeError, ValueError) as exc:
+        raise InvalidModel(f'cannot parse the robot_description URDF: {exc}') from exc
+    with tempfile.NamedTemporaryFile('w', suffix='.urdf') as f:
+        f.write(urdf_text)
+        f.flush()
+        try:
+            other = Robot(model.name, Path(f.name), model, robot.base_frame, robot.tip_frame)
+        except (FrameNotFound, InvalidModel) as exc:
+            return [f'its chain {robot.base_frame} -> {robot.tip_frame} cannot be built: {exc}']
+    if other.joint_names != robot.joint_names:
+        return [f'joints {other.joint_names} instead of {robot.joint_names}']
+    out = []
+    per_joint = (('lower limits', robot.lower, other.lower),
+                 ('upper limits', robot.upper, other.upper),
+                 ('axes', robot.chain.axes, other.chain.axes),
+                 ('placements', robot.chain.joint_translations, other.chain.joint_translations),
+                 ('orientations', robot.chain.joint_rotations, other.chain.joint_rotations))
+    for what, a, b in per_joint:
+        bad = [n for n, x, y in zip(robot.joint_names, a, b) if not np.allclose(x, y, atol=tol)]
+        if bad:
+            out.append(f'joint {what} differ at {bad}')
+    for what, a, b in (('tip placement', robot.chain.tip_translation,
+                        other.chain.tip_translation),
+                       ('tip orientation', robot.chain.tip_rotation, other.chain.tip_rotation),
+                       ('base placement', robot.chain.base_translation,
+                        other.chain.base_translation),
+                       ('base orientation', robot.chain.base_rotation,
+                        other.chain.base_rotation)):
+        if not np.allclose(a, b, atol=tol):
+            out.append(f'{what} differs')
+    return out

@@ -251,6 +251,17 @@ class Trainer:
         self.save()
         return last
 
+    def seconds_per_step(self, steps: int = 8) -> float:
+        """Wall time of one gradient step here [s], timed over ``steps`` after one warm-up.
+
+        It trains the model as it times it: use a throw-away trainer.
+        """
+        self._gradient_step()
+        t0 = time.perf_counter()
+        for _ in range(steps):
+            self._gradient_step()
+        return (time.perf_counter() - t0) / steps
+
     def _gradient_step(self) -> Dict[str, float]:
         """One optimiser step on a random batch; the losses it saw."""
         for group in self.opt.param_groups:

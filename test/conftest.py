@@ -1,6 +1,8 @@
 """Shared fixtures: the Panda robot and small datasets, built once per session."""
 
 import os
+import subprocess
+import sys
 
 import pytest
 
@@ -54,3 +56,21 @@ def build_tiny_bundle(robot, dataset, out, steps=400):
 def tiny_bundle(panda, uniform_small, tmp_path_factory):
     """A bundle of tiny SIK position and pose models trained for seconds (a real pipeline)."""
     return build_tiny_bundle(panda, uniform_small, tmp_path_factory.mktemp('bundle'))
+
+
+@pytest.fixture(scope='session')
+def ur5():
+    """UR5: 6 joints, every one with limits of +-2 pi (or a whole turn)."""
+    return load_robot('ur5')
+
+
+@pytest.fixture(scope='session')
+def ur5_bundle(tmp_path_factory):
+    """A tiny UR5 bundle made by ``sik-build`` end to end (tiny model, small sampler)."""
+    out = tmp_path_factory.mktemp('arms') / 'ur5'
+    cmd = [sys.executable, '-m', 'sik_ros.cli.build', '--robot', 'ur5', '--out', str(out),
+           '--time', '40', '--rows', '20000', '--preset', 'tiny', '--check-targets', '20',
+           '--quiet']
+    run = subprocess.run(cmd, capture_output=True, text=True, timeout=300)
+    assert run.returncode == 0, run.stderr[-2000:]
+    return out, run.stdout

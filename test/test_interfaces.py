@@ -48,6 +48,7 @@ ERROR_CODES = {
     'INVALID_FRAME': -3,
     'INVALID_SEED': -4,
     'TIMEOUT': -5,
+    'ROBOT_MISMATCH': -6,
 }
 
 

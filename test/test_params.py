@@ -18,15 +18,17 @@ from sik_ros.ros import params
 from sik_ros.ros.params import NodeParams, SPEC, SPECS, validate
 
 REPO = Path(__file__).resolve().parents[1]
-#: The node's parameters before the table existed: name, type, default (must not change).
+#: The node's parameters: name, type, default (base and tip frames default to the bundle's).
 EXPECTED = [
-    ('robot', str, 'panda'), ('model_dir', str, ''), ('base_frame', str, 'panda_link0'),
-    ('tip_frame', str, 'panda_hand_tcp'), ('num_solutions', int, 16),
+    ('robot', str, 'panda'), ('model_dir', str, ''), ('base_frame', str, ''),
+    ('tip_frame', str, ''), ('num_solutions', int, 16),
     ('max_solutions_cap', int, 64), ('position_tolerance', float, 1e-4),
     ('orientation_tolerance', float, 1e-3), ('refine', bool, True), ('timeout', float, 0.05),
     ('use_joint_states', bool, False), ('goal_use_orientation', bool, False),
-    ('publish_markers', bool, True), ('solver_processes', int, 0)]
-READ_ONLY = {'robot', 'model_dir', 'base_frame', 'tip_frame', 'solver_processes'}
+    ('publish_markers', bool, True), ('solver_processes', int, 0),
+    ('robot_description', str, '')]
+READ_ONLY = {'robot', 'model_dir', 'base_frame', 'tip_frame', 'solver_processes',
+             'robot_description'}
 
 
 def yaml_parameters():
@@ -125,7 +127,6 @@ def test_panda_yaml_values_are_valid():
 
 @pytest.mark.parametrize('changes, message', [
     ({'robot': '', 'model_dir': ''}, 'robot and model_dir are both empty'),
-    ({'tip_frame': ''}, 'base_frame and tip_frame must not be empty'),
     ({'solver_processes': 17}, 'solver_processes must be in 0..16; got 17'),
     ({'max_solutions_cap': 0}, 'max_solutions_cap must be in 1..1024; got 0'),
     ({'num_solutions': 65}, 'num_solutions must be in 1..max_solutions_cap (64); got 65'),

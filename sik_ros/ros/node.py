@@ -28,16 +28,17 @@ from rclpy.exceptions import InvalidParameterValueException
 from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
-from rclpy.qos import qos_profile_sensor_data
+from rclpy.qos import DurabilityPolicy, qos_profile_sensor_data, QoSProfile, ReliabilityPolicy
 from rclpy.signals import SignalHandlerOptions
 from sensor_msgs.msg import JointState
-from std_msgs.msg import Header
+from std_msgs.msg import Header, String
 import torch
 from visualization_msgs.msg import MarkerArray
 
 from sik_interfaces.msg import IKSolution, IKSolutionArray
 from sik_interfaces.srv import SolveIK
 from sik_ros.errors import SikError
+from sik_ros.robots import chain_differences
 from sik_ros.ros import conversions as conv
 from sik_ros.ros.params import declarations, NodeParams, validate
 from sik_ros.solver import IKResult, SelectiveIK
@@ -77,6 +78,8 @@ class SikNode(Node):
         if reason is not None:
             raise StartupError(f'bad parameters: {reason}')
         self._ik = self._load(self._params)
+        #: why requests are refused: the robot_description topic's chain differs from the bundle's
+        self._mismatch: Optional[str] = None
         self._pool: 'queue.LifoQueue[SelectiveIK]' = queue.LifoQueue()
         self._processes: Optional[SolverPool] = None
         if self._params.solver_processes > 0:
@@ -99,10 +102,14 @@ class SikNode(Node):
         self.create_service(SolveIK, '~/solve_ik', self._on_solve_ik, callback_group=group)
         self.create_subscription(PoseStamped, '~/goal', self._on_goal, 10, callback_group=group)
         self._update_joint_state_subscription()
+        latched = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL,
+                             reliability=ReliabilityPolicy.RELIABLE)
+        self.create_subscription(String, 'robot_description', self._on_robot_description,
+                                 latched, callback_group=group)
         self.get_logger().info(
             f'ready: bundle {self._ik.bundle} ({", ".join(self._ik.goals)} goals, '
-            f'{len(self._ik.joint_names)} joints {self._params.base_frame} -> '
-            f'{self._params.tip_frame}), {workers} executor threads, '
+            f'{len(self._ik.joint_names)} joints {self._ik.robot.base_frame} -> '
+            f'{self._ik.robot.tip_frame}), {workers} executor threads, '
             f'{self._params.solver_processes} solver processes')
 
     # -- parameters ------------------------------------------------------------------------------
@@ -155,15 +162,34 @@ class SikNode(Node):
         except SikError as exc:
             raise StartupError(f'cannot load the IK bundle {bundle!r}: {exc}') from exc
         robot = ik.robot
-        if p.model_dir and robot.name != p.robot:
-            raise StartupError(f'bundle {bundle!r} is for robot {robot.name!r}, but the '
-                               f'parameter robot is {p.robot!r}')
         for name, value, actual in (('base_frame', p.base_frame, robot.base_frame),
                                     ('tip_frame', p.tip_frame, robot.tip_frame)):
-            if value != actual:
+            if value and value != actual:
                 raise StartupError(f'parameter {name} is {value!r} but bundle {bundle!r} was '
                                    f'made for {actual!r}')
+        if p.robot_description:
+            reason = self._differences(robot, p.robot_description)
+            if reason:
+                raise StartupError(f'bundle {bundle!r} does not fit the robot_description: '
+                                   f'{reason}')
         return ik.with_config(**self._solver_settings(p))
+
+    @staticmethod
+    def _differences(robot, urdf: str) -> str:
+        """How a URDF's chain differs from the bundle's robot ('' if it does not)."""
+        try:
+            return '; '.join(chain_differences(robot, urdf))
+        except SikError as exc:
+            return str(exc)
+
+    def _on_robot_description(self, msg: String) -> None:
+        reason = self._differences(self._ik.robot, msg.data)
+        self._mismatch = (f'the bundle {self._ik.bundle} does not fit the robot_description '
+                          f'topic: {reason}') if reason else None
+        if reason:
+            self.get_logger().error(f'{self._mismatch}; refusing requests')
+        else:
+            self.get_logger().info('robot_description matches the bundle\'s chain')
 
     @staticmethod
     def _solver_settings(p: NodeParams) -> dict:
@@ -186,7 +212,7 @@ class SikNode(Node):
     # -- requests --------------------------------------------------------------------------------
 
     def _header(self, p: NodeParams) -> Header:
-        return Header(stamp=self.get_clock().now().to_msg(), frame_id=p.base_frame)
+        return Header(stamp=self.get_clock().now().to_msg(), frame_id=self._ik.robot.base_frame)
 
     def _state_seed(self) -> Optional[np.ndarray]:
         """Return the latest ``joint_states`` as a seed (clipped to the limits), or None."""
@@ -214,11 +240,14 @@ class SikNode(Node):
     def _solve(self, request: SolveIK.Request, p: NodeParams
                ) -> Tuple[int, str, Optional[IKResult]]:
         """Error code, message and (when the goal was valid) the library's result."""
+        if self._mismatch is not None:
+            return Response.ROBOT_MISMATCH, self._mismatch, None
         frame = request.target.header.frame_id.lstrip('/')
-        if frame not in ('', p.base_frame):
+        base = self._ik.robot.base_frame
+        if frame not in ('', base):
             return (Response.INVALID_FRAME,
                     f'target frame_id {request.target.header.frame_id!r} is not the base frame '
-                    f'{p.base_frame!r} (or empty); sik_node does not transform frames', None)
+                    f'{base!r} (or empty); sik_node does not transform frames', None)
         num, note = self._count(request.max_solutions, p)
         try:
             position, orientation = conv.goal_from_pose(request.target.pose,

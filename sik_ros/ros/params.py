@@ -79,11 +79,13 @@ SPECS: Tuple[ParamSpec, ...] = (
     ParamSpec('model_dir', str, '',
               'bundle directory to load; empty: the bundled model of `robot` (read-only)',
               read_only=True),
-    ParamSpec('base_frame', str, 'panda_link0',
-              'frame of targets, obstacles and answers; the bundle\'s base (read-only)',
+    ParamSpec('base_frame', str, '',
+              'frame of targets, obstacles and answers; must be the bundle\'s base; empty: '
+              'the bundle\'s (read-only)',
               read_only=True),
-    ParamSpec('tip_frame', str, 'panda_hand_tcp',
-              'frame placed on the target; the bundle\'s tip frame (read-only)',
+    ParamSpec('tip_frame', str, '',
+              'frame placed on the target; must be the bundle\'s tip frame; empty: the '
+              'bundle\'s (read-only)',
               read_only=True),
     ParamSpec('num_solutions', int, 16,
               'solutions returned when a request asks for 0; 1..max_solutions_cap',
@@ -112,6 +114,11 @@ SPECS: Tuple[ParamSpec, ...] = (
               'solver processes serving requests in parallel (beyond the GIL); 0: solve in the '
               'executor threads; 0..16 (read-only)',
               min=0, max=MAX_SOLVER_PROCESSES, read_only=True),
+    ParamSpec('robot_description', str, '',
+              'the robot\'s URDF (as robot_state_publisher holds it); when set, or when the '
+              'robot_description topic publishes one, a bundle whose chain differs from it is '
+              'refused (read-only)',
+              read_only=True),
 )
 #: The declarations by name.
 SPEC: Dict[str, ParamSpec] = {s.name: s for s in SPECS}
@@ -184,8 +191,6 @@ def validate(p: 'NodeParams') -> Optional[str]:
     """
     if not p.robot and not p.model_dir:
         return 'robot and model_dir are both empty: name a bundled model or a bundle directory'
-    if not p.base_frame or not p.tip_frame:
-        return 'base_frame and tip_frame must not be empty'
     # ints before floats; a number bounded by another parameter after that parameter
     for s in sorted((s for s in SPECS if s.numeric),
                     key=lambda s: (s.type is float, bool(s.max_param))):

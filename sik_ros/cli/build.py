@@ -1,0 +1,64 @@
+"""``sik-build``: from an arm (example-robot-data name or URDF) to a served bundle, resumable."""
+
+import argparse
+import json
+from typing import List, Optional
+
+from sik_ros.build import BuildConfig, Builder
+from sik_ros.cli import argv_or_default, run_cli
+from sik_ros.robots import load_robot
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The argument parser of sik-build."""
+    d = BuildConfig()
+    p = argparse.ArgumentParser(
+        prog='sik-build', description='Collect data, train the position and pose models, '
+        'index them, bundle them and check the bundle, in one resumable command (rerun it '
+        'after an interruption to continue).')
+    src = p.add_mutually_exclusive_group(required=True)
+    src.add_argument('--robot', help='example-robot-data robot name (e.g. ur5, xarm7)')
+    src.add_argument('--urdf', help='URDF file of the arm')
+    p.add_argument('--base', help='base frame (default: the parent link of the first joint)')
+    p.add_argument('--tip', help='tip frame (default: the end of the longest chain, tool0/'
+                   'tcp/ee frames preferred)')
+    p.add_argument('--out', required=True, help='bundle directory to create')
+    p.add_argument('--work', help='folder for the dataset and training runs (default: '
+                   '<out>.build)')
+    p.add_argument('--time', type=float, default=d.time,
+                   help=f'total time budget [s] (default: {d.time:g})')
+    p.add_argument('--device', choices=('cpu', 'cuda'), default=d.device)
+    p.add_argument('--sampler', choices=('uniform', 'grid'), default=d.sampler,
+                   help='uniform samples, or the Algorithm 1 grid at the finest interval '
+                   'under --rows')
+    p.add_argument('--rows', type=int, default=d.rows,
+                   help=f'dataset rows (uniform) or row budget (grid) (default: {d.rows:,})')
+    p.add_argument('--preset', default=d.preset, help='layer widths: tiny, small, default, '
+                   'paper')
+    p.add_argument('--batch-size', type=int, default=d.batch_size)
+    p.add_argument('--check-targets', type=int, default=d.check_targets,
+                   help='targets per goal kind of the final self-check')
+    p.add_argument('--seed', type=int, default=d.seed)
+    p.add_argument('--quiet', action='store_true', help='no progress bars')
+    return p
+
+
+def main(argv: Optional[List[str]] = None) -> int:
+    """Entry point of sik-build."""
+    args = build_parser().parse_args(argv_or_default(argv))
+
+    def body() -> int:
+        robot = load_robot(args.robot or 'panda', args.urdf, args.base, args.tip)
+        periodic = [n for n, p in zip(robot.joint_names, robot.periodic) if p]
+        print(f'robot {robot.name}: {robot.dof} joints {robot.joint_names}, base '
+              f'{robot.base_frame}, tip {robot.tip_frame}; periodic: {periodic or "none"}')
+        cfg = BuildConfig(args.time, args.sampler, args.rows, args.preset, args.device,
+                          args.batch_size, args.check_targets, args.seed)
+        report = Builder(robot, args.out, cfg, args.work, bars=not args.quiet).run()
+        print(json.dumps({'bundle': args.out, 'self_check': report}))
+        return 0
+    return run_cli('sik-build', body)
+
+
+if __name__ == '__main__':
+    raise SystemExit(main())

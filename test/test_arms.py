@@ -1,0 +1,158 @@
+"""Any arm: loading, default frames, periodic joints, budgets, sik-build, 2 pi equivalents."""
+
+import json
+from pathlib import Path
+import shutil
+import subprocess
+import sys
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+from sik_ros.dataset import grid_count
+from sik_ros.errors import ArtifactMismatch, InvalidModel
+from sik_ros.kinematics import Robot
+from sik_ros.robots import build_model, chain_differences, load_robot, robot_from_manifest
+from sik_ros.solver import SelectiveIK
+
+CLI = [sys.executable, '-m']
+
+
+def test_a_six_joint_arm_with_whole_turn_joints_loads_with_default_frames(ur5):
+    """The UR5 loads by name alone: base = parent link of the first joint, tip = tool0."""
+    assert (ur5.dof, ur5.base_frame, ur5.tip_frame) == (6, 'base_link', 'tool0')
+    assert ur5.periodic.all()
+    q = np.random.default_rng(0).uniform(ur5.lower, ur5.upper, (20, 6))
+    p, _ = ur5.fk_rot(q)
+    ref = np.array([ur5.pin_placement(qi).translation for qi in q])
+    assert np.abs(p - ref).max() < 1e-9
+
+
+def test_continuous_joints_become_periodic_and_keep_the_kinematics():
+    """Kinova's continuous joints: revolute over +-2 pi, periodic, FK equal to the original's."""
+    import example_robot_data as erd
+    kinova = load_robot('kinova')
+    assert kinova.dof == 6 and kinova.tip_frame == 'j2s6s200_end_effector'
+    assert kinova.periodic.tolist() == [True, False, False, True, False, True]
+    assert np.allclose(kinova.upper[kinova.periodic], 2 * np.pi)
+    original = erd.load('kinova').model  # continuous joints: (cos, sin) per joint
+    data = original.createData()
+    frame = original.getFrameId('j2s6s200_end_effector')
+    base = original.getFrameId('j2s6s200_link_base')
+    for q in np.random.default_rng(1).uniform(kinova.lower, kinova.upper, (10, 6)):
+        full = pin.neutral(original)
+        for name, value in zip(kinova.joint_names, q):
+            j = original.getJointId(name)
+            i = original.joints[j].idx_q
+            if original.joints[j].nq == 2:
+                full[i:i + 2] = np.cos(value), np.sin(value)
+            else:
+                full[i] = value
+        pin.framesForwardKinematics(original, data, full)
+        ref = data.oMf[base].actInv(data.oMf[frame]).translation
+        assert np.allclose(kinova.fk(q)[0], ref, atol=1e-9)
+
+
+def test_grid_sweeps_periodic_joints_over_one_turn(ur5, panda):
+    """A periodic joint is swept over one turn: UR5 at 30 deg is 12^6 rows, the Panda unchanged."""
+    assert grid_count(ur5.lower, ur5.upper, 30.0, ur5.periodic) == 12 ** 6
+    assert grid_count(panda.lower, panda.upper, 30.0, panda.periodic) == 6_967_296
+
+
+def test_a_floating_root_is_locked(ur5):
+    """A free-flyer root (as mobile and legged models load) is locked: same chain, same FK."""
+    model = pin.buildModelFromUrdf(str(ur5.urdf_path), pin.JointModelFreeFlyer())
+    floating = Robot('ur5', ur5.urdf_path, model, 'base_link', 'tool0')
+    assert floating.joint_names == ur5.joint_names
+    q = np.random.default_rng(2).uniform(ur5.lower, ur5.upper, (5, 6))
+    assert np.allclose(floating.fk_rot(q)[0], ur5.fk_rot(q)[0], atol=1e-12)
+
+
+def test_an_ambiguous_frame_name_resolves_to_the_body():
+    """SO-100 has a link and a joint both called 'gripper': the link is the tip, no raw error."""
+    so100 = load_robot('so100', tip='gripper')
+    assert so100.tip_frame == 'gripper' and so100.dof == 5
+    q = np.zeros(5)
+    assert np.allclose(so100.fk(q)[0], so100.pin_placement(q).translation)
+
+
+def test_a_prismatic_joint_in_the_chain_is_refused_by_name():
+    """A tip past the Panda's finger joint: refused with the joint named, in one line."""
+    with pytest.raises(InvalidModel, match="panda_finger_joint1.*prismatic") as info:
+        load_robot('panda', tip='panda_leftfinger')
+    assert '\n' not in str(info.value)
+
+
+def test_sik_collect_refuses_a_grid_over_its_budget_before_writing(tmp_path):
+    """Over --max-rows: exit 2, one line naming what would fit, nothing written."""
+    out = tmp_path / 'ds'
+    run = subprocess.run(CLI + ['sik_ros.cli.collect', '--robot', 'ur5', '--interval', '10',
+                                '--max-rows', '1000000', '--out', str(out), '--quiet'],
+                         capture_output=True, text=True, timeout=120)
+    assert run.returncode == 2
+    lines = run.stderr.strip().splitlines()
+    assert len(lines) == 1 and 'budget' in lines[0], lines
+    assert '--interval 36 (1,000,000 rows)' in lines[0], lines
+    assert '--sampler uniform' in lines[0]
+    assert not out.exists() and list(tmp_path.iterdir()) == []
+
+
+def test_a_urdf_that_changed_is_refused(tmp_path, ur5):
+    """An artifact made from a URDF file is refused once that file changes or moves."""
+    urdf = tmp_path / 'arm.urdf'
+    shutil.copyfile(ur5.urdf_path, urdf)
+    robot = load_robot('x', str(urdf))
+    manifest = robot.manifest()
+    assert manifest['urdf'] == str(urdf.resolve())
+    assert robot_from_manifest(manifest).joint_names == ur5.joint_names
+    urdf.write_text(urdf.read_text().replace('velocity="3.15"', 'velocity="3.0"', 1))
+    with pytest.raises(ArtifactMismatch, match='changed'):
+        robot_from_manifest(manifest)
+    urdf.unlink()
+    with pytest.raises(ArtifactMismatch, match='moved'):
+        robot_from_manifest(manifest)
+
+
+def test_chain_differences_name_what_differs(ur5):
+    """A robot_description that differs from the bundle's chain is told apart, and how."""
+    text = Path(ur5.urdf_path).read_text()
+    assert chain_differences(ur5, text) == []
+    moved = text.replace('xyz="0.0 0.0 0.089159"', 'xyz="0.0 0.0 0.1"', 1)
+    assert chain_differences(ur5, moved) == ["joint placements differ at ['shoulder_pan_joint']"]
+    limited = text.replace('upper="6.28318530718"', 'upper="3.0"', 1)
+    assert chain_differences(ur5, limited) == [
+        "joint upper limits differ at ['shoulder_pan_joint']"]
+
+
+def test_sik_build_makes_a_bundle_that_solves_with_2pi_equivalents(ur5_bundle, ur5):
+    """sik-build: a bundle with its self-check; FK-verified, distinct, with 2 pi equivalents."""
+    out, stdout = ur5_bundle
+    manifest = json.loads((out / 'bundle.json').read_text())
+    assert set(manifest['models']) == {'position', 'pose'}
+    assert manifest['self_check']['position']['targets'] == 20
+    assert 'self-check, position goals' in stdout and 'tip tool0' in stdout
+    ik = SelectiveIK.load(out)
+    rng = np.random.default_rng(5)
+    for goal in ('position', 'pose'):
+        for q in rng.uniform(ur5.lower, ur5.upper, (5, 6)):
+            p, quat = ur5.fk(q)
+            res = ik.solve(p, quat if goal == 'pose' else None, num_solutions=16)
+            assert res.success
+            qs = np.array([s.q for s in res.solutions if s.converged])
+            assert np.all(qs >= ur5.lower - 1e-9) and np.all(qs <= ur5.upper + 1e-9)
+            reached, rot = ur5.fk_rot(qs)
+            assert np.linalg.norm(reached - p, axis=1).max() <= 1e-4
+            d = np.linalg.norm(qs[:, None] - qs[None], axis=2) + np.eye(len(qs)) * 9
+            assert d.min() >= 0.5  # distinct
+            # some solutions are 2 pi equivalents of others: same posture, a joint turned once
+            wrapped = np.angle(np.exp(1j * (qs[:, None] - qs[None])))
+            same = np.all(np.abs(wrapped) < 1e-6, axis=2) & ~np.eye(len(qs), dtype=bool)
+            assert same.any()
+
+
+def test_build_model_reads_a_plain_urdf(ur5):
+    """The URDF reader gives Pinocchio's model (revolute joints as they are)."""
+    model = build_model(ur5.urdf_path)
+    assert [model.joints[j].shortname() for j in range(1, model.njoints)][:2] == [
+        'JointModelRZ', 'JointModelRY']

@@ -1,0 +1,108 @@
+"""End to end: sik_node serves any bundle with ``-p model_dir:=DIR``, checked against a URDF.
+
+The tiny UR5 bundle that ``sik-build`` makes (conftest's ``ur5_bundle``) is served over DDS;
+a ``robot_description`` (parameter or latched topic) whose chain differs from it is refused.
+"""
+
+from pathlib import Path
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+import rclpy
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.signals import SignalHandlerOptions
+from std_msgs.msg import String
+
+from sik_interfaces.srv import SolveIK
+from sik_ros.ros import demo
+
+pytestmark = pytest.mark.timeout(180)
+R = SolveIK.Response
+
+
+def start(bundle, env, log, *params, params_file=None):
+    """``sik_node`` with only ``model_dir`` (and ``params``) set: no Panda parameter file."""
+    cmd = [sys.executable, '-m', 'sik_ros.ros.node', '--ros-args']
+    if params_file:
+        cmd += ['--params-file', str(params_file)]
+    for item in (f'model_dir:={bundle}',) + params:
+        cmd += ['-p', item]
+    return subprocess.Popen(cmd, env=env, stdout=log, stderr=subprocess.STDOUT)
+
+
+@pytest.fixture(scope='module')
+def graph():
+    """An isolated ROS graph and an rclpy node in this process."""
+    env = demo.ros_env()
+    rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
+    node = rclpy.create_node('sik_node_arms_test')
+    yield env, node
+    node.destroy_node()
+    rclpy.shutdown()
+
+
+def test_any_bundle_is_served_by_model_dir_alone(ur5_bundle, ur5, graph, tmp_path):
+    """A UR5 bundle, model_dir only: exact answers in its base frame, other frames refused."""
+    env, node = graph
+    bundle, _ = ur5_bundle
+    with open(tmp_path / 'node.log', 'wb') as log:
+        proc = start(bundle, env, log)
+    try:
+        client = node.create_client(SolveIK, '/sik_node/solve_ik')
+        assert demo.wait_for_service(node, client, proc, 90.0), (tmp_path / 'node.log').read_text()
+        q = np.random.default_rng(3).uniform(ur5.lower, ur5.upper)
+        p, quat = ur5.fk(q)
+        answer = demo.call(node, client, demo.pose_request(p, quat, 8, 'base_link'), 20.0)
+        assert answer.error_code == R.SUCCESS, answer.message
+        assert list(answer.solutions[0].joint_state.name) == ur5.joint_names
+        for s in answer.solutions:
+            reached, _ = ur5.fk(np.array(s.joint_state.position))
+            assert np.linalg.norm(reached - p) <= 1e-4
+        wrong = demo.call(node, client, demo.pose_request(p, quat, 8, 'panda_link0'), 20.0)
+        assert wrong.error_code == R.INVALID_FRAME and 'base_link' in wrong.message
+    finally:
+        demo.stop_node(proc)
+
+
+def test_a_robot_description_that_differs_is_refused(ur5_bundle, ur5, graph, tmp_path):
+    """Parameter: the node does not start, one line says what differs. Topic: requests refused."""
+    env, node = graph
+    bundle, _ = ur5_bundle
+    text = Path(ur5.urdf_path).read_text()
+    moved = text.replace('xyz="0.0 0.0 0.089159"', 'xyz="0.0 0.0 0.1"', 1)
+    params = tmp_path / 'params.yaml'
+    params.write_text('/**:\n  ros__parameters:\n    robot_description: |\n'
+                      + ''.join(f'      {line}\n' for line in moved.splitlines()))
+    with open(tmp_path / 'bad.log', 'wb') as log:
+        proc = start(bundle, env, log, params_file=params)
+    assert proc.wait(120) == 1
+    out = (tmp_path / 'bad.log').read_text()
+    assert "joint placements differ at ['shoulder_pan_joint']" in out, out
+
+    with open(tmp_path / 'node.log', 'wb') as log:
+        proc = start(bundle, env, log)
+    latched = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL,
+                         reliability=ReliabilityPolicy.RELIABLE)
+    pub = node.create_publisher(String, 'robot_description', latched)
+    try:
+        client = node.create_client(SolveIK, '/sik_node/solve_ik')
+        assert demo.wait_for_service(node, client, proc, 90.0), (tmp_path / 'node.log').read_text()
+        p, quat = ur5.fk(np.zeros(6))
+        pub.publish(String(data=text))  # the same chain: served
+        time.sleep(1.0)
+        ok = demo.call(node, client, demo.pose_request(p, None, 4), 20.0)
+        assert ok.error_code == R.SUCCESS, ok.message
+        pub.publish(String(data=moved))
+        deadline = time.monotonic() + 10
+        answer = ok
+        while time.monotonic() < deadline and answer.error_code != R.ROBOT_MISMATCH:
+            time.sleep(0.2)
+            answer = demo.call(node, client, demo.pose_request(p, None, 4), 20.0)
+        assert answer.error_code == R.ROBOT_MISMATCH, answer.message
+        assert 'shoulder_pan_joint' in answer.message and not answer.solutions
+    finally:
+        node.destroy_publisher(pub)
+        demo.stop_node(proc)
