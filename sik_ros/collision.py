@@ -12,6 +12,7 @@ import pinocchio as pin
 
 from sik_ros.errors import InvalidArgument
 from sik_ros.kinematics import Robot
+from sik_ros.validation import MAX_DISTANCE, quaternion, vector
 
 BOX, SPHERE, CYLINDER = 'box', 'sphere', 'cylinder'
 
@@ -36,21 +37,20 @@ class Obstacle:
     def __post_init__(self):
         """Validate shape, sizes and pose."""
         need = {BOX: 3, SPHERE: 1, CYLINDER: 2}
-        if self.shape not in need:
+        if not isinstance(self.shape, str) or self.shape not in need:
             raise InvalidArgument(f'obstacle shape must be box, sphere or cylinder; '
                                   f'got {self.shape!r}')
-        dims = np.asarray(self.dimensions, dtype=float)
+        try:
+            dims = np.asarray(self.dimensions, dtype=float)
+        except (TypeError, ValueError, OverflowError):
+            dims = np.array([np.nan])
         if dims.shape != (need[self.shape],) or not np.all(np.isfinite(dims)) \
-                or np.any(dims <= 0):
+                or np.any(dims <= 0) or np.any(dims > 2 * MAX_DISTANCE):
             raise InvalidArgument(f'{self.shape} obstacle needs {need[self.shape]} positive '
-                                  f'dimensions; got {list(self.dimensions)}')
-        pos = np.asarray(self.position, dtype=float)
-        quat = np.asarray(self.quaternion, dtype=float)
-        if pos.shape != (3,) or not np.all(np.isfinite(pos)):
-            raise InvalidArgument(f'obstacle position must be 3 finite numbers; got {pos}')
-        if quat.shape != (4,) or not np.all(np.isfinite(quat)) or np.linalg.norm(quat) < 1e-9:
-            raise InvalidArgument(f'obstacle quaternion must be 4 finite numbers, not all '
-                                  f'zero; got {quat}')
+                                  f'dimensions (up to {2 * MAX_DISTANCE:g} m); got '
+                                  f'{self.dimensions!r}')
+        vector(self.position, 3, 'obstacle position', limit=MAX_DISTANCE)
+        quaternion(self.quaternion, 'obstacle')
 
     def geometry(self) -> coal.CollisionGeometry:
         """The coal shape."""
@@ -61,9 +61,29 @@ class Obstacle:
             return coal.Sphere(d[0])
         return coal.Cylinder(d[1], d[0])
 
+    @classmethod
+    def of(cls, value) -> 'Obstacle':
+        """An :class:`Obstacle`, or one from a dict of its fields.
+
+        Raises:
+            InvalidArgument: neither, or a dict with unknown or missing fields.
+        """
+        if isinstance(value, Obstacle):
+            return value
+        if isinstance(value, dict):
+            known = {'shape', 'dimensions', 'position', 'quaternion'}
+            unknown = sorted(set(map(str, value)) - known)
+            if unknown or not {'shape', 'dimensions'} <= set(value):
+                keys = sorted(map(str, value))
+                raise InvalidArgument(f'an obstacle dict needs shape and dimensions (and may '
+                                      f'have position, quaternion); got keys {keys}')
+            return cls(**value)
+        raise InvalidArgument(f'an obstacle must be an Obstacle or a dict of its fields; got '
+                              f'{type(value).__name__}')
+
     def placement(self) -> pin.SE3:
         """Pose in the base frame."""
-        x, y, z, w = np.asarray(self.quaternion, dtype=float) / np.linalg.norm(self.quaternion)
+        x, y, z, w = quaternion(self.quaternion, 'obstacle')
         return pin.SE3(pin.Quaternion(w, x, y, z).toRotationMatrix(),
                        np.asarray(self.position, dtype=float))
 

@@ -208,12 +208,17 @@ class Dataset:
         """
         path = Path(path)
         manifest = read_json(path / 'manifest.json', f'dataset {path}')
-        if manifest.get('kind') != 'dataset':
-            raise CorruptArtifact(f'{path} is not a sik_ros dataset (kind={manifest.get("kind")})')
+        if not isinstance(manifest, dict) or manifest.get('kind') != 'dataset':
+            kind = manifest.get('kind') if isinstance(manifest, dict) else type(manifest).__name__
+            raise CorruptArtifact(f'{path} is not a sik_ros dataset (kind={kind})')
+        count, rm = manifest.get('count'), manifest.get('robot')
+        if isinstance(count, bool) or not isinstance(count, int) or count < 1 or not \
+                isinstance(rm, dict) or not isinstance(rm.get('joint_names'), list):
+            raise CorruptArtifact(f'dataset {path}/manifest.json needs a row count >= 1 and a '
+                                  f'robot manifest with joint_names')
         if robot is not None:
-            check_robot_manifest(f'dataset {path}', robot.manifest(), manifest['robot'])
-        count = manifest['count']
-        dof = len(manifest['robot']['joint_names'])
+            check_robot_manifest(f'dataset {path}', robot.manifest(), rm)
+        dof = len(rm['joint_names'])
         arrays = {}
         for name, cols in ARRAYS.items():
             file = path / f'{name}.npy'
@@ -225,6 +230,12 @@ class Dataset:
             if arr.shape != shape:
                 raise CorruptArtifact(
                     f'dataset {path}: {file.name} has shape {arr.shape}, manifest says {shape}')
+            if arr.dtype != np.float64:
+                raise CorruptArtifact(f'dataset {path}: {file.name} holds {arr.dtype}, not '
+                                      f'float64')
+            for s in range(0, count, 1 << 20):
+                if not np.all(np.isfinite(arr[s:s + (1 << 20)])):
+                    raise CorruptArtifact(f'dataset {path}: {file.name} has non-finite values')
             arrays[name] = arr
         return cls(path, manifest, **arrays)
 

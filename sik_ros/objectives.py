@@ -90,9 +90,16 @@ class JointLimitMargin(Objective):
 
 
 class ElbowHeight(Objective):
-    """Prefer a high (or, with ``prefer='low'``, a low) elbow: cost = -+ elbow z [m]."""
+    """Prefer a high (or, with ``prefer='low'``, a low) elbow: cost = -+ elbow z [m].
 
-    def __init__(self, robot: Robot, elbow_joint: int = 3, prefer: str = 'high'):
+    ``elbow_joint`` is the index of the elbow joint in the chain; by default the middle one,
+    ``(n - 1) // 2`` (the Panda's joint 4, a UR's or a Kinova's joint 3).
+    """
+
+    def __init__(self, robot: Robot, elbow_joint: Optional[int] = None, prefer: str = 'high'):
+        elbow_joint = (robot.dof - 1) // 2 if elbow_joint is None else elbow_joint
+        if not 0 <= elbow_joint < robot.dof:
+            raise InvalidArgument(f'elbow_joint must be in 0..{robot.dof - 1}; got {elbow_joint}')
         self.robot, self.joint = robot, elbow_joint
         if prefer not in ('high', 'low'):
             raise InvalidArgument(f"prefer must be 'high' or 'low'; got {prefer!r}")

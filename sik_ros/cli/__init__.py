@@ -1,9 +1,18 @@
 """Command-line tools of sik_ros (thin wrappers over the library)."""
 
+import argparse
 import sys
 from typing import Callable, List, Optional
 
 from sik_ros.errors import SikError
+
+
+class Parser(argparse.ArgumentParser):
+    """An argument parser whose usage errors are one line (``prog: error: ...``) and exit 2."""
+
+    def error(self, message: str):
+        """Print the one line and exit 2 (``--help`` still prints the whole usage)."""
+        self.exit(2, f'{self.prog}: error: {message} (see --help)\n')
 
 
 def run_cli(prog: str, body: Callable[[], int]) -> int:

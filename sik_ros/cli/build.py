@@ -5,14 +5,14 @@ import json
 from typing import List, Optional
 
 from sik_ros.build import BuildConfig, Builder
-from sik_ros.cli import argv_or_default, run_cli
+from sik_ros.cli import argv_or_default, Parser, run_cli
 from sik_ros.robots import load_robot
 
 
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of sik-build."""
     d = BuildConfig()
-    p = argparse.ArgumentParser(
+    p = Parser(
         prog='sik-build', description='Collect data, train the position and pose models, '
         'index them, bundle them and check the bundle, in one resumable command (rerun it '
         'after an interruption to continue).')

@@ -6,7 +6,7 @@ from typing import List, Optional
 
 from tqdm import tqdm
 
-from sik_ros.cli import argv_or_default, run_cli
+from sik_ros.cli import argv_or_default, Parser, run_cli
 from sik_ros.cli.common import add_robot_args, robot_from_args
 from sik_ros.dataset import (check_budget, collect, estimate_seconds, finest_interval,
                              free_disk, grid_count, MAX_ROWS, row_bytes)
@@ -25,7 +25,7 @@ def interval_arg(text: str):
 
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of sik-collect."""
-    p = argparse.ArgumentParser(
+    p = Parser(
         prog='sik-collect', description='Collect an IK training dataset: sweep every joint by '
         '--interval degrees (Algorithm 1) or sample uniformly, and record the tip pose. '
         'Periodic joints (a range of a turn or more) are swept over one turn.')

@@ -17,7 +17,7 @@ import torch
 from tqdm import tqdm
 
 from sik_ros.artifacts import write_text_atomic
-from sik_ros.cli import argv_or_default, run_cli
+from sik_ros.cli import argv_or_default, Parser, run_cli
 from sik_ros.errors import InvalidArgument
 from sik_ros.eval import load_baselines, report, run_evaluation, Settings, summary_json
 from sik_ros.solver import SelectiveIK
@@ -25,8 +25,8 @@ from sik_ros.solver import SelectiveIK
 
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of sik-eval."""
-    p = argparse.ArgumentParser(prog='sik-eval', description='Reproduce the experiments of the '
-                                'Selective IK paper and write a report with tables and figures.')
+    p = Parser(prog='sik-eval', description='Reproduce the experiments of the '
+               'Selective IK paper and write a report with tables and figures.')
     p.add_argument('--out', default='docs', help='report folder: results.md, results.json and '
                    'figures/ (default: docs)')
     p.add_argument('--bundle', default='panda', help='bundle name or directory (default: panda)')

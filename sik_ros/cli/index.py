@@ -8,7 +8,7 @@ from tqdm import tqdm
 
 from sik_ros.bundle import add_to_bundle
 from sik_ros.checkpoints import load_checkpoint
-from sik_ros.cli import argv_or_default, run_cli
+from sik_ros.cli import argv_or_default, Parser, run_cli
 from sik_ros.dataset import Dataset
 from sik_ros.errors import ArtifactExists, InvalidArgument
 from sik_ros.index_table import TableConfig
@@ -18,8 +18,8 @@ from sik_ros.robots import robot_from_manifest
 
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of sik-index."""
-    p = argparse.ArgumentParser(prog='sik-index', description='Encode a dataset with a trained '
-                                'SIK/PSIK model and keep the distinct posture indices per cell.')
+    p = Parser(prog='sik-index', description='Encode a dataset with a trained '
+               'SIK/PSIK model and keep the distinct posture indices per cell.')
     p.add_argument('--model', required=True, help='model or checkpoint (.pt) from sik-train')
     p.add_argument('--dataset', required=True, help='dataset directory (sik-collect --out)')
     p.add_argument('--out', required=True, help='output table (.npz)')

@@ -5,17 +5,17 @@ from typing import List, Optional
 
 import numpy as np
 
-from sik_ros.cli import argv_or_default, run_cli
-from sik_ros.objectives import Obstacle
+from sik_ros.cli import argv_or_default, Parser, run_cli
+from sik_ros.collision import Obstacle
 from sik_ros.solver import dumps, IKResult, SelectiveIK
 
 
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of sik-solve."""
-    p = argparse.ArgumentParser(prog='sik-solve', description='Several ranked IK solutions for '
-                                'one target, from a bundle of trained models.')
-    p.add_argument('position', nargs=3, type=float, metavar=('X', 'Y', 'Z'),
-                   help='target position in the base frame [m]')
+    p = Parser(prog='sik-solve', description='Several ranked IK solutions for '
+               'one target, from a bundle of trained models.')
+    for axis in 'xyz':
+        p.add_argument(axis, type=float, help=f'target {axis} in the base frame [m]')
     p.add_argument('--orientation', nargs=4, type=float, metavar=('QX', 'QY', 'QZ', 'QW'),
                    help='target orientation quaternion (default: position-only goal)')
     p.add_argument('--bundle', default='panda', help='bundle name or directory (default: panda)')
@@ -55,10 +55,11 @@ def main(argv: Optional[List[str]] = None) -> int:
         ik = SelectiveIK.load(args.bundle)
         obstacles = [Obstacle('box', tuple(b[3:]), tuple(b[:3])) for b in args.box]
         obstacles += [Obstacle('sphere', (s[3],), tuple(s[:3])) for s in args.sphere]
-        res = ik.solve(args.position, args.orientation, args.num_solutions, seed=args.seed,
-                       obstacles=obstacles, refine=not args.no_refine, timeout=args.timeout)
+        res = ik.solve((args.x, args.y, args.z), args.orientation, args.num_solutions,
+                       seed=args.seed, obstacles=obstacles, refine=not args.no_refine,
+                       timeout=args.timeout)
         print(dumps(res, ik.joint_names) if args.json else format_table(res, ik.joint_names))
-        return 0 if res.solutions else 1
+        return 0 if res.success else 1
     return run_cli('sik-solve', body)
 
 

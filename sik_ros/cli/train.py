@@ -8,7 +8,7 @@ from typing import List, Optional
 from tqdm import tqdm
 
 from sik_ros.checkpoints import export_model, load_checkpoint
-from sik_ros.cli import argv_or_default, run_cli
+from sik_ros.cli import argv_or_default, Parser, run_cli
 from sik_ros.dataset import Dataset
 from sik_ros.errors import ArtifactExists, InvalidArgument
 from sik_ros.models import DEFAULT_LATENT, ModelConfig, PRESETS
@@ -18,8 +18,8 @@ from sik_ros.training import TrainConfig, Trainer, with_overrides
 
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of sik-train."""
-    p = argparse.ArgumentParser(prog='sik-train', description='Train an IK model on a dataset '
-                                'written by sik-collect; checkpoints go to --out/last.pt.')
+    p = Parser(prog='sik-train', description='Train an IK model on a dataset '
+               'written by sik-collect; checkpoints go to --out/last.pt.')
     p.add_argument('--dataset', required=True, help='dataset directory (sik-collect --out)')
     p.add_argument('--out', required=True, help='run directory for checkpoints and history')
     p.add_argument('--model', choices=('sik', 'psik', 'fcn', 'anfis'), default='sik')

@@ -33,10 +33,12 @@ from sik_ros.solver import candidates as _candidates, codec, pipeline
 from sik_ros.solver.adjust import adjust_index
 from sik_ros.solver.config import SolverConfig
 from sik_ros.solver.context import Context, Goal
-from sik_ros.solver.inputs import check_goal, check_num_solutions, check_seed
+from sik_ros.solver.inputs import (check_goal, check_num_solutions, check_objective,
+                                   check_obstacles, check_seed)
 from sik_ros.solver.ranking import distinct_mask
 from sik_ros.solver.refine import errors, refine
 from sik_ros.solver.results import dumps, IKResult, result_to_dict, Solution
+from sik_ros.validation import flag, seconds, vector
 
 __all__ = ['dumps', 'GoalModel', 'IKResult', 'result_to_dict', 'SelectiveIK', 'Solution',
            'SolverConfig']
@@ -70,6 +72,8 @@ class SelectiveIK:
             CorruptArtifact: a missing or damaged file.
             ArtifactMismatch: files made for another robot or model.
         """
+        if not isinstance(bundle, (str, Path)):
+            raise InvalidArgument(f'bundle must be a bundled name or a directory; got {bundle!r}')
         path, robot, models = load_bundle(bundle)
         return cls(robot, models, config, path)
 
@@ -102,10 +106,7 @@ class SelectiveIK:
 
     def fk(self, q: np.ndarray):
         """Tip position (3,) [m] and quaternion (4,) x y z w of a configuration (n,)."""
-        q = np.asarray(q, dtype=float)
-        if q.shape != (self.robot.dof,):
-            raise InvalidArgument(f'q must have shape ({self.robot.dof},); got {q.shape}')
-        return self.robot.fk(q)
+        return self.robot.fk(vector(q, self.robot.dof, 'q'))
 
     def check_seed(self, seed) -> np.ndarray:
         """A seed as a (n,) array, or :class:`InvalidSeed` saying what is wrong with it."""
@@ -138,7 +139,10 @@ class SelectiveIK:
         goal = check_goal(position, orientation, self.goals)
         num = check_num_solutions(num_solutions, self.config.max_solutions_cap)
         q_seed = None if seed is None else check_seed(self.robot, seed)
-        obstacles = [o if isinstance(o, Obstacle) else Obstacle(**o) for o in obstacles]
+        obstacles = check_obstacles(obstacles, self.config.max_obstacles)
+        objective = check_objective(objective)
+        refine = flag(refine, 'refine')
+        timeout = seconds(timeout, 'timeout')
         deadline = None if timeout is None else t0 + timeout
         with self._lock:
             result = pipeline.solve(self._ctx, goal, num, q_seed, obstacles, refine, objective,
@@ -148,11 +152,17 @@ class SelectiveIK:
 
     def solve_batch(self, positions, orientations=None, **kw) -> List[IKResult]:
         """:meth:`solve` for many targets: positions (N, 3), orientations (N, 4) or None."""
-        positions = np.asarray(positions, dtype=float)
+        try:
+            positions = np.asarray(positions, dtype=float)
+        except (TypeError, ValueError, OverflowError) as exc:
+            raise InvalidGoal(f'positions must be an (N, 3) array; got {positions!r}') from exc
         if positions.ndim != 2 or positions.shape[1] != 3:
             raise InvalidGoal(f'positions must have shape (N, 3); got {positions.shape}')
         if orientations is not None:
-            orientations = np.asarray(orientations, dtype=float)
+            try:
+                orientations = np.asarray(orientations, dtype=float)
+            except (TypeError, ValueError, OverflowError) as exc:
+                raise InvalidGoal('orientations must be an (N, 4) array') from exc
             if orientations.shape != (len(positions), 4):
                 raise InvalidGoal(f'orientations must have shape ({len(positions)}, 4); got '
                                   f'{orientations.shape}')

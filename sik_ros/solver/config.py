@@ -58,6 +58,7 @@ class SolverConfig:
             refined solutions, then onwards), is refined for at most ``walk_iterations``
             iterations; the new exact solutions at least ``distinct_threshold`` from every
             found one are kept and walk on.
+        max_obstacles: most obstacles a request may give (their checks bound its work).
     """
 
     position_tolerance: float = 1e-4
@@ -87,6 +88,7 @@ class SolverConfig:
     walk_rounds: int = 6
     walk_step: float = 0.6
     walk_iterations: int = 4
+    max_obstacles: int = 256
 
     def __post_init__(self):
         """Reject values the solver cannot work with.
@@ -107,12 +109,12 @@ class SolverConfig:
                           ('oriented_cells', 1), ('raw_candidates', 1),
                           ('refine_iterations', 1), ('adjust_budget', 0), ('give_up_after', 1),
                           ('stall_window', 0), ('stall_after', 0), ('early_stop_margin', -1),
-                          ('walk_rounds', 0), ('walk_iterations', 1)):
+                          ('walk_rounds', 0), ('walk_iterations', 1), ('max_obstacles', 0)):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, int) or value < low:
                 raise InvalidArgument(f'SolverConfig.{name} must be an integer >= {low}; got '
                                       f'{value!r}')
-        if not all(isinstance(v, int) and not isinstance(v, bool) and v >= 0
-                   for v in self.prune_at):
+        if not isinstance(self.prune_at, (tuple, list)) or not all(
+                isinstance(v, int) and not isinstance(v, bool) and v >= 0 for v in self.prune_at):
             raise InvalidArgument(f'SolverConfig.prune_at must hold integers >= 0; got '
                                   f'{self.prune_at!r}')

@@ -3,14 +3,16 @@
 Every problem raises a :class:`~sik_ros.errors.SikError` subclass naming the field.
 """
 
-from typing import Sequence
+from typing import List, Sequence
 
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from sik_ros.collision import Obstacle
 from sik_ros.errors import InvalidArgument, InvalidGoal, InvalidSeed, JointLimitViolation
 from sik_ros.kinematics import Robot
 from sik_ros.solver.context import Goal
+from sik_ros.validation import MAX_DISTANCE, quaternion, vector
 
 
 def check_goal(position, orientation, goals: Sequence[str]) -> Goal:
@@ -20,29 +22,11 @@ def check_goal(position, orientation, goals: Sequence[str]) -> Goal:
         InvalidGoal: not 3 finite numbers, not a finite non-zero quaternion, or a goal kind
             the bundle has no model for (``goals``).
     """
-    try:
-        pos = np.asarray(position, dtype=float)
-    except (TypeError, ValueError) as exc:
-        raise InvalidGoal(f'position must be 3 numbers; got {position!r}') from exc
-    if pos.shape != (3,):
-        raise InvalidGoal(f'position must have 3 elements; got shape {pos.shape}')
-    if not np.all(np.isfinite(pos)):
-        raise InvalidGoal(f'position must be finite; got {pos.tolist()}')
+    pos = vector(position, 3, 'position', InvalidGoal, limit=MAX_DISTANCE)
     rot = None
     if orientation is not None:
-        try:
-            quat = np.asarray(orientation, dtype=float)
-        except (TypeError, ValueError) as exc:
-            raise InvalidGoal(f'orientation must be a quaternion; got {orientation!r}') from exc
-        if quat.shape != (4,):
-            raise InvalidGoal(f'orientation must be a quaternion (x, y, z, w); got shape '
-                              f'{quat.shape}')
-        if not np.all(np.isfinite(quat)):
-            raise InvalidGoal(f'orientation must be finite; got {quat.tolist()}')
-        norm = np.linalg.norm(quat)
-        if norm < 1e-9:
-            raise InvalidGoal('orientation quaternion is zero')
-        rot = Rotation.from_quat(quat / norm).as_matrix()
+        quat = quaternion(orientation, 'orientation', InvalidGoal)
+        rot = Rotation.from_quat(quat).as_matrix()
     goal = Goal(pos, rot)
     if goal.kind not in goals:
         raise InvalidGoal(f'this bundle has no model for {goal.kind} goals (it has '
@@ -60,11 +44,35 @@ def check_num_solutions(num_solutions, cap: int) -> int:
     return int(num_solutions)
 
 
+def check_obstacles(obstacles, cap: int) -> List[Obstacle]:
+    """A list of :class:`Obstacle` from a sequence of obstacles or dicts, at most ``cap``.
+
+    Raises:
+        InvalidArgument: not a list or tuple, a bad obstacle, or more than ``cap``.
+    """
+    if obstacles is None or isinstance(obstacles, (str, bytes, dict, Obstacle)) or not \
+            isinstance(obstacles, (list, tuple)):
+        raise InvalidArgument(f'obstacles must be a list of Obstacle (or dicts); got '
+                              f'{type(obstacles).__name__}')
+    if len(obstacles) > cap:
+        raise InvalidArgument(f'{len(obstacles)} obstacles; at most {cap} are accepted '
+                              f'(SolverConfig.max_obstacles)')
+    return [Obstacle.of(o) for o in obstacles]
+
+
+def check_objective(objective):
+    """None or a callable cost over configurations, or :class:`InvalidArgument`."""
+    if objective is not None and not callable(objective):
+        raise InvalidArgument(f'objective must be an Objective (a callable cost) or None; got '
+                              f'{type(objective).__name__}')
+    return objective
+
+
 def check_seed(robot: Robot, seed) -> np.ndarray:
     """A seed as a (n,) array within the limits, or :class:`InvalidSeed` saying what is wrong."""
     try:
         q = np.asarray(seed, dtype=float)
-    except (TypeError, ValueError) as exc:
+    except (TypeError, ValueError, OverflowError) as exc:
         raise InvalidSeed(f'seed must be {robot.dof} numbers; got {seed!r}') from exc
     if q.shape != (robot.dof,):
         raise InvalidSeed(f'seed must have {robot.dof} joint values '

@@ -1,0 +1,61 @@
+"""Checks of values that come from outside: numbers, vectors, quaternions, options.
+
+Every check raises :class:`~sik_ros.errors.InvalidArgument` (or the subclass it is given) with a
+message naming the field, and never lets NumPy's or SciPy's own errors through.
+"""
+
+import math
+from typing import Optional, Type
+
+import numpy as np
+
+from sik_ros.errors import InvalidArgument
+
+#: Largest distance from the base a position may lie at [m]: far beyond any arm's reach, and
+#: small enough that squares and norms stay finite.
+MAX_DISTANCE = 100.0
+
+
+def vector(value, size: int, what: str, error: Type[InvalidArgument] = InvalidArgument,
+           limit: Optional[float] = None) -> np.ndarray:
+    """``value`` as ``size`` finite floats (each within +-``limit`` when given)."""
+    try:
+        arr = np.asarray(value, dtype=float)
+    except (TypeError, ValueError, OverflowError) as exc:
+        raise error(f'{what} must be {size} numbers; got {value!r}') from exc
+    if arr.shape != (size,):
+        raise error(f'{what} must have {size} elements; got shape {arr.shape}')
+    if not np.all(np.isfinite(arr)):
+        raise error(f'{what} must be finite; got {arr.tolist()}')
+    if limit is not None and np.any(np.abs(arr) > limit):
+        raise error(f'{what} must lie within {limit:g} m of the origin; got {arr.tolist()}')
+    return arr
+
+
+def quaternion(value, what: str, error: Type[InvalidArgument] = InvalidArgument) -> np.ndarray:
+    """A unit quaternion x y z w from 4 finite numbers, not all zero (scaled safely)."""
+    quat = vector(value, 4, f'{what} quaternion (x, y, z, w)', error)
+    scale = np.abs(quat).max()
+    if scale == 0 or not np.isfinite(scale) or scale < 1e-150:
+        raise error(f'{what} quaternion is zero')
+    quat = quat / scale  # no overflow in the norm, whatever the magnitude
+    return quat / np.linalg.norm(quat)
+
+
+def seconds(value, what: str) -> Optional[float]:
+    """None, or a number of seconds >= 0 (NaN, infinities and negatives refused)."""
+    if value is None:
+        return None
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+        raise InvalidArgument(f'{what} must be a number of seconds or None; got {value!r}')
+    value = float(value)
+    if not math.isfinite(value) or value < 0:
+        raise InvalidArgument(f'{what} must be finite and >= 0 [s]; got {value}')
+    return value
+
+
+def flag(value, what: str) -> bool:
+    """A bool (NumPy's included), or :class:`InvalidArgument`."""
+    if not isinstance(value, (bool, np.bool_)):
+        raise InvalidArgument(f'{what} must be True or False; got {value!r}')
+    return bool(value)
