@@ -51,7 +51,7 @@ setup(
             'sik-solve = sik_ros.cli.solve:main',
             'sik-eval = sik_ros.cli.eval:main',
             'sik-build = sik_ros.cli.build:main',
-            'sik_node = sik_ros.ros.node:main',
+            'sik_node = sik_ros.ros.run:main',
         ],
     },
 )

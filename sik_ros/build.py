@@ -178,7 +178,7 @@ class Builder:
     def train_seconds(self, spent: float) -> float:
         """The training's share of the budget: what the other stages (estimated) leave."""
         rows = read_json(self.work / 'dataset' / 'manifest.json', 'dataset')['count']
-        rest = 8.0 + 2 * rows / 100_000 + self.cfg.check_targets * 0.05
+        rest = 10.0 + 4 * rows / 100_000 + self.cfg.check_targets * 0.1
         seconds = self.cfg.time - spent - rest
         if seconds < 5:
             raise InvalidArgument(f'--time {self.cfg.time:g} s leaves no time to train (the '

@@ -4,7 +4,8 @@ Distances and self-collision come from the robot's collision geometry through Pi
 """
 
 from dataclasses import dataclass
-from typing import Sequence
+import time
+from typing import Optional, Sequence
 
 import coal
 import numpy as np
@@ -51,6 +52,16 @@ class Obstacle:
                                   f'{self.dimensions!r}')
         vector(self.position, 3, 'obstacle position', limit=MAX_DISTANCE)
         quaternion(self.quaternion, 'obstacle')
+
+    @property
+    def bounding_radius(self) -> float:
+        """Radius of a sphere about ``position`` that holds the obstacle [m]."""
+        d = np.asarray(self.dimensions, dtype=float)
+        if self.shape == BOX:
+            return 0.5 * float(np.linalg.norm(d))
+        if self.shape == SPHERE:
+            return float(d[0])
+        return float(np.hypot(d[0] / 2, d[1]))
 
     def geometry(self) -> coal.CollisionGeometry:
         """The coal shape."""
@@ -105,6 +116,15 @@ class CollisionChecker:
         if robot.srdf_path is not None:
             pin.removeCollisionPairs(self.model, self.self_geom, str(robot.srdf_path))
         self.self_data = pin.GeometryData(self.self_geom)
+        self.geom_data = pin.GeometryData(self.geom)
+        # each robot part's bounding sphere: its local box's centre and half diagonal [m]
+        centers, radii = [], []
+        for obj in self.geom.geometryObjects:
+            obj.geometry.computeLocalAABB()
+            box = obj.geometry.aabb_local
+            centers.append(np.asarray(box.center(), dtype=float))
+            radii.append(0.5 * float(np.linalg.norm(np.asarray(box.max_) - np.asarray(box.min_))))
+        self._local_centers, self._radii = centers, np.array(radii)
 
     def self_collision(self, q: np.ndarray) -> np.ndarray:
         """Whether each configuration (N, n) collides with itself, (N,) bool."""
@@ -114,23 +134,44 @@ class CollisionChecker:
                                            self.self_data, qi, True)
         return out
 
-    def clearance(self, q: np.ndarray, obstacles: Sequence[Obstacle]) -> np.ndarray:
+    def clearance(self, q: np.ndarray, obstacles: Sequence[Obstacle],
+                  deadline: Optional[float] = None) -> np.ndarray:
         """Smallest signed distance from the robot to any obstacle [m], (N,); +inf if none.
 
-        Negative values are penetration depths.
+        Negative values are penetration depths. A broad phase keeps the cost near-linear in the
+        obstacles: bounding spheres give every robot part-obstacle pair a lower bound, and
+        exact distances (coal's GJK/EPA) are computed in order of it until the bound exceeds
+        the smallest distance found. Configurations not reached by ``deadline`` (a
+        ``time.perf_counter()`` value) are NaN (unknown).
         """
         q = np.asarray(q, dtype=float)
         if not obstacles:
             return np.full(len(q), np.inf)
-        geom = self.geom.copy()
-        for k, obs in enumerate(obstacles):
-            obj = pin.GeometryObject(f'obstacle_{k}', 0, 0, obs.placement(), obs.geometry())
-            gid = geom.addGeometryObject(obj)
-            for r in range(self.n_robot):
-                geom.addCollisionPair(pin.CollisionPair(r, gid))
-        gdata = pin.GeometryData(geom)
-        out = np.empty(len(q))
+        shapes = [(o.geometry(), o.placement()) for o in obstacles]
+        o_center = np.array([o.position for o in obstacles], dtype=float)
+        o_radius = np.array([o.bounding_radius for o in obstacles])
+        out = np.full(len(q), np.nan)
+        request, result = coal.DistanceRequest(), coal.DistanceResult()
         for i, qi in enumerate(q):
-            pin.computeDistances(self.model, self.data, geom, gdata, qi)
-            out[i] = min(r.min_distance for r in gdata.distanceResults)
+            if deadline is not None and i and time.perf_counter() > deadline:
+                break
+            pin.updateGeometryPlacements(self.model, self.data, self.geom, self.geom_data, qi)
+            placements = [self.geom_data.oMg[r] for r in range(self.n_robot)]
+            centers = np.array([pl.act(c) for pl, c in zip(placements, self._local_centers)])
+            bound = (np.linalg.norm(centers[:, None] - o_center[None], axis=2)
+                     - self._radii[:, None] - o_radius[None])
+            best = np.inf
+            for flat in np.argsort(bound, axis=None):
+                r, k = divmod(int(flat), len(obstacles))
+                if bound[r, k] >= best:
+                    break
+                result.clear()
+                d = coal.distance(self.geom.geometryObjects[r].geometry,
+                                  coal.Transform3s(placements[r].rotation,
+                                                   placements[r].translation),
+                                  shapes[k][0], coal.Transform3s(shapes[k][1].rotation,
+                                                                 shapes[k][1].translation),
+                                  request, result)
+                best = min(best, d)
+            out[i] = best
         return out

@@ -136,6 +136,9 @@ class Robot:
             bad = [n for n, lo, hi in zip(self.joint_names, self.lower, self.upper)
                    if not (np.isfinite(lo) and np.isfinite(hi) and hi > lo)]
             raise InvalidModel(f'{name}: joints {bad} need finite limits with lower < upper')
+        velocity = np.array(self.model.velocityLimit, dtype=float)
+        #: joint velocity limits [rad/s] from the URDF (1 where it gives none)
+        self.velocity_limits = np.where(np.isfinite(velocity) & (velocity > 0), velocity, 1.0)
         #: joints whose range spans a whole turn: q and q +- 2 pi are the same posture
         self.periodic = self.upper - self.lower >= 2 * np.pi - 1e-6
         self.chain = self._extract_chain()

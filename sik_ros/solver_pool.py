@@ -6,17 +6,21 @@ of a few solver processes (``multiprocessing`` with the *spawn* start method, so
 state is inherited), each holding its own :class:`SelectiveIK`; the executor thread that serves
 the request waits on a pipe, without the GIL, while it solves.
 
-A worker that dies is replaced; the request it was serving fails with :class:`SolverCrashed`.
+A worker that dies is replaced in the background; the request it was serving is retried once on
+another (:class:`SolverCrashed` if that fails too), and one that does not answer within the
+request's deadline is killed and replaced (:class:`SolverTimeout`).
 Library errors (:class:`~sik_ros.errors.SikError` subclasses) come back with their own type and
 message.
 """
 
+from collections import OrderedDict
 from dataclasses import asdict
 import multiprocessing
 from multiprocessing.connection import Connection
 import queue
 import signal
 import threading
+import time
 from typing import Any, Dict, List, Optional, Tuple
 
 from sik_ros import errors
@@ -25,10 +29,18 @@ from sik_ros.solver import IKResult, SelectiveIK, SolverConfig
 
 #: Seconds a new solver process may take to import its modules and load the bundle.
 START_TIMEOUT = 120.0
+#: Solvers kept per process for distinct settings (least recently used dropped).
+CACHED_SETTINGS = 4
+#: Time a process may take beyond a request's timeout before the watchdog replaces it [s].
+WATCHDOG_MARGIN = 0.5
 
 
 class SolverCrashed(SikError):
     """A solver process died while it served a request (it has been replaced)."""
+
+
+class SolverTimeout(SikError):
+    """No solver process answered within the request's deadline."""
 
 
 def rebuild_error(name: str, message: str) -> SikError:
@@ -53,7 +65,7 @@ def _serve(conn: Connection, bundle: str, config: Dict[str, Any]) -> None:
         conn.send(('error', type(exc).__name__, str(exc)))
         return
     conn.send(('ready', None, None))
-    solvers: Dict[Tuple, SelectiveIK] = {}
+    solvers: 'OrderedDict[Tuple, SelectiveIK]' = OrderedDict()  # least recently used first
     while True:
         try:
             message = conn.recv()
@@ -66,6 +78,9 @@ def _serve(conn: Connection, bundle: str, config: Dict[str, Any]) -> None:
             key = tuple(sorted(settings.items()))
             if key not in solvers:
                 solvers[key] = base.with_config(**settings)
+                while len(solvers) > CACHED_SETTINGS:
+                    solvers.popitem(last=False)
+            solvers.move_to_end(key)
             reply = ('ok', solvers[key].solve(*args, **kwargs), None)
         except SikError as exc:
             reply = ('error', type(exc).__name__, str(exc))
@@ -151,37 +166,86 @@ class SolverPool:
     def solve(self, settings: Dict[str, Any], *args, **kwargs) -> IKResult:
         """:meth:`SelectiveIK.solve` with the config fields ``settings`` changed, in a process.
 
+        The request's ``timeout`` bounds the whole call (plus :data:`WATCHDOG_MARGIN`): waiting
+        for a free process, the solve, and a retry. A process found dead while idle is
+        replaced in the background and another one serves; a process that dies while solving
+        is replaced and the request retried once on another within its deadline; one that
+        does not answer in time is killed and replaced (a watchdog).
+
         Raises:
-            SikError: what the solver raised (same type and message), or SolverCrashed.
+            SikError: what the solver raised (same type and message), SolverCrashed, or
+                SolverTimeout.
         """
-        worker = self._idle.get()
-        try:
-            worker.conn.send((settings, args, kwargs))
-            kind, payload, message = worker.conn.recv()
-        except (EOFError, OSError) as exc:
+        timeout = kwargs.get('timeout')
+        deadline = None if timeout is None else time.monotonic() + timeout + WATCHDOG_MARGIN
+        for attempt in range(2):
+            worker = self._take(deadline)
             try:
-                worker = self._replace(worker)
-            except SikError:
+                worker.conn.send((settings, args, kwargs))
+                left = None if deadline is None else max(0.0, deadline - time.monotonic())
+                if not worker.conn.poll(left):
+                    self._replace_later(worker)
+                    worker = None
+                    raise SolverTimeout('the solver process did not answer within the '
+                                        'request\'s deadline; it has been replaced')
+                kind, payload, message = worker.conn.recv()
+            except (EOFError, OSError) as exc:
+                self._replace_later(worker)
                 worker = None
-            raise SolverCrashed('the solver process serving this request died; it has been '
-                                'replaced') from exc
-        finally:
-            if worker is not None:
-                self._idle.put(worker)
-        if kind == 'error':
-            raise rebuild_error(payload, message)
-        return payload
+                if attempt == 0 and (deadline is None or time.monotonic() < deadline):
+                    continue  # once more, on another process
+                raise SolverCrashed('the solver process serving this request died; it has '
+                                    'been replaced') from exc
+            finally:
+                if worker is not None:
+                    self._idle.put(worker)
+            if kind == 'error':
+                raise rebuild_error(payload, message)
+            return payload
+        raise SolverCrashed('no solver process could serve this request')  # pragma: no cover
+
+    def _take(self, deadline: Optional[float]) -> '_Worker':
+        """An idle, living process; dead ones met on the way are replaced in the background.
+
+        Raises:
+            SolverTimeout: none is free before ``deadline``.
+        """
+        while True:
+            left = None if deadline is None else max(0.0, deadline - time.monotonic())
+            try:
+                worker = self._idle.get(timeout=left)
+            except queue.Empty:
+                raise SolverTimeout('no solver process was free within the request\'s '
+                                    'deadline') from None
+            if worker.process.is_alive():
+                return worker
+            self._replace_later(worker)
+
+    def _replace_later(self, dead: '_Worker') -> None:
+        """Start a process in place of ``dead``; it joins the idle ones once it has loaded."""
+        def start() -> None:
+            fresh = self._replace(dead)
+            if fresh is not None:
+                self._idle.put(fresh)
+        threading.Thread(target=start, name='sik_solver_restart', daemon=True).start()
 
     def _replace(self, dead: _Worker) -> Optional[_Worker]:
-        """A new process in place of a dead one (None if the pool is closing)."""
+        """A new process in place of a dead one (None if the pool is closing or it fails)."""
         with self._lock:
-            if self._closed:
+            if self._closed or dead not in self._all:
                 return None
             index = self._all.index(dead)
-            dead.stop(timeout=1.0)
+            dead.stop(timeout=0.5)
             fresh = _Worker(self._ctx, self._bundle, self._config, index)
             self._all[index] = fresh
-        fresh.wait_ready(START_TIMEOUT)
+        try:
+            fresh.wait_ready(START_TIMEOUT)
+        except SikError:
+            return None
+        with self._lock:
+            if self._closed:
+                fresh.stop(timeout=1.0)
+                return None
         return fresh
 
     def close(self) -> None:

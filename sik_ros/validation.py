@@ -54,6 +54,14 @@ def seconds(value, what: str) -> Optional[float]:
     return value
 
 
+def positive(value, what: str) -> float:
+    """A finite number > 0, or :class:`InvalidArgument`."""
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)) \
+            or not math.isfinite(value) or value <= 0:
+        raise InvalidArgument(f'{what} must be a finite number > 0; got {value!r}')
+    return float(value)
+
+
 def flag(value, what: str) -> bool:
     """A bool (NumPy's included), or :class:`InvalidArgument`."""
     if not isinstance(value, (bool, np.bool_)):

@@ -33,6 +33,7 @@ IK_SOLUTION_FIELDS = {
     'position_error': 'double',
     'orientation_error': 'double',
     'min_obstacle_distance': 'double',
+    'self_collision': 'boolean',
     'score': 'double',
 }
 IK_SOLUTION_ARRAY_FIELDS = {
@@ -49,6 +50,7 @@ ERROR_CODES = {
     'INVALID_SEED': -4,
     'TIMEOUT': -5,
     'ROBOT_MISMATCH': -6,
+    'INTERNAL_ERROR': -99,
 }
 
 

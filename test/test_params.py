@@ -24,9 +24,10 @@ EXPECTED = [
     ('tip_frame', str, ''), ('num_solutions', int, 16),
     ('max_solutions_cap', int, 64), ('position_tolerance', float, 1e-4),
     ('orientation_tolerance', float, 1e-3), ('refine', bool, True), ('timeout', float, 0.05),
+    ('path_timeout', float, 2.0),
     ('use_joint_states', bool, False), ('goal_use_orientation', bool, False),
     ('publish_markers', bool, True), ('solver_processes', int, 0),
-    ('robot_description', str, '')]
+    ('max_obstacles', int, 256), ('shutdown_grace', float, 1.0), ('robot_description', str, '')]
 READ_ONLY = {'robot', 'model_dir', 'base_frame', 'tip_frame', 'solver_processes',
              'robot_description'}
 

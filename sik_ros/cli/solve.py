@@ -1,12 +1,14 @@
 """``sik-solve``: solve one IK target from the shell and print the ranked solutions."""
 
 import argparse
-from typing import List, Optional
+from pathlib import Path
+from typing import List, Optional, Tuple
 
 import numpy as np
 
 from sik_ros.cli import argv_or_default, Parser, run_cli
 from sik_ros.collision import Obstacle
+from sik_ros.errors import InvalidArgument
 from sik_ros.solver import dumps, IKResult, SelectiveIK
 
 
@@ -15,7 +17,13 @@ def build_parser() -> argparse.ArgumentParser:
     p = Parser(prog='sik-solve', description='Several ranked IK solutions for '
                'one target, from a bundle of trained models.')
     for axis in 'xyz':
-        p.add_argument(axis, type=float, help=f'target {axis} in the base frame [m]')
+        p.add_argument(axis, type=float, nargs='?',
+                       help=f'target {axis} in the base frame [m] (not with --path)')
+    p.add_argument('--path', help='a Cartesian path instead: CSV (x,y,z[,qx,qy,qz,qw] per row) '
+                   'or YAML (a list of [x, y, z(, qx, qy, qz, qw)]) of waypoints [m]')
+    p.add_argument('--max-joint-step', type=float, default=0.3,
+                   help='--path: largest joint change between waypoints [rad]')
+    p.add_argument('--paths', type=int, default=4, help='--path: ranked paths at most')
     p.add_argument('--orientation', nargs=4, type=float, metavar=('QX', 'QY', 'QZ', 'QW'),
                    help='target orientation quaternion (default: position-only goal)')
     p.add_argument('--bundle', default='panda', help='bundle name or directory (default: panda)')
@@ -47,12 +55,59 @@ def format_table(res: IKResult, joint_names: List[str]) -> str:
     return head + ('' if not res.message else f' ({res.message})') + '\n' + '\n'.join(lines)
 
 
+def read_waypoints(path: str) -> Tuple[np.ndarray, Optional[np.ndarray]]:
+    """Positions (N, 3) and quaternions (N, 4) or None from a CSV or YAML file.
+
+    Raises:
+        InvalidArgument: unreadable, or rows that are not 3 or 7 numbers alike.
+    """
+    file = Path(path)
+    try:
+        text = file.read_text()
+        if file.suffix in ('.yaml', '.yml'):
+            import yaml
+            rows = yaml.safe_load(text)
+        else:
+            rows = [[float(v) for v in line.replace(',', ' ').split()]
+                    for line in text.splitlines() if line.strip() and not line.startswith('#')]
+        arr = np.array(rows, dtype=float)
+    except (OSError, ValueError, TypeError) as exc:
+        raise InvalidArgument(f'cannot read waypoints from {file}: {exc}') from exc
+    except Exception as exc:  # YAML syntax errors and the like
+        raise InvalidArgument(f'cannot read waypoints from {file}: {type(exc).__name__}') \
+            from exc
+    if arr.ndim != 2 or arr.shape[1] not in (3, 7):
+        raise InvalidArgument(f'{file}: each waypoint needs 3 (x y z) or 7 (x y z qx qy qz qw) '
+                              f'numbers; got shape {arr.shape}')
+    return arr[:, :3], (arr[:, 3:] if arr.shape[1] == 7 else None)
+
+
+def solve_path_file(ik: SelectiveIK, args) -> int:
+    """``--path``: plan through the file's waypoints and print the ranked paths."""
+    positions, quats = read_waypoints(args.path)
+    res = ik.solve_path(positions, quats, seed=args.seed, num_paths=args.paths,
+                        max_joint_step=args.max_joint_step, timeout=args.timeout)
+    print(f"{'success' if res.success else 'FAILED'}: {len(res.paths)} paths through "
+          f"{len(positions)} waypoints, fraction {res.fraction:.3f}, "
+          f"{res.elapsed * 1e3:.1f} ms" + (f' ({res.message})' if res.message else ''))
+    print(f"{'#':>2} {'waypoints':>9} {'max step [rad]':>14} {'travel [rad]':>12} "
+          f"{'max err [mm]':>12} {'cost':>8}")
+    for i, jp in enumerate(res.paths, 1):
+        print(f'{i:>2} {len(jp.q):>9} {jp.max_step:>14.3f} {jp.travel:>12.3f} '
+              f'{1e3 * jp.position_errors.max():>12.4f} {jp.cost:>8.3f}')
+    return 0 if res.success else 1
+
+
 def main(argv: Optional[List[str]] = None) -> int:
     """Entry point of sik-solve."""
     args = build_parser().parse_args(argv_or_default(argv))
 
     def body() -> int:
+        if args.path is None and None in (args.x, args.y, args.z):
+            raise InvalidArgument('give a target x y z, or --path FILE')
         ik = SelectiveIK.load(args.bundle)
+        if args.path is not None:
+            return solve_path_file(ik, args)
         obstacles = [Obstacle('box', tuple(b[3:]), tuple(b[:3])) for b in args.box]
         obstacles += [Obstacle('sphere', (s[3],), tuple(s[:3])) for s in args.sphere]
         res = ik.solve((args.x, args.y, args.z), args.orientation, args.num_solutions,

@@ -10,9 +10,18 @@ millisecond (measured in docs/benchmarks.md). This module does the latter::
         answer = client.call(demo.pose_request([0.4, 0.1, 0.5]))
 
 It is safe to call from several threads at once.
+
+Fast DDS matches a new client's request writer with the server's reader and the server's reply
+writer with the client's reader separately (service discovery, rmw_fastrtps on Jazzy): for a
+short while after a client appears, the server can take a request while its reply has no
+matched reader yet and is dropped, so a client's first calls may never be answered although
+the server handled them. :meth:`SolveIKClient.call` therefore waits until the service is
+matched, and resends a call whose answer does not come within ``attempt`` seconds, all within
+the caller's ``timeout``; IK requests have no side effects, so a resend is harmless.
 """
 
 import threading
+import time
 from typing import Optional
 
 import rclpy
@@ -48,16 +57,33 @@ class SolveIKClient:
         """Whether the service appeared within ``timeout`` seconds."""
         return self.client.wait_for_service(timeout_sec=timeout)
 
-    def call(self, request: SolveIK.Request, timeout: float = 10.0
-             ) -> Optional[SolveIK.Response]:
-        """Send a request and wait for its answer [s]; None if none came in time."""
-        done = threading.Event()
-        future = self.client.call_async(request)
-        future.add_done_callback(lambda _: done.set())
-        if not done.wait(timeout):
-            self.client.remove_pending_request(future)
+    def call(self, request: SolveIK.Request, timeout: float = 10.0,
+             attempt: Optional[float] = None) -> Optional[SolveIK.Response]:
+        """Send a request and wait for its answer [s]; None if none came in ``timeout``.
+
+        Args:
+            request: the request.
+            timeout: the whole call's budget [s].
+            attempt: how long one try waits before the request is sent again [s]; default:
+                the request's own timeout plus a second (or 2 s when it gives none).
+        """
+        deadline = time.monotonic() + timeout
+        if not self.client.service_is_ready() and not self.client.wait_for_service(
+                timeout_sec=timeout):
             return None
-        return future.result()
+        if attempt is None:
+            given = request.timeout.sec + request.timeout.nanosec * 1e-9
+            attempt = given + 1.0 if given > 0 else 2.0
+        while True:
+            left = deadline - time.monotonic()
+            if left <= 0:
+                return None
+            done = threading.Event()
+            future = self.client.call_async(request)
+            future.add_done_callback(lambda _: done.set())
+            if done.wait(min(attempt, left)):
+                return future.result()
+            self.client.remove_pending_request(future)
 
     def close(self) -> None:
         """Stop the spinning thread and destroy the node."""

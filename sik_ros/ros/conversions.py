@@ -31,6 +31,8 @@ ERROR_NAMES: Dict[int, str] = {
     SolveIK.Response.INVALID_FRAME: 'INVALID_FRAME',
     SolveIK.Response.INVALID_SEED: 'INVALID_SEED',
     SolveIK.Response.TIMEOUT: 'TIMEOUT',
+    SolveIK.Response.ROBOT_MISMATCH: 'ROBOT_MISMATCH',
+    SolveIK.Response.INTERNAL_ERROR: 'INTERNAL_ERROR',
 }
 
 _SHAPES = {SolidPrimitive.BOX: BOX, SolidPrimitive.SPHERE: SPHERE,
@@ -147,6 +149,7 @@ def solution_to_msg(solution: Solution, joint_names: Sequence[str], header: Head
     msg.position_error = float(solution.position_error)
     msg.orientation_error = float(solution.orientation_error)
     msg.min_obstacle_distance = float(solution.min_obstacle_distance)
+    msg.self_collision = bool(solution.self_collision)
     msg.score = float(solution.score)
     return msg
 

@@ -15,34 +15,32 @@ parallel requests never share mutable state.
 from contextlib import contextmanager
 from dataclasses import fields, replace
 import queue
-import signal
+import threading
 import traceback
 from typing import Iterator, List, Optional, Tuple
 
 from geometry_msgs.msg import PoseStamped
 import numpy as np
 from rcl_interfaces.msg import SetParametersResult
-import rclpy
 from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.exceptions import InvalidParameterValueException
-from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, qos_profile_sensor_data, QoSProfile, ReliabilityPolicy
-from rclpy.signals import SignalHandlerOptions
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Header, String
 import torch
 from visualization_msgs.msg import MarkerArray
 
 from sik_interfaces.msg import IKSolution, IKSolutionArray
-from sik_interfaces.srv import SolveIK
+from sik_interfaces.srv import SolveIK, SolvePath
 from sik_ros.errors import SikError
 from sik_ros.robots import chain_differences
 from sik_ros.ros import conversions as conv
 from sik_ros.ros.params import declarations, NodeParams, validate
+from sik_ros.ros.path_service import answer_path, path_markers
 from sik_ros.solver import IKResult, SelectiveIK
-from sik_ros.solver_pool import SolverCrashed, SolverPool
+from sik_ros.solver_pool import SolverCrashed, SolverPool, SolverTimeout
 
 NODE_NAME = 'sik_node'
 #: Executor threads, and solver instances in the pool (one per thread).
@@ -78,8 +76,13 @@ class SikNode(Node):
         if reason is not None:
             raise StartupError(f'bad parameters: {reason}')
         self._ik = self._load(self._params)
+        self.shutdown_grace = self._params.shutdown_grace
         #: why requests are refused: the robot_description topic's chain differs from the bundle's
         self._mismatch: Optional[str] = None
+        #: set on SIGINT/SIGTERM: new requests are answered TIMEOUT, nothing is published
+        self.closing = False
+        self._in_flight = 0
+        self._in_flight_lock = threading.Lock()
         self._pool: 'queue.LifoQueue[SelectiveIK]' = queue.LifoQueue()
         self._processes: Optional[SolverPool] = None
         if self._params.solver_processes > 0:
@@ -100,6 +103,7 @@ class SikNode(Node):
         self._solutions_pub = self.create_publisher(IKSolutionArray, '~/solutions', 10)
         self._markers_pub = self.create_publisher(MarkerArray, '~/markers', 5)
         self.create_service(SolveIK, '~/solve_ik', self._on_solve_ik, callback_group=group)
+        self.create_service(SolvePath, '~/solve_path', self._on_solve_path, callback_group=group)
         self.create_subscription(PoseStamped, '~/goal', self._on_goal, 10, callback_group=group)
         self._update_joint_state_subscription()
         latched = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL,
@@ -195,7 +199,7 @@ class SikNode(Node):
     def _solver_settings(p: NodeParams) -> dict:
         return {'position_tolerance': p.position_tolerance,
                 'orientation_tolerance': p.orientation_tolerance,
-                'max_solutions_cap': p.max_solutions_cap}
+                'max_solutions_cap': p.max_solutions_cap, 'max_obstacles': p.max_obstacles}
 
     @contextmanager
     def _solver(self, p: NodeParams) -> Iterator[SelectiveIK]:
@@ -265,9 +269,12 @@ class SikNode(Node):
                 with self._solver(p) as ik:
                     result = ik.solve(position, orientation, num, seed=seed,
                                       obstacles=obstacles, refine=p.refine, timeout=timeout)
+        except SolverTimeout as exc:
+            self.get_logger().warning(str(exc))
+            return Response.TIMEOUT, str(exc), None
         except SolverCrashed as exc:
             self.get_logger().error(str(exc))
-            return Response.NO_SOLUTION, f'internal error: {exc}', None
+            return Response.INTERNAL_ERROR, f'internal error: {exc}', None
         except SikError as exc:
             return conv.error_code_for(exc), str(exc), None
         exact = sum(s.converged for s in result.solutions)
@@ -276,7 +283,12 @@ class SikNode(Node):
             free = sum(not s.in_collision for s in result.solutions)
             summary += f', {free} collision-free'
         summary += f', {result.goal} goal, {result.elapsed * 1e3:.1f} ms'
-        if result.success:
+        unchecked = result.timed_out and obstacles and not any(
+            s.converged and not s.in_collision for s in result.solutions)
+        if unchecked:  # the deadline stopped the collision checks before a free solution
+            code, text = Response.TIMEOUT, (f'timed out after {timeout * 1e3:.0f} ms before a '
+                                            f'collision-free solution was confirmed ({summary})')
+        elif result.success:
             code, text = Response.SUCCESS, summary
         elif result.timed_out:
             code, text = Response.TIMEOUT, (f'timed out after {timeout * 1e3:.0f} ms with no '
@@ -290,11 +302,28 @@ class SikNode(Node):
         """Error code, message, IKSolutions and header of the answer to a request; never raises."""
         p = self._params
         header = self._header(p)
+        if self.closing:
+            return Response.TIMEOUT, 'sik_node is shutting down', [], header
+        with self._in_flight_lock:
+            self._in_flight += 1
+        try:
+            return self._answer_counted(request, where, p, header)
+        finally:
+            with self._in_flight_lock:
+                self._in_flight -= 1
+
+    @property
+    def in_flight(self) -> int:
+        """Requests being answered now."""
+        return self._in_flight
+
+    def _answer_counted(self, request: SolveIK.Request, where: str, p: NodeParams,
+                        header: Header) -> Tuple[int, str, List[IKSolution], Header]:
         try:
             code, message, result = self._solve(request, p)
             solutions = [] if result is None else [
                 conv.solution_to_msg(s, self._ik.joint_names, header) for s in result.solutions]
-            if result is not None and p.publish_markers \
+            if result is not None and p.publish_markers and not self.closing \
                     and self._markers_pub.get_subscription_count() > 0:
                 position, orientation = conv.goal_from_pose(request.target.pose,
                                                             request.use_orientation)
@@ -303,7 +332,7 @@ class SikNode(Node):
         except Exception as exc:  # the node answers every request, whatever fails
             self.get_logger().error(f'{where}: unexpected {type(exc).__name__}: {exc}\n'
                                     f'{traceback.format_exc()}')
-            return (Response.NO_SOLUTION, f'internal error: {type(exc).__name__}: {exc}',
+            return (Response.INTERNAL_ERROR, f'internal error: {type(exc).__name__}: {exc}',
                     [], header)
         if code != Response.SUCCESS:
             self.get_logger().debug(f'{where}: {conv.ERROR_NAMES.get(code, code)}: {message}')
@@ -315,10 +344,54 @@ class SikNode(Node):
             request, 'solve_ik')
         return response
 
+    def _on_solve_path(self, request: SolvePath.Request, response: SolvePath.Response
+                       ) -> SolvePath.Response:
+        p = self._params
+        header = self._header(p)
+        if self.closing:
+            response.error_code, response.message = SolvePath.Response.TIMEOUT, 'shutting down'
+            return response
+        if self._mismatch is not None:
+            response.error_code = SolvePath.Response.ROBOT_MISMATCH
+            response.message = self._mismatch
+            return response
+        with self._in_flight_lock:
+            self._in_flight += 1
+        try:
+            timeout = conv.seconds_from_duration(request.timeout) or p.path_timeout
+            with self._path_solver(p) as ik:
+                code, message, fraction, trajs, metrics, result = answer_path(
+                    ik, request, timeout, header)
+            if result is not None and result.paths and p.publish_markers and \
+                    not self.closing and self._markers_pub.get_subscription_count() > 0:
+                self._markers_pub.publish(path_markers(self._ik, result, header))
+        except Exception as exc:  # the node answers every request, whatever fails
+            self.get_logger().error(f'solve_path: unexpected {type(exc).__name__}: {exc}\n'
+                                    f'{traceback.format_exc()}')
+            code, message, fraction, trajs, metrics = (
+                SolvePath.Response.INTERNAL_ERROR,
+                f'internal error: {type(exc).__name__}: {exc}', 0.0, [], [])
+        finally:
+            with self._in_flight_lock:
+                self._in_flight -= 1
+        response.error_code, response.message, response.fraction = code, message, fraction
+        response.trajectories, response.metrics = trajs, metrics
+        return response
+
+    @contextmanager
+    def _path_solver(self, p: NodeParams) -> Iterator[SelectiveIK]:
+        """A solver for a path: from the pool of clones, or (solver processes) the node's own."""
+        if self._processes is None:
+            with self._solver(p) as ik:
+                yield ik
+        else:
+            yield self._ik  # its own lock serialises path requests in this mode
+
     def _on_goal(self, msg: PoseStamped) -> None:
         request = SolveIK.Request(target=msg, use_orientation=self._params.goal_use_orientation)
         code, message, solutions, header = self._answer(request, 'goal')
-        self._solutions_pub.publish(conv.solution_array(header, code, message, solutions))
+        if not self.closing:
+            self._solutions_pub.publish(conv.solution_array(header, code, message, solutions))
 
     def _on_joint_state(self, msg: JointState) -> None:
         self._joint_state = msg
@@ -330,45 +403,10 @@ class SikNode(Node):
         super().destroy_node()
 
 
-def _stop(signum, frame) -> None:
-    """SIGINT and SIGTERM: leave the spin loop (raised in the main thread)."""
-    raise KeyboardInterrupt
-
-
 def main(args: Optional[List[str]] = None) -> int:
-    """Run sik_node until SIGINT/SIGTERM; exit code 1 (one FATAL log line) if it cannot start."""
-    # The node owns SIGINT and SIGTERM (systemd, docker stop, kill): both raise
-    # KeyboardInterrupt in the main thread, which spins with a short timeout so that it gets
-    # back to Python, and so to the handler, at least every SPIN_PERIOD seconds.
-    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
-    signal.signal(signal.SIGINT, _stop)
-    signal.signal(signal.SIGTERM, _stop)
-    try:
-        node = SikNode()
-    except KeyboardInterrupt:  # stopped during start-up: not a failure
-        rclpy.try_shutdown()
-        return 0
-    except Exception as exc:  # one clear line instead of a traceback, whatever failed
-        reason = ' '.join(str(exc).split())
-        if not isinstance(exc, SikError):
-            reason = f'{type(exc).__name__}: {reason}'
-        rclpy.logging.get_logger(NODE_NAME).fatal(f'cannot start: {reason}')
-        rclpy.try_shutdown()
-        return 1
-    executor = MultiThreadedExecutor(num_threads=node.workers)
-    executor.add_node(node)
-    try:
-        while rclpy.ok():
-            executor.spin_once(timeout_sec=SPIN_PERIOD)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        signal.signal(signal.SIGINT, signal.SIG_IGN)  # a second signal must not break clean-up
-        signal.signal(signal.SIGTERM, signal.SIG_IGN)
-        executor.shutdown(timeout_sec=10.0)
-        node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+    """Run sik_node (see :func:`sik_ros.ros.run.main`)."""
+    from sik_ros.ros.run import main as run
+    return run(args)
 
 
 if __name__ == '__main__':

@@ -104,6 +104,9 @@ SPECS: Tuple[ParamSpec, ...] = (
     ParamSpec('timeout', float, 0.05,
               'time budget of a request whose timeout is 0 [s]; (0, 60]',
               min=0.0, max=60.0, min_open=True, unit='s'),
+    ParamSpec('path_timeout', float, 2.0,
+              'time budget of a solve_path request whose timeout is 0 [s]; (0, 600]',
+              min=0.0, max=600.0, min_open=True, unit='s'),
     ParamSpec('use_joint_states', bool, False,
               'seed requests that have no seed with the latest joint_states'),
     ParamSpec('goal_use_orientation', bool, False,
@@ -114,6 +117,13 @@ SPECS: Tuple[ParamSpec, ...] = (
               'solver processes serving requests in parallel (beyond the GIL); 0: solve in the '
               'executor threads; 0..16 (read-only)',
               min=0, max=MAX_SOLVER_PROCESSES, read_only=True),
+    ParamSpec('max_obstacles', int, 256,
+              'most obstacles a request may give (more: INVALID_GOAL); 0..10000',
+              min=0, max=10000),
+    ParamSpec('shutdown_grace', float, 1.0,
+              'on SIGINT/SIGTERM, time in-flight requests get to finish before the node exits '
+              '(new ones are answered TIMEOUT) [s]; (0, 60]',
+              min=0.0, max=60.0, min_open=True, unit='s'),
     ParamSpec('robot_description', str, '',
               'the robot\'s URDF (as robot_state_publisher holds it); when set, or when the '
               'robot_description topic publishes one, a bundle whose chain differs from it is '

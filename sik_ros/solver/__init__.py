@@ -29,19 +29,20 @@ from sik_ros.collision import CollisionChecker, Obstacle
 from sik_ros.errors import InvalidArgument, InvalidGoal
 from sik_ros.kinematics import Robot
 from sik_ros.objectives import Objective
-from sik_ros.solver import candidates as _candidates, codec, pipeline
+from sik_ros.solver import candidates as _candidates, codec, path as _path, pipeline
 from sik_ros.solver.adjust import adjust_index
 from sik_ros.solver.config import SolverConfig
 from sik_ros.solver.context import Context, Goal
 from sik_ros.solver.inputs import (check_goal, check_num_solutions, check_objective,
-                                   check_obstacles, check_seed)
+                                   check_obstacles, check_path, check_seed)
+from sik_ros.solver.path import JointPath, PathResult, PathSettings
 from sik_ros.solver.ranking import distinct_mask
 from sik_ros.solver.refine import errors, refine
 from sik_ros.solver.results import dumps, IKResult, result_to_dict, Solution
-from sik_ros.validation import flag, seconds, vector
+from sik_ros.validation import flag, positive, seconds, vector
 
-__all__ = ['dumps', 'GoalModel', 'IKResult', 'result_to_dict', 'SelectiveIK', 'Solution',
-           'SolverConfig']
+__all__ = ['dumps', 'GoalModel', 'IKResult', 'JointPath', 'PathResult', 'result_to_dict',
+           'SelectiveIK', 'Solution', 'SolverConfig']
 
 
 class SelectiveIK:
@@ -168,6 +169,41 @@ class SelectiveIK:
                                   f'{orientations.shape}')
         return [self.solve(p, None if orientations is None else orientations[i], **kw)
                 for i, p in enumerate(positions)]
+
+    def solve_path(self, positions, orientations=None, seed=None, num_paths: int = 4,
+                   max_joint_step: float = 0.3, obstacles: Sequence[Obstacle] = (),
+                   timeout: Optional[float] = None, path_tolerance: float = 0.005
+                   ) -> PathResult:
+        """Ranked joint paths through Cartesian waypoints, without flips.
+
+        Args:
+            positions: waypoints (N, 3) [m] in the base frame.
+            orientations: None for position goals; else (N, 4) quaternions x y z w.
+            seed: current joint configuration (n,) [rad]: paths starting near it rank first.
+            num_paths: most paths returned (each from a distinct start).
+            max_joint_step: largest joint change between consecutive waypoints [rad].
+            obstacles: :class:`Obstacle` list; no configuration of a path touches one.
+            timeout: budget of the whole path [s].
+            path_tolerance: how far the tool may leave the straight segment between two
+                waypoints [m] (checked at interpolated configurations).
+
+        Raises:
+            InvalidGoal, InvalidSeed, InvalidArgument: bad input (see docs/interfaces.md).
+        """
+        t0 = time.perf_counter()
+        goals = check_path(positions, orientations, self.goals)
+        q_seed = None if seed is None else check_seed(self.robot, seed)
+        obstacles = check_obstacles(obstacles, self.config.max_obstacles)
+        settings = PathSettings(
+            num_paths=check_num_solutions(num_paths, self.config.max_solutions_cap),
+            max_joint_step=positive(max_joint_step, 'max_joint_step'),
+            path_tolerance=positive(path_tolerance, 'path_tolerance'))
+        timeout = seconds(timeout, 'timeout')
+        deadline = None if timeout is None else t0 + timeout
+        with self._lock:
+            result = _path.solve_path(self._ctx, goals, q_seed, obstacles, settings, deadline)
+        result.elapsed = time.perf_counter() - t0
+        return result
 
     # -- the stages, for studies and benchmarks --------------------------------------------------
     # ``goal`` is the goal kind ('position' or 'pose'), ``pos`` (3,) [m], ``rot`` (3, 3) or None.

@@ -1,5 +1,6 @@
 """Algorithm 2 of the paper: adjust posture indices while the clearance from obstacles improves."""
 
+import time
 from typing import List, Optional, Sequence
 
 import numpy as np
@@ -33,7 +34,7 @@ def adjust_index(ctx: Context, goal: Goal, sols: Sequence[Solution],
     for s in starts:
         z = s.posture_index.astype(np.float64)
         best = s.min_obstacle_distance
-        while budget > 0:
+        while budget > 0 and not (deadline is not None and time.perf_counter() > deadline):
             trials = []
             for d in range(len(z)):
                 for sign in (1.0, -1.0):
@@ -44,8 +45,9 @@ def adjust_index(ctx: Context, goal: Goal, sols: Sequence[Solution],
             budget -= len(trials)
             r = refine(ctx, decode(ctx, goal, trials), goal, deadline)
             exact = converged(r.perr, r.oerr, goal.kind, cfg)
-            clear = ctx.checker.clearance(r.q, obstacles)
-            clear = np.where(ctx.checker.self_collision(r.q) | ~exact, -np.inf, clear)
+            clear = ctx.checker.clearance(r.q, obstacles, deadline)
+            clear = np.where(ctx.checker.self_collision(r.q) | ~exact | np.isnan(clear), -np.inf,
+                             clear)
             i = int(np.argmax(clear))
             if clear[i] <= best:
                 break

@@ -34,6 +34,36 @@ def check_goal(position, orientation, goals: Sequence[str]) -> Goal:
     return goal
 
 
+def check_path(positions, orientations, goals: Sequence[str]) -> List[Goal]:
+    """Waypoints: (N, 3) positions [m] and None or (N, 4) quaternions, as :class:`Goal` s.
+
+    Raises:
+        InvalidGoal: no waypoints, mismatched lengths, or a bad waypoint (naming it).
+    """
+    try:
+        pos = np.asarray(positions, dtype=float)
+    except (TypeError, ValueError, OverflowError) as exc:
+        raise InvalidGoal(f'positions must be an (N, 3) array; got {positions!r}') from exc
+    if pos.ndim != 2 or pos.shape[1] != 3 or len(pos) == 0:
+        raise InvalidGoal(f'positions must be an (N, 3) array with N >= 1; got shape '
+                          f'{pos.shape}')
+    if orientations is not None:
+        try:
+            quat = np.asarray(orientations, dtype=float)
+        except (TypeError, ValueError, OverflowError) as exc:
+            raise InvalidGoal('orientations must be an (N, 4) array') from exc
+        if quat.shape != (len(pos), 4):
+            raise InvalidGoal(f'orientations must have shape ({len(pos)}, 4) like the '
+                              f'positions; got {quat.shape}')
+    out = []
+    for i, p in enumerate(pos):
+        try:
+            out.append(check_goal(p, None if orientations is None else quat[i], goals))
+        except InvalidGoal as exc:
+            raise InvalidGoal(f'waypoint {i}: {exc}') from exc
+    return out
+
+
 def check_num_solutions(num_solutions, cap: int) -> int:
     """``num_solutions`` as an int in 1..``cap``, or :class:`InvalidArgument`."""
     if isinstance(num_solutions, bool) or not isinstance(num_solutions, (int, np.integer)):

@@ -11,6 +11,7 @@
 5. Algorithm 2 when obstacles leave no free exact solution.
 """
 
+import time
 from typing import List, Optional, Sequence
 
 import numpy as np
@@ -45,6 +46,11 @@ def initial_postures(ctx: Context, goal: Goal, num: int, q_seed: Optional[np.nda
         z = np.concatenate([z[:head], np.full((len(extra), z.shape[1]), np.nan), z[head:]])
     unknown = np.full(len(q), np.inf)
     return Candidates(q, z, unknown, np.zeros(len(q)), np.zeros(len(q), dtype=bool))
+
+
+def past(deadline: Optional[float]) -> bool:
+    """Whether a ``time.perf_counter()`` deadline has passed."""
+    return deadline is not None and time.perf_counter() > deadline
 
 
 def fill_indices(ctx: Context, goal: Goal, sols: List[Solution]) -> None:
@@ -89,12 +95,16 @@ def solve(ctx: Context, goal: Goal, num: int, q_seed: Optional[np.ndarray],
     if ctx.robot.periodic.any():
         c = best_distinct(periodic_equivalents(ctx, c), cfg.distinct_threshold,
                           ctx.ignores_last(goal.kind))
-    sols = rank(ctx, c, q_seed, obstacles, objective, limit=num)
+    sols = rank(ctx, c, q_seed, obstacles, objective, limit=num, deadline=deadline)
     fill_indices(ctx, goal, sols)
-    if obstacles and refined and not any(s.converged and not s.in_collision for s in sols):
+    if obstacles and refined and not any(s.converged and not s.in_collision for s in sols) \
+            and not past(deadline):
         extra = adjust_index(ctx, goal, sols, obstacles, deadline)
         if extra is not None:
-            sols = merge(ctx, sols, extra, goal.kind, q_seed, obstacles, objective)[:num]
+            sols = merge(ctx, sols, extra, goal.kind, q_seed, obstacles, objective,
+                         deadline)[:num]
+    # collision checks the deadline cut short leave unknown clearances
+    timed_out = timed_out or any(np.isnan(s.min_obstacle_distance) for s in sols)
     success = any(s.converged for s in sols)
     msg = '' if success else (
         'no solution within tolerance (best-effort solutions returned)' if sols else

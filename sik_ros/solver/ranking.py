@@ -6,6 +6,7 @@ free and exact, free and inexact, colliding and exact, colliding and inexact —
 tier by the objective (exact ones) or the score (inexact ones).
 """
 
+import time
 from typing import List, Optional, Sequence
 
 import numpy as np
@@ -70,32 +71,34 @@ def best_distinct(c: Candidates, threshold: float, ignore_last: bool) -> Candida
 
 def rank(ctx: Context, c: Candidates, q_seed: Optional[np.ndarray],
          obstacles: Sequence[Obstacle], objective: Optional[Objective],
-         limit: Optional[int] = None) -> List[Solution]:
+         limit: Optional[int] = None, deadline: Optional[float] = None) -> List[Solution]:
     """Solutions ranked best first; with ``limit``, only the best ``limit`` of them.
 
     The default objective is the distance to the seed when there is one, else the closeness
     to the joint limits. Self-collision is checked lazily in ranking order: a self-colliding
     posture drops behind every free one, so checking stops once ``limit`` free postures are
-    found.
+    found. Past ``deadline`` no more collision checks start: clearances not computed are NaN
+    and rank as colliding; self-collision not checked is reported False.
     """
     if len(c) == 0:
         return []
-    clear = ctx.checker.clearance(c.q, obstacles)
+    clear = ctx.checker.clearance(c.q, obstacles, deadline)
+    hit = (clear <= 0.0) | np.isnan(clear)
     if objective is None:
         objective = SeedDistance(q_seed) if q_seed is not None else JointLimitMargin(ctx.robot)
     cost = np.asarray(objective(c.q), dtype=float)
     inexact_cost = np.where(c.exact, 0.0, pose_score(c.perr, c.oerr) * INEXACT_COST)
     base = inexact_cost + np.where(c.exact, cost, 0.0) + INEXACT_TIER * ~c.exact
-    score = base + COLLIDING_TIER * (clear <= 0.0)
+    score = base + COLLIDING_TIER * hit
     selfc = np.zeros(len(c), dtype=bool)
     limit = len(c) if limit is None else limit
     free = 0
     for i in np.argsort(score, kind='stable'):
-        if free >= limit:
+        if free >= limit or (deadline is not None and time.perf_counter() > deadline):
             break
         selfc[i] = ctx.checker.self_collision(c.q[i:i + 1])[0]
         free += not selfc[i]
-    score = base + COLLIDING_TIER * ((clear <= 0.0) | selfc)
+    score = base + COLLIDING_TIER * (hit | selfc)
     order = np.argsort(score, kind='stable')[:limit]
     return [Solution(c.q[i].copy(), float(c.perr[i]), float(c.oerr[i]),
                      c.z[i].astype(np.float32), float(score[i]), float(clear[i]),
@@ -113,8 +116,8 @@ def from_solutions(sols: Sequence[Solution]) -> Candidates:
 
 def merge(ctx: Context, sols: Sequence[Solution], extra: Sequence[Solution], kind: str,
           q_seed: Optional[np.ndarray], obstacles: Sequence[Obstacle],
-          objective: Optional[Objective]) -> List[Solution]:
+          objective: Optional[Objective], deadline: Optional[float] = None) -> List[Solution]:
     """Two lists of solutions ranked together, one per distinct posture."""
     c = best_distinct(from_solutions(list(sols) + list(extra)), ctx.config.distinct_threshold,
                       ctx.ignores_last(kind))
-    return rank(ctx, c, q_seed, obstacles, objective)
+    return rank(ctx, c, q_seed, obstacles, objective, deadline=deadline)

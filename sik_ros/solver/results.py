@@ -34,7 +34,7 @@ class Solution:
     @property
     def in_collision(self) -> bool:
         """Whether it touches an obstacle or itself."""
-        return self.self_collision or self.min_obstacle_distance <= 0.0
+        return self.self_collision or not self.min_obstacle_distance > 0.0  # NaN: unknown
 
 
 @dataclass

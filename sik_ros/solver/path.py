@@ -1,0 +1,208 @@
+"""Cartesian paths: joint paths through a sequence of tool poses, without flips.
+
+At the first waypoint (and wherever every track is lost) the solver's distinct exact solutions
+(with the seed's own posture and the 2 pi equivalents of periodic joints) start *tracks*; at each
+next waypoint every track is continued by refining its last configuration onto the new pose (a
+warm start: the posture is kept, the paper's "keep the posture" strategy). The candidates of
+consecutive waypoints form a ladder graph; an edge is allowed when no joint moves more than
+``max_joint_step`` and the tool stays on the Cartesian segment between the two waypoints
+(checked by FK of interpolated configurations), and is weighted by its joint travel (plus the
+distance of the start from the seed). Dynamic programming over the ladder gives the cheapest
+paths; the best few, from distinct starts, are returned. When no candidate of a waypoint can be
+reached, the longest feasible prefix is returned with its ``fraction``, as MoveIt's
+``computeCartesianPath`` does.
+"""
+
+from dataclasses import dataclass, field
+import time
+from typing import List, Optional, Sequence
+
+import numpy as np
+
+from sik_ros.chain import chain_forward
+from sik_ros.collision import Obstacle
+from sik_ros.rotations import rotation_angle
+from sik_ros.solver import pipeline  # noqa: I100 (a sibling module, not the package)
+from sik_ros.solver.context import Context, Goal
+from sik_ros.solver.ranking import distinct_mask
+from sik_ros.solver.refine import refine
+
+#: Interpolation points checked on every edge (fractions of the edge).
+EDGE_CHECKS = (0.25, 0.5, 0.75)
+
+
+@dataclass
+class JointPath:
+    """One joint path through every waypoint (or through the feasible prefix).
+
+    Attributes:
+        q: joint positions (N, n) [rad], within the limits.
+        position_errors: (N,) [m]; orientation_errors: (N,) [rad].
+        max_step: largest joint change between consecutive waypoints [rad].
+        travel: total joint travel, the sum of the steps' L2 norms [rad].
+        min_obstacle_distance: smallest clearance along the path [m] (+inf without obstacles).
+        cost: the ranking cost (travel plus the start's distance from the seed).
+    """
+
+    q: np.ndarray
+    position_errors: np.ndarray
+    orientation_errors: np.ndarray
+    max_step: float
+    travel: float
+    min_obstacle_distance: float
+    cost: float
+
+
+@dataclass
+class PathResult:
+    """The answer to a path request: ranked joint paths, best first."""
+
+    success: bool
+    fraction: float
+    paths: List[JointPath] = field(default_factory=list)
+    elapsed: float = 0.0
+    timed_out: bool = False
+    message: str = ''
+
+
+@dataclass(frozen=True)
+class PathSettings:
+    """How a path is planned (see :meth:`SelectiveIK.solve_path`)."""
+
+    num_paths: int = 4
+    max_joint_step: float = 0.3
+    path_tolerance: float = 0.005
+    orientation_path_tolerance: float = 0.05
+    starts: int = 16
+    seed_weight: float = 1.0
+
+
+def _starts(ctx: Context, goal: Goal, q_seed, obstacles, count: int,
+            deadline) -> np.ndarray:
+    """Distinct exact configurations at a waypoint (the solver's ranked ones), (M, n)."""
+    res = pipeline.solve(ctx, goal, count, q_seed, obstacles, True, None, deadline)
+    q = np.array([s.q for s in res.solutions if s.converged and not s.in_collision])
+    return q.reshape(-1, ctx.robot.dof)
+
+
+def _continue(ctx: Context, q: np.ndarray, goal: Goal, deadline) -> np.ndarray:
+    """Each configuration refined onto the next waypoint; the exact ones, NaN rows elsewhere."""
+    r = refine(ctx, q, goal, deadline, iterations=ctx.config.refine_iterations)
+    ok = r.perr <= ctx.config.position_tolerance
+    if goal.rotation is not None:
+        ok &= r.oerr <= ctx.config.orientation_tolerance
+    out = np.full_like(q, np.nan)
+    out[ok] = r.q[ok]
+    return out
+
+
+def _on_segment(ctx: Context, qa: np.ndarray, qb: np.ndarray, goals: Sequence[Goal], i: int,
+                s: PathSettings) -> np.ndarray:
+    """(A, B) bool: whether the tool stays on segment i-1 -> i between each pair of rows."""
+    pa, pb = goals[i - 1].position, goals[i].position
+    seg = pb - pa
+    length2 = max(float(seg @ seg), 1e-18)
+    ok = np.ones((len(qa), len(qb)), dtype=bool)
+    for t in EDGE_CHECKS:
+        q = (1 - t) * qa[:, None] + t * qb[None]
+        p, r = chain_forward(ctx.robot.chain, q.reshape(-1, ctx.robot.dof))
+        u = np.clip(((p - pa) @ seg) / length2, 0.0, 1.0)
+        off = np.linalg.norm(p - (pa + u[:, None] * seg), axis=1)
+        ok &= (off <= s.path_tolerance).reshape(ok.shape)
+        if goals[i].rotation is not None:
+            # the orientation between two waypoints: within the tolerance of one of them
+            da = rotation_angle(goals[i - 1].rotation, r)
+            db = rotation_angle(goals[i].rotation, r)
+            ok &= (np.minimum(da, db) <= s.orientation_path_tolerance +
+                   rotation_angle(goals[i - 1].rotation, goals[i].rotation[None])[0]
+                   ).reshape(ok.shape)
+    return ok
+
+
+def solve_path(ctx: Context, goals: Sequence[Goal], q_seed: Optional[np.ndarray],
+               obstacles: Sequence[Obstacle], s: PathSettings,
+               deadline: Optional[float]) -> PathResult:
+    """The ranked joint paths through ``goals`` (checked waypoints), see the module's docstring."""
+    t0 = time.perf_counter()
+    n = len(goals)
+    cand: List[np.ndarray] = []          # candidates per waypoint (M_i, dof)
+    back: List[np.ndarray] = []          # best predecessor per candidate (-1: a start)
+    cost: List[np.ndarray] = []          # best cost to reach each candidate
+    reached = 0
+    timed_out = False
+    for i, goal in enumerate(goals):
+        if deadline is not None and time.perf_counter() > deadline:
+            timed_out = True
+            break
+        if i == 0:
+            q = _starts(ctx, goal, q_seed, obstacles, s.starts, deadline)
+            c0 = np.zeros(len(q)) if q_seed is None else \
+                s.seed_weight * np.linalg.norm(q - q_seed, axis=1)
+            if len(q) == 0:
+                break
+            cand.append(q), back.append(np.full(len(q), -1)), cost.append(c0)
+            reached = 1
+            continue
+        prev = cand[-1][np.isfinite(cost[-1])]
+        prev_idx = np.flatnonzero(np.isfinite(cost[-1]))
+        q = _continue(ctx, prev, goal, deadline)
+        q = q[np.all(np.isfinite(q), axis=1)]
+        if len(q) < 2:  # tracks lost: new starts here, joined by the edges that allow it
+            fresh = _starts(ctx, goal, None, obstacles, s.starts, deadline)
+            q = np.concatenate([q, fresh]) if len(q) else fresh
+        if len(q) == 0:
+            break
+        q = q[distinct_mask(q, 1e-3)]
+        if obstacles:
+            clear = ctx.checker.clearance(q, obstacles, deadline)
+            q = q[clear > 0]
+            if len(q) == 0:
+                break
+        step = np.abs(q[None] - prev[:, None]).max(axis=2)      # (P, Q)
+        allowed = (step <= s.max_joint_step) & _on_segment(ctx, prev, q, goals, i, s)
+        travel = np.linalg.norm(q[None] - prev[:, None], axis=2)
+        total = np.where(allowed, cost[-1][prev_idx][:, None] + travel, np.inf)
+        best = np.argmin(total, axis=0)
+        c = total[best, np.arange(len(q))]
+        if not np.isfinite(c).any():
+            break
+        cand.append(q), back.append(prev_idx[best]), cost.append(c)
+        reached = i + 1
+    paths = _paths(ctx, goals, cand, back, cost, obstacles, s)
+    success = reached == n and bool(paths)
+    fraction = reached / n if paths else 0.0
+    msg = '' if success else (
+        f'the path is feasible up to waypoint {reached} of {n}' if paths else
+        'no exact, collision-free configuration at the first waypoint')
+    if timed_out:
+        msg = f'timed out: {msg}'
+    return PathResult(success, fraction, paths, time.perf_counter() - t0, timed_out, msg)
+
+
+def _paths(ctx: Context, goals, cand, back, cost, obstacles, s: PathSettings) -> List[JointPath]:
+    """The best paths to the last reached waypoint, from distinct starts, best first."""
+    if not cand:
+        return []
+    ends = np.argsort(cost[-1], kind='stable')
+    out, starts = [], []
+    for e in ends:
+        if not np.isfinite(cost[-1][e]) or len(out) >= s.num_paths:
+            break
+        rows = [int(e)]
+        for i in range(len(cand) - 1, 0, -1):
+            rows.append(int(back[i][rows[-1]]))
+        rows.reverse()
+        q = np.array([cand[i][r] for i, r in enumerate(rows)])
+        if any(np.abs(q[0] - other).max() < 1e-6 for other in starts):
+            continue  # the same start as a better path: not a distinct alternative
+        starts.append(q[0])
+        p, r = chain_forward(ctx.robot.chain, q)
+        perr = np.linalg.norm(p - np.array([g.position for g in goals[:len(q)]]), axis=1)
+        oerr = np.array([0.0 if g.rotation is None else rotation_angle(g.rotation, ri[None])[0]
+                         for g, ri in zip(goals, r)])
+        steps = np.abs(np.diff(q, axis=0))
+        clear = ctx.checker.clearance(q, obstacles) if obstacles else np.full(len(q), np.inf)
+        out.append(JointPath(q, perr, oerr, float(steps.max()) if len(steps) else 0.0,
+                             float(np.linalg.norm(np.diff(q, axis=0), axis=1).sum()),
+                             float(clear.min()), float(cost[-1][e])))
+    return out

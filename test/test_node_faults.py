@@ -1,0 +1,112 @@
+"""Faults against a real sik_node: bad start-ups, hostile requests, shutdown under load."""
+
+import subprocess
+import sys
+import threading
+import time
+
+import numpy as np
+import pytest
+import rclpy
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.signals import SignalHandlerOptions
+from shape_msgs.msg import SolidPrimitive
+
+from sik_interfaces.srv import SolveIK
+from sik_ros.ros import demo
+
+pytestmark = pytest.mark.timeout(240)
+R = SolveIK.Response
+
+
+@pytest.fixture(scope='module')
+def graph():
+    """An isolated ROS graph and an rclpy node in this process."""
+    env = demo.ros_env()
+    rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
+    node = rclpy.create_node('sik_node_faults_test')
+    yield env, node
+    node.destroy_node()
+    rclpy.shutdown()
+
+
+@pytest.mark.parametrize('args, words', [
+    (['--params-file', '/nonexistent/params.yaml'], 'params file'),
+    (['-p'], 'trailing -p'),
+    (['-p', 'timeout:=-1.0'], 'timeout'),
+])
+def test_bad_start_ups_are_one_fatal_line(graph, args, words):
+    """A missing params file, a trailing -p, a bad value: exit 1 with one FATAL line."""
+    env, _ = graph
+    run = subprocess.run([sys.executable, '-m', 'sik_ros.ros.node', '--ros-args', *args],
+                         env=env, capture_output=True, text=True, timeout=120)
+    out = run.stdout + run.stderr
+    fatal = [line for line in out.splitlines() if 'FATAL' in line]
+    assert run.returncode == 1 and len(fatal) == 1 and words in fatal[0], out
+    assert 'Traceback' not in out
+
+
+def _box_request(position, count, timeout):
+    req = demo.pose_request(position, None, 16)
+    rng = np.random.default_rng(0)
+    for _ in range(count):
+        box = SolidPrimitive(type=SolidPrimitive.BOX, dimensions=[0.05, 0.05, 0.05])
+        req.obstacles.append(box)
+        pose = demo.pose_request(tuple(rng.uniform(-1.5, 1.5, 3))).target.pose
+        req.obstacle_poses.append(pose)
+    req.timeout.sec, req.timeout.nanosec = int(timeout), int((timeout % 1) * 1e9)
+    return req
+
+
+def test_hostile_requests_get_codes_in_time_and_shutdown_under_load_is_clean(
+        tiny_bundle, graph, tmp_path):
+    """Huge values, too many obstacles, a tight deadline; SIGTERM under load exits 0 quickly."""
+    env, node = graph
+    log_path = tmp_path / 'node.log'
+    with open(log_path, 'wb') as log:
+        proc = demo.launch_node(str(tiny_bundle), env=env, stdout=log, stderr=subprocess.STDOUT)
+    client = node.create_client(SolveIK, '/sik_node/solve_ik')
+    try:
+        assert demo.wait_for_service(node, client, proc, 90.0), log_path.read_text()
+        huge = demo.call(node, client, demo.pose_request((1e300, 0.0, 0.4)), 20.0)
+        assert huge.error_code == R.INVALID_GOAL and '100 m' in huge.message, huge.message
+        quat = demo.call(node, client, demo.pose_request((0.4, 0.0, 0.4),
+                                                         (1e200, 0, 0, 1e200)), 20.0)
+        assert quat.error_code in (R.SUCCESS, R.NO_SOLUTION), quat.message
+        many = demo.call(node, client, _box_request((0.4, 0.0, 0.4), 2000, 0.05), 20.0)
+        assert many.error_code == R.INVALID_GOAL and 'at most 256' in many.message
+        t0 = time.monotonic()
+        tight = demo.call(node, client, _box_request((0.4, 0.0, 0.4), 256, 0.01), 20.0)
+        assert time.monotonic() - t0 < 1.0 and tight.error_code in (R.SUCCESS, R.TIMEOUT)
+        # load from several threads, then SIGTERM in the middle of it
+        answers, stop = [], threading.Event()
+        executor = SingleThreadedExecutor()
+        executor.add_node(node)
+        spinner = threading.Thread(target=executor.spin, daemon=True)
+        spinner.start()
+
+        def load():
+            while not stop.is_set():
+                future = client.call_async(_box_request((0.4, 0.1, 0.4), 64, 2.0))
+                deadline = time.monotonic() + 5.0
+                while not future.done() and time.monotonic() < deadline:
+                    time.sleep(0.005)
+                if future.done():
+                    answers.append(future.result().error_code)
+        threads = [threading.Thread(target=load, daemon=True) for _ in range(4)]
+        for t in threads:
+            t.start()
+        time.sleep(2.0)
+        t0 = time.monotonic()
+        proc.terminate()
+        code = proc.wait(10.0)
+        took = time.monotonic() - t0
+        stop.set()
+        executor.shutdown(timeout_sec=1.0)
+        assert code == 0 and took < 1.0 + 1.0 + 0.5, (code, took)
+        assert answers and set(answers) <= {R.SUCCESS, R.TIMEOUT, R.NO_SOLUTION}, answers
+        log = log_path.read_text()
+        assert 'Traceback' not in log and 'InvalidHandle' not in log, log[-3000:]
+    finally:
+        node.destroy_client(client)
+        demo.stop_node(proc)

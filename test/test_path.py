@@ -1,0 +1,113 @@
+"""Cartesian paths: exact waypoints, bounded steps, fraction, ranking, seed, obstacles, input."""
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from sik_ros import InvalidArgument, InvalidGoal, Obstacle, SelectiveIK
+from sik_ros.chain import chain_forward
+
+Q0 = np.array([0.0, -0.3, 0.0, -2.2, 0.0, 2.0, 0.8])
+
+
+@pytest.fixture(scope='module')
+def ik():
+    """The bundled Panda solver."""
+    return SelectiveIK.load('panda')
+
+
+def line(ik, length=0.3, n=30, direction=(0.0, 1.0, 0.0), q=Q0):
+    """Waypoints of a straight line from the tip at ``q``; the constant tool orientation."""
+    p0, quat = ik.fk(q)
+    d = np.asarray(direction, dtype=float) / np.linalg.norm(direction)
+    return p0 + np.linspace(0, length, n)[:, None] * d, np.repeat(quat[None], n, 0)
+
+
+def check(ik, path, positions, orientations, step):
+    """Every waypoint exact by FK, every joint step within ``step``, joints within limits."""
+    q = path.q
+    assert np.all(q >= ik.robot.lower - 1e-9) and np.all(q <= ik.robot.upper + 1e-9)
+    p, r = chain_forward(ik.robot.chain, q)
+    assert np.linalg.norm(p - positions[:len(q)], axis=1).max() <= ik.config.position_tolerance
+    if orientations is not None:
+        target = Rotation.from_quat(orientations[:len(q)]).as_matrix()
+        angle = np.arccos(np.clip((np.einsum('nij,nij->n', target, r) - 1) / 2, -1, 1))
+        assert angle.max() <= ik.config.orientation_tolerance + 1e-6
+        assert path.orientation_errors.max() <= ik.config.orientation_tolerance
+    assert np.abs(np.diff(q, axis=0)).max() <= step + 1e-12
+    assert path.max_step == pytest.approx(np.abs(np.diff(q, axis=0)).max())
+
+
+@pytest.mark.parametrize('pose', [False, True])
+def test_a_straight_line_is_solved_exactly_with_small_steps(ik, pose):
+    """A 30 cm line, 30 waypoints: success, every waypoint exact, no step above 0.3 rad."""
+    pos, quat = line(ik)
+    res = ik.solve_path(pos, quat if pose else None, seed=Q0)
+    assert res.success and res.fraction == 1.0 and res.paths, res.message
+    for path in res.paths:
+        assert path.q.shape == (30, 7)
+        check(ik, path, pos, quat if pose else None, 0.3)
+    costs = [p.cost for p in res.paths]
+    assert costs == sorted(costs)  # ranked, best first
+
+
+def test_a_path_that_leaves_the_workspace_reports_its_fraction(ik):
+    """A line running out of reach: success False, fraction = the feasible prefix's share."""
+    p0, _ = ik.fk(Q0)
+    pos = p0 + np.linspace(0, 1.5, 31)[:, None] * np.array([1.0, 0.0, 0.0])
+    res = ik.solve_path(pos, seed=Q0)
+    reach = np.linalg.norm(pos - np.array([0.0, 0.0, 0.333]), axis=1)
+    assert not res.success and res.paths
+    assert 0 < res.fraction < 1
+    n = len(res.paths[0].q)
+    assert res.fraction == pytest.approx(n / len(pos))
+    assert reach[n - 1] < 0.9 and reach[n:].max() > 0.85  # it stops near the edge of reach
+    check(ik, res.paths[0], pos, None, 0.3)
+
+
+def test_the_seed_picks_the_nearest_branch(ik):
+    """Two seeds in different postures: each best path starts near its own seed."""
+    pos, quat = line(ik, 0.2, 20)
+    first = ik.solve_path(pos, quat, seed=Q0)
+    other = first.paths[-1].q[0]  # a start of another ranked path
+    second = ik.solve_path(pos, quat, seed=other)
+    assert np.linalg.norm(first.paths[0].q[0] - Q0) < 0.05
+    assert np.linalg.norm(second.paths[0].q[0] - other) < 0.05
+    for res, seed in ((first, Q0), (second, other)):
+        starts = [np.linalg.norm(p.q[0] - seed) for p in res.paths]
+        assert starts[0] == min(starts)
+
+
+def test_paths_avoid_obstacles(ik):
+    """A box at the best path's elbow: the returned path keeps clear of it, still exact."""
+    pos, quat = line(ik, 0.2, 20)
+    free = ik.solve_path(pos, quat, seed=Q0)
+    _, _, origins, _ = chain_forward(ik.robot.chain, free.paths[0].q[10:11], frames=True)
+    box = Obstacle('box', (0.12, 0.12, 0.12), tuple(origins[0, 3]))
+    assert ik.checker.clearance(free.paths[0].q, [box]).min() <= 0
+    res = ik.solve_path(pos, quat, seed=Q0, obstacles=[box])
+    assert res.paths and res.paths[0].min_obstacle_distance > 0
+    check(ik, res.paths[0], pos, quat, 0.3)
+    assert ik.checker.clearance(res.paths[0].q, [box]).min() > 0
+
+
+def test_paths_are_deterministic(ik):
+    """Same input, same output."""
+    pos, quat = line(ik, 0.2, 15)
+    a = ik.solve_path(pos, quat, seed=Q0)
+    b = ik.solve_path(pos, quat, seed=Q0)
+    assert [p.q.tolist() for p in a.paths] == [p.q.tolist() for p in b.paths]
+
+
+@pytest.mark.parametrize('kwargs, error, words', [
+    ({'positions': np.zeros((0, 3))}, InvalidGoal, 'N >= 1'),
+    ({'positions': [[0.4, 0.0, np.nan]]}, InvalidGoal, 'waypoint 0'),
+    ({'orientations': np.zeros((2, 4)) + [0, 0, 0, 1]}, InvalidGoal, 'like the positions'),
+    ({'max_joint_step': -0.1}, InvalidArgument, 'max_joint_step'),
+    ({'num_paths': 0}, InvalidArgument, 'between 1 and'),
+])
+def test_bad_path_input_is_refused(ik, kwargs, error, words):
+    """Empty, NaN, mismatched or negative inputs raise SikErrors naming the problem."""
+    args = {'positions': line(ik, 0.1, 3)[0], **kwargs}
+    with pytest.raises(error, match=words):
+        ik.solve_path(**args)
