@@ -59,6 +59,9 @@ class SolverConfig:
             iterations; the new exact solutions at least ``distinct_threshold`` from every
             found one are kept and walk on.
         max_obstacles: most obstacles a request may give (their checks bound its work).
+        branch_restarts: pose goals of arms with six joints or fewer (isolated solutions, no
+            self-motion): starts drawn uniformly in joint space and refined, for the branches
+            the candidates missed (0 disables it).
     """
 
     position_tolerance: float = 1e-4
@@ -89,6 +92,7 @@ class SolverConfig:
     walk_step: float = 0.6
     walk_iterations: int = 4
     max_obstacles: int = 256
+    branch_restarts: int = 32
 
     def __post_init__(self):
         """Reject values the solver cannot work with.
@@ -109,7 +113,8 @@ class SolverConfig:
                           ('oriented_cells', 1), ('raw_candidates', 1),
                           ('refine_iterations', 1), ('adjust_budget', 0), ('give_up_after', 1),
                           ('stall_window', 0), ('stall_after', 0), ('early_stop_margin', -1),
-                          ('walk_rounds', 0), ('walk_iterations', 1), ('max_obstacles', 0)):
+                          ('walk_rounds', 0), ('walk_iterations', 1), ('max_obstacles', 0),
+                          ('branch_restarts', 0)):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, int) or value < low:
                 raise InvalidArgument(f'SolverConfig.{name} must be an integer >= {low}; got '

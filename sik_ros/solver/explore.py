@@ -6,6 +6,7 @@ self-motion manifold of a redundant arm at a 6-d pose) and refines them back ont
 distinct exact solutions the table did not give.
 """
 
+import functools
 from typing import Tuple
 import zlib
 
@@ -44,31 +45,64 @@ def restart(ctx: Context, c: Candidates, goal: Goal, deadline, keep: int = 8
     return Candidates.concat(c, new), r.cut_short
 
 
+def branch_restarts(ctx: Context, c: Candidates, goal: Goal, deadline, count: int
+                    ) -> Candidates:
+    """``c`` and ``count`` starts drawn uniformly in joint space, refined onto the goal.
+
+    A pose of an arm with six joints or fewer has isolated solutions (up to 8 branches for a
+    6-joint wrist-partitioned arm): no self-motion leads from one to another, and the model's
+    candidates seldom cover them all, so random starts look for the rest, as TRAC-IK's random
+    restarts do. The draws are fixed per target (deterministic answers).
+    """
+    if count < 1:
+        return c
+    robot = ctx.robot
+    rng = np.random.default_rng(zlib.crc32(goal.position.tobytes()) + 1)
+    q = rng.uniform(robot.lower, robot.upper, (count, robot.dof))
+    r = refine(ctx, q, goal, deadline, prune=True)
+    return Candidates.concat(c, assess(r.q, _unindexed(r.q, c.z.shape[1]), r.perr, r.oerr,
+                                       goal.kind, ctx.config))
+
+
 def periodic_equivalents(ctx: Context, c: Candidates, per_solution: int = 16) -> Candidates:
     """``c`` and, after each row, its equivalents with periodic joints turned by +-2 pi.
 
     A periodic joint's q and q +- 2 pi place the arm alike; each equivalent within the joint
     limits is a further solution (cable wrap, distance to the current state). Per row, at most
-    ``per_solution`` of them, fewest joints turned first.
+    ``per_solution`` of them: one joint turned, then two.
     """
     robot = ctx.robot
-    turns = np.flatnonzero(robot.periodic)
-    if len(turns) == 0 or len(c) == 0:
+    patterns = _turn_patterns(tuple(bool(p) for p in robot.periodic))
+    if len(patterns) == 0 or len(c) == 0:
         return c
-    rows, shifted = [], []
-    for i, q in enumerate(c.q):
-        options = [[0.0] + [s for s in (2 * np.pi, -2 * np.pi)
-                            if robot.lower[j] - 1e-9 <= q[j] + s <= robot.upper[j] + 1e-9]
-                   for j in turns]
-        combos = np.array(np.meshgrid(*options, indexing='ij')).reshape(len(turns), -1).T
-        combos = combos[np.argsort((combos != 0).sum(1), kind='stable')][:per_solution + 1]
-        for shift in combos:
-            qs = q.copy()
-            qs[turns] += shift
-            rows.append(i)
-            shifted.append(np.clip(qs, robot.lower, robot.upper))
-    out = c.take(np.array(rows))
-    return Candidates(np.array(shifted), out.z, out.perr, out.oerr, out.exact)
+    q = c.q[:, None, :] + patterns[None]                              # (M, P, n)
+    fits = np.all((q >= robot.lower - 1e-9) & (q <= robot.upper + 1e-9), axis=2)
+    fits &= np.cumsum(fits, axis=1) <= per_solution                   # the first ones per row
+    rows, cols = np.nonzero(np.concatenate([np.ones((len(c), 1), bool), fits], axis=1))
+    shifted = np.concatenate([c.q[:, None], q], axis=1)[rows, cols]
+    out = c.take(rows)
+    return Candidates(np.clip(shifted, robot.lower, robot.upper), out.z, out.perr, out.oerr,
+                      out.exact)
+
+
+@functools.lru_cache(maxsize=16)
+def _turn_patterns(periodic: Tuple[bool, ...]) -> np.ndarray:
+    """Shifts (P, n) [rad] that turn one, then two, periodic joints by +-2 pi."""
+    turns = np.flatnonzero(periodic)
+    out = []
+    for j in turns:
+        for s in (2 * np.pi, -2 * np.pi):
+            v = np.zeros(len(periodic))
+            v[j] = s
+            out.append(v)
+    for a in range(len(turns)):
+        for b in range(a + 1, len(turns)):
+            for sa in (2 * np.pi, -2 * np.pi):
+                for sb in (2 * np.pi, -2 * np.pi):
+                    v = np.zeros(len(periodic))
+                    v[turns[a]], v[turns[b]] = sa, sb
+                    out.append(v)
+    return np.array(out).reshape(-1, len(periodic))
 
 
 def walk(ctx: Context, c: Candidates, goal: Goal, deadline, need: int) -> Candidates:

@@ -4,8 +4,8 @@
    the position model's postures that had the goal's orientation;
 2. their postures (the table's decoded postures, or a decode at the goal; raw answers are
    always decoded at the goal);
-3. refinement, then restarts when nothing converged, then (pose goals of arms with more than
-   six joints) the self-motion walk;
+3. refinement, then restarts when nothing converged, then for pose goals the self-motion walk
+   (arms with more than six joints) or random starts for the other branches (six or fewer);
 4. exact solutions first, one per distinct posture, with the 2 pi equivalents of periodic
    joints, ranked (collisions, objective);
 5. Algorithm 2 when obstacles leave no free exact solution.
@@ -23,8 +23,9 @@ from sik_ros.solver.batch import Candidates
 from sik_ros.solver.candidates import oriented_postures, starting_postures, table_candidates
 from sik_ros.solver.codec import decode, encode
 from sik_ros.solver.context import Context, Goal, POSE
-from sik_ros.solver.explore import periodic_equivalents, restart, walk
-from sik_ros.solver.ranking import assess, best_distinct, distinct_mask, merge, rank
+from sik_ros.solver.explore import branch_restarts, periodic_equivalents, restart, walk
+from sik_ros.solver.ranking import (assess, best_distinct, distinct_mask, merge, rank,
+                                    same_postures)
 from sik_ros.solver.refine import errors, refine
 from sik_ros.solver.results import IKResult, Solution
 
@@ -84,15 +85,18 @@ def solve(ctx: Context, goal: Goal, num: int, q_seed: Optional[np.ndarray],
         if not far and not c.exact.any():
             c, cut = restart(ctx, c, goal, deadline)
             timed_out = timed_out or cut
-        # a pose of a 6-joint arm has isolated solutions: no self-motion to walk along
-        if goal.kind == POSE and not far and cfg.walk_rounds > 0 and ctx.robot.dof > 6:
+        if goal.kind == POSE and not far and ctx.robot.dof > 6 and cfg.walk_rounds > 0:
             c = walk(ctx, c, goal, deadline, num + max(cfg.early_stop_margin, 0))
+        elif goal.kind == POSE and not far and ctx.robot.dof <= 6 and not past(deadline):
+            # isolated solutions: no self-motion to walk along; random starts find branches
+            c = branch_restarts(ctx, c, goal, deadline, cfg.branch_restarts)
     else:
         c = assess(c.q, c.z, *errors(ctx, c.q, goal), goal.kind, cfg)
     if c.exact.any():  # with exact solutions, only exact ones are returned
         c = c.take(c.exact)
     c = best_distinct(c, cfg.distinct_threshold, ctx.ignores_last(goal.kind))
     if ctx.robot.periodic.any():
+        c = c.take(~same_postures(c.q, ctx.robot.periodic))
         c = best_distinct(periodic_equivalents(ctx, c), cfg.distinct_threshold,
                           ctx.ignores_last(goal.kind))
     sols = rank(ctx, c, q_seed, obstacles, objective, limit=num, deadline=deadline)

@@ -23,8 +23,9 @@ from sik_ros.solver.results import Solution
 ORIENTATION_WEIGHT = 0.1
 #: Ranking cost of an inexact solution per metre of score [1/m].
 INEXACT_COST = 100.0
-#: Ranking offsets of the tiers: inexact solutions, then colliding ones, behind the rest.
-INEXACT_TIER, COLLIDING_TIER = 1e3, 2e3
+#: Ranking offsets of the tiers: a periodic joint's further 2 pi equivalents of a posture, then
+#: inexact solutions, then colliding ones, behind the rest.
+EQUIVALENT_TIER, INEXACT_TIER, COLLIDING_TIER = 500.0, 1e3, 2e3
 
 
 def pose_score(perr: np.ndarray, oerr: np.ndarray) -> np.ndarray:
@@ -69,6 +70,33 @@ def best_distinct(c: Candidates, threshold: float, ignore_last: bool) -> Candida
     return c.take(distinct_mask(c.q, threshold, ignore_last))
 
 
+def equivalents(q: np.ndarray, periodic: np.ndarray, cost: np.ndarray) -> np.ndarray:
+    """(M,) bool: rows that are 2 pi equivalents of a row of lower ``cost`` (same posture)."""
+    if not periodic.any() or len(q) < 2:
+        return np.zeros(len(q), dtype=bool)
+    wrapped = q.copy()
+    wrapped[:, periodic] = np.mod(q[:, periodic] + np.pi, 2 * np.pi)
+    order = np.argsort(cost, kind='stable')
+    keys = np.round(wrapped[order] * 1e6).astype(np.int64)  # exact 2 pi shifts of one row
+    _, first = np.unique(keys, axis=0, return_index=True)
+    out = np.ones(len(q), dtype=bool)
+    out[order[first]] = False  # the cheapest row of each posture
+    return out
+
+
+def same_postures(q: np.ndarray, periodic: np.ndarray, tol: float = 1e-3) -> np.ndarray:
+    """(M,) bool: rows that are 2 pi equivalents of an earlier row, within ``tol`` [rad].
+
+    The same posture found twice, from different starts, with a periodic joint a turn apart.
+    """
+    if not periodic.any() or len(q) < 2:
+        return np.zeros(len(q), dtype=bool)
+    d = q[:, None] - q[None]
+    d[..., periodic] = np.angle(np.exp(1j * d[..., periodic]))
+    close = np.abs(d).max(axis=2) < tol
+    return np.tril(close, -1).any(axis=1)
+
+
 def rank(ctx: Context, c: Candidates, q_seed: Optional[np.ndarray],
          obstacles: Sequence[Obstacle], objective: Optional[Objective],
          limit: Optional[int] = None, deadline: Optional[float] = None) -> List[Solution]:
@@ -77,8 +105,10 @@ def rank(ctx: Context, c: Candidates, q_seed: Optional[np.ndarray],
     The default objective is the distance to the seed when there is one, else the closeness
     to the joint limits. Self-collision is checked lazily in ranking order: a self-colliding
     posture drops behind every free one, so checking stops once ``limit`` free postures are
-    found. Past ``deadline`` no more collision checks start: clearances not computed are NaN
-    and rank as colliding; self-collision not checked is reported False.
+    found. Among the 2 pi equivalents of a posture (periodic joints) the best by the objective
+    ranks with the others, the rest after every distinct posture. Past ``deadline`` no more
+    collision checks start: clearances not computed are NaN and rank as colliding;
+    self-collision not checked is reported False.
     """
     if len(c) == 0:
         return []
@@ -89,6 +119,8 @@ def rank(ctx: Context, c: Candidates, q_seed: Optional[np.ndarray],
     cost = np.asarray(objective(c.q), dtype=float)
     inexact_cost = np.where(c.exact, 0.0, pose_score(c.perr, c.oerr) * INEXACT_COST)
     base = inexact_cost + np.where(c.exact, cost, 0.0) + INEXACT_TIER * ~c.exact
+    # every distinct posture before a second 2 pi equivalent of one (the best of each first)
+    base = base + EQUIVALENT_TIER * equivalents(c.q, ctx.robot.periodic, base)
     score = base + COLLIDING_TIER * hit
     selfc = np.zeros(len(c), dtype=bool)
     limit = len(c) if limit is None else limit
