@@ -28,7 +28,7 @@ from rclpy.node import Node
 from shape_msgs.msg import SolidPrimitive
 
 from sik_interfaces.msg import IKSolutionArray
-from sik_interfaces.srv import SolveIK
+from sik_interfaces.srv import SolveIK, SolvePath
 from sik_ros.ros.client import SolveIKClient
 from sik_ros.ros.conversions import ERROR_NAMES
 
@@ -190,6 +190,50 @@ def topic_goal(node: Node, position: Sequence[float], timeout: float = 10.0):
     return got[0] if got else None
 
 
+def path_demo(node: Node, robot, pose: bool) -> bool:
+    """Plan a straight line and a circle through ``~/solve_path`` and print the ranked paths."""
+    client = node.create_client(SolvePath, f'{NODE}/solve_path')
+    if not client.wait_for_service(timeout_sec=10.0):
+        print('== ~/solve_path: not available')
+        return False
+    p0, quat = robot.fk(np.array(READY))
+    t = np.linspace(0, 1, 30)
+    shapes = (('straight line, 30 cm along y', p0 + t[:, None] * [0.0, 0.3, 0.0]),
+              ('circle, radius 10 cm in the horizontal plane',
+               p0 + 0.1 * np.stack([np.cos(2 * np.pi * t) - 1, np.sin(2 * np.pi * t),
+                                    0 * t], axis=1)))
+    ok = True
+    for title, points in shapes:
+        req = SolvePath.Request(use_orientation=pose, velocity_scaling=0.5)
+        for point in points:
+            w = PoseStamped()
+            w.pose.position.x, w.pose.position.y, w.pose.position.z = map(float, point)
+            (w.pose.orientation.x, w.pose.orientation.y, w.pose.orientation.z,
+             w.pose.orientation.w) = map(float, quat)
+            req.waypoints.append(w)
+        req.seed.name, req.seed.position = list(robot.joint_names), [float(v) for v in READY]
+        req.timeout.sec = 5
+        t0 = time.perf_counter()
+        answer = call(node, client, req, 30.0)
+        took = time.perf_counter() - t0
+        kind = 'pose' if pose else 'position'
+        if answer is None:
+            print(f'== path ({kind}): {title}: no answer')
+            ok = False
+            continue
+        print(f'== path ({kind}): {title}, {len(points)} waypoints: '
+              f'{ERROR_NAMES.get(answer.error_code, answer.error_code)}, fraction '
+              f'{answer.fraction:.2f}, {took * 1e3:.1f} ms round trip ({answer.message})')
+        print(f"{'#':>3} {'max step [rad]':>14} {'travel [rad]':>12} {'duration [s]':>12} "
+              f"{'max err [mm]':>12} {'cost':>7}")
+        for i, m in enumerate(answer.metrics, 1):
+            print(f'{i:>3} {m.max_step:>14.3f} {m.travel:>12.3f} {m.duration:>12.2f} '
+                  f'{1e3 * m.max_position_error:>12.4f} {m.cost:>7.3f}')
+        ok &= answer.error_code in ANSWERED
+    node.destroy_client(client)
+    return ok
+
+
 def run_demo(node: Node, client: 'SolveIKClient', goals: List[str]) -> bool:
     """Send the demo goals and print the answers; True if every request was answered.
 
@@ -235,7 +279,8 @@ def run_demo(node: Node, client: 'SolveIKClient', goals: List[str]) -> bool:
         print(f'== {title}: no message on ~/solutions')
         return False
     print(format_answer(title, answer, time.perf_counter() - t0))
-    return ok and answer.error_code in ANSWERED
+    ok &= answer.error_code in ANSWERED
+    return path_demo(node, robot, 'pose' in goals) and ok
 
 
 def main(argv: Optional[List[str]] = None) -> int:
