@@ -7,8 +7,9 @@ warm start: the posture is kept, the paper's "keep the posture" strategy). The c
 consecutive waypoints form a ladder graph; an edge is allowed when no joint moves more than
 ``max_joint_step`` and the tool stays on the Cartesian segment between the two waypoints
 (checked by FK of interpolated configurations), and is weighted by its joint travel (plus the
-distance of the start from the seed). Dynamic programming over the ladder gives the cheapest
-paths; the best few, from distinct starts, are returned. When no candidate of a waypoint can be
+distance of the start from the seed). Dynamic programming over the ladder (a beam of the
+``tracks`` cheapest candidates per waypoint) gives the cheapest paths; the best few, from
+distinct starts, are returned. When no candidate of a waypoint can be
 reached, the longest feasible prefix is returned with its ``fraction``, as MoveIt's
 ``computeCartesianPath`` does.
 """
@@ -74,6 +75,7 @@ class PathSettings:
     path_tolerance: float = 0.005
     orientation_path_tolerance: float = 0.05
     starts: int = 16
+    tracks: int = 8
     seed_weight: float = 1.0
 
 
@@ -98,25 +100,27 @@ def _continue(ctx: Context, q: np.ndarray, goal: Goal, deadline) -> np.ndarray:
 
 def _on_segment(ctx: Context, qa: np.ndarray, qb: np.ndarray, goals: Sequence[Goal], i: int,
                 s: PathSettings) -> np.ndarray:
-    """(A, B) bool: whether the tool stays on segment i-1 -> i between each pair of rows."""
+    """(K,) bool: whether the tool stays on segment i-1 -> i between rows ``qa[k]``, ``qb[k]``.
+
+    Checked by FK at :data:`EDGE_CHECKS` along the joint-space edge: the tool within
+    ``path_tolerance`` of the segment and, for pose waypoints, its orientation within
+    ``orientation_path_tolerance`` of the turn between the two waypoints' orientations.
+    """
     pa, pb = goals[i - 1].position, goals[i].position
     seg = pb - pa
     length2 = max(float(seg @ seg), 1e-18)
-    ok = np.ones((len(qa), len(qb)), dtype=bool)
-    for t in EDGE_CHECKS:
-        q = (1 - t) * qa[:, None] + t * qb[None]
-        p, r = chain_forward(ctx.robot.chain, q.reshape(-1, ctx.robot.dof))
-        u = np.clip(((p - pa) @ seg) / length2, 0.0, 1.0)
-        off = np.linalg.norm(p - (pa + u[:, None] * seg), axis=1)
-        ok &= (off <= s.path_tolerance).reshape(ok.shape)
-        if goals[i].rotation is not None:
-            # the orientation between two waypoints: within the tolerance of one of them
-            da = rotation_angle(goals[i - 1].rotation, r)
-            db = rotation_angle(goals[i].rotation, r)
-            ok &= (np.minimum(da, db) <= s.orientation_path_tolerance +
-                   rotation_angle(goals[i - 1].rotation, goals[i].rotation[None])[0]
-                   ).reshape(ok.shape)
-    return ok
+    t = np.repeat(np.asarray(EDGE_CHECKS), len(qa))
+    q = (1 - t)[:, None] * np.tile(qa, (len(EDGE_CHECKS), 1)) + \
+        t[:, None] * np.tile(qb, (len(EDGE_CHECKS), 1))
+    p, r = chain_forward(ctx.robot.chain, q)
+    u = np.clip(((p - pa) @ seg) / length2, 0.0, 1.0)
+    ok = np.linalg.norm(p - (pa + u[:, None] * seg), axis=1) <= s.path_tolerance
+    if goals[i].rotation is not None:
+        turn = rotation_angle(goals[i - 1].rotation, goals[i].rotation[None])[0]
+        near = np.minimum(rotation_angle(goals[i - 1].rotation, r),
+                          rotation_angle(goals[i].rotation, r))
+        ok &= near <= s.orientation_path_tolerance + turn
+    return ok.reshape(len(EDGE_CHECKS), len(qa)).all(axis=0)
 
 
 def solve_path(ctx: Context, goals: Sequence[Goal], q_seed: Optional[np.ndarray],
@@ -159,14 +163,17 @@ def solve_path(ctx: Context, goals: Sequence[Goal], q_seed: Optional[np.ndarray]
             if len(q) == 0:
                 break
         step = np.abs(q[None] - prev[:, None]).max(axis=2)      # (P, Q)
-        allowed = (step <= s.max_joint_step) & _on_segment(ctx, prev, q, goals, i, s)
+        allowed = step <= s.max_joint_step
+        a, b = np.nonzero(allowed)  # only the edges short enough are checked on the segment
+        allowed[a, b] = _on_segment(ctx, prev[a], q[b], goals, i, s)
         travel = np.linalg.norm(q[None] - prev[:, None], axis=2)
         total = np.where(allowed, cost[-1][prev_idx][:, None] + travel, np.inf)
         best = np.argmin(total, axis=0)
         c = total[best, np.arange(len(q))]
         if not np.isfinite(c).any():
             break
-        cand.append(q), back.append(prev_idx[best]), cost.append(c)
+        keep = np.argsort(c, kind='stable')[:s.tracks]  # a beam: the cheapest tracks go on
+        cand.append(q[keep]), back.append(prev_idx[best][keep]), cost.append(c[keep])
         reached = i + 1
     paths = _paths(ctx, goals, cand, back, cost, obstacles, s)
     success = reached == n and bool(paths)
