@@ -14,7 +14,9 @@ from typing import Callable, Dict, Optional
 import numpy as np
 from scipy.spatial.transform import Rotation
 import torch
+from torch.nn.parallel import DistributedDataParallel
 
+from sik_ros import distributed
 from sik_ros.artifacts import (atomic_write, check_robot_manifest, FORMAT_VERSION,
                                library_versions)
 from sik_ros.dataset import Dataset, dataset_summary
@@ -144,9 +146,14 @@ class Trainer:
         self.val_idx = perm[:n_val]
         self.train_idx = perm[n_val:]
         self.model = build_model(model_cfg).to(self.device)
+        self.rank, self.world_size = distributed.world()
+        # several processes (torchrun): gradients averaged by DDP, batches drawn per rank
+        self.net = self.model
+        if self.world_size > 1 and model_cfg.kind != 'anfis':
+            self.net = DistributedDataParallel(self.model)
         self.fk = TorchChain(robot.chain).to(self.device)
         self.opt = torch.optim.Adam(self.model.parameters(), lr=train_cfg.lr)
-        self.gen = torch.Generator().manual_seed(train_cfg.seed + 1)
+        self.gen = torch.Generator().manual_seed(train_cfg.seed + 1 + 7919 * self.rank)
         self.step = 0
         self.elapsed = 0.0
         self.history = []
@@ -164,11 +171,11 @@ class Trainer:
         x = self.norm.q_to_net(q)
         out = {}
         if self.model_cfg.kind in ('sik', 'psik'):
-            x_hat, mu, logvar = self.model(g, x)
+            x_hat, mu, logvar = self.net(g, x)
             if logvar is not None:
                 out['kl'] = kl_normal(mu, logvar).mean()
         else:
-            x_hat = self.model(g)
+            x_hat = self.net(g)
         out['recon'] = torch.mean((x_hat - x) ** 2)
         if self.cfg.fk_weight > 0:
             p_hat, r_hat = self.fk(self.norm.q_from_net(x_hat))
@@ -246,7 +253,7 @@ class Trainer:
                 self.save()
             if progress:
                 progress(self.step, last)
-            if max_time is not None and time.perf_counter() - t0 >= max_time:
+            if self._stop(max_time is not None and time.perf_counter() - t0 >= max_time):
                 break
         self.save()
         return last
@@ -261,6 +268,14 @@ class Trainer:
         for _ in range(steps):
             self._gradient_step()
         return (time.perf_counter() - t0) / steps
+
+    def _stop(self, mine: bool) -> bool:
+        """Whether to stop now: with several processes, as soon as any of them would."""
+        if self.world_size == 1 or self.net is self.model:
+            return mine
+        flag = torch.tensor([1.0 if mine else 0.0], device=self.device)
+        torch.distributed.all_reduce(flag, op=torch.distributed.ReduceOp.MAX)
+        return bool(flag.item() > 0)
 
     def _gradient_step(self) -> Dict[str, float]:
         """One optimiser step on a random batch; the losses it saw."""
@@ -338,9 +353,11 @@ class Trainer:
         return ckpt
 
     def save(self) -> Path:
-        """Write ``last.pt`` atomically in the output directory."""
-        self.out_dir.mkdir(parents=True, exist_ok=True)
+        """Write ``last.pt`` atomically in the output directory (rank 0 only)."""
         path = self.out_dir / 'last.pt'
+        if self.rank != 0:
+            return path
+        self.out_dir.mkdir(parents=True, exist_ok=True)
         with atomic_write(path) as tmp:
             torch.save(self.checkpoint(), tmp)
         return path
@@ -362,6 +379,8 @@ class Trainer:
         self.history = list(ckpt['history'])
         torch.set_rng_state(ckpt['rng']['torch'])
         self.gen.set_state(ckpt['rng']['batches'])
+        if self.rank > 0:  # the checkpoint holds rank 0's stream: the others draw their own
+            self.gen.manual_seed(self.cfg.seed + 1 + 7919 * self.rank + self.step)
         if 'pso' in ckpt:
             self._pso = {k: v.clone() for k, v in ckpt['pso'].items()}
 

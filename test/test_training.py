@@ -3,6 +3,7 @@
 import subprocess
 import sys
 
+import numpy as np
 import pytest
 import torch
 
@@ -144,3 +145,35 @@ def test_pso_trains_an_anfis_through_the_same_loop(panda, uniform_small, tmp_pat
     rest.run()
     assert rest.step == 20
     assert torch.equal(rest.model.params_flat, whole.model.params_flat)
+
+
+def test_two_gloo_processes_train_in_sync_and_the_checkpoint_serves(
+        panda, uniform_small, tmp_path):
+    """torchrun with 2 CPU processes: same weights on both ranks; rank 0's model solves."""
+    import json
+    import os
+    from sik_ros.bundle import build_bundle
+    from sik_ros.index_table import TableConfig
+    from sik_ros.solver import SelectiveIK
+    out = tmp_path / 'ddp'
+    env = {**os.environ, 'OMP_NUM_THREADS': '1'}
+    run = subprocess.run(
+        [os.path.join(os.path.dirname(sys.executable), 'torchrun'), '--standalone',
+         '--nproc_per_node', '2', '-m', 'sik_ros.cli.train', '--dataset',
+         str(uniform_small.path), '--out', str(out), '--preset', 'tiny', '--steps', '8',
+         '--batch-size', '64', '--eval-every', '8', '--checkpoint-every', '8', '--threads', '1',
+         '--quiet', '--export', str(out / 'model.pt')],
+        capture_output=True, text=True, timeout=300, env=env)
+    assert run.returncode == 0, run.stderr[-3000:]
+    ranks = [json.loads(line) for line in run.stdout.splitlines() if line.startswith('{')]
+    assert sorted(r['rank'] for r in ranks) == [0, 1]
+    assert all(r['world_size'] == 2 for r in ranks)
+    assert ranks[0]['weights_sha256'] == ranks[1]['weights_sha256']
+    assert all(r['step'] == 8 for r in ranks)
+    ckpt = load_checkpoint(out / 'last.pt')
+    assert ckpt['step'] == 8
+    bundle = build_bundle(tmp_path / 'bundle', panda, {'position': out / 'model.pt'},
+                          uniform_small, TableConfig(cell=0.1))
+    p, _ = panda.fk(panda.lower * 0.3 + panda.upper * 0.7)
+    res = SelectiveIK.load(bundle).solve(p, num_solutions=4)
+    assert res.solutions and np.isfinite(res.solutions[0].position_error)

@@ -7,7 +7,9 @@ from typing import List, Optional
 
 from tqdm import tqdm
 
-from sik_ros.checkpoints import export_model, load_checkpoint
+from sik_ros import distributed
+from sik_ros.artifacts import write_text_atomic
+from sik_ros.checkpoints import export_model, load_checkpoint, model_signature
 from sik_ros.cli import argv_or_default, Parser, run_cli
 from sik_ros.dataset import Dataset
 from sik_ros.errors import ArtifactExists, InvalidArgument
@@ -55,6 +57,7 @@ def main(argv: Optional[List[str]] = None) -> int:
     args = build_parser().parse_args(argv_or_default(argv))
 
     def body() -> int:
+        rank, size = distributed.init(args.device or 'cpu')
         out = Path(args.out)
         if args.max_time is not None and args.max_time <= 0:
             raise InvalidArgument(f'--max-time must be positive; got {args.max_time}')
@@ -90,7 +93,7 @@ def main(argv: Optional[List[str]] = None) -> int:
         trainer = Trainer(robot, ds, model_cfg, train_cfg, out)
         if ckpt is not None:
             trainer.restore(ckpt)
-        bar = tqdm(total=train_cfg.steps, initial=trainer.step, disable=args.quiet,
+        bar = tqdm(total=train_cfg.steps, initial=trainer.step, disable=args.quiet or rank > 0,
                    desc=f'train {model_cfg.kind}/{model_cfg.goal}', mininterval=2.0)
 
         def progress(step, rec):
@@ -100,11 +103,15 @@ def main(argv: Optional[List[str]] = None) -> int:
                                 val_cm=f"{rec['val_dist_mean_m'] * 100:.2f}")
         last = trainer.run(max_time=args.max_time, progress=progress)
         bar.close()
-        (out / 'history.json').write_text(json.dumps(trainer.history, indent=1))
-        if args.export:
-            export_model(trainer.checkpoint(), Path(args.export))
+        if rank == 0:
+            write_text_atomic(out / 'history.json', json.dumps(trainer.history, indent=1))
+            if args.export:
+                export_model(trainer.checkpoint(), Path(args.export))
+        weights = model_signature(trainer.checkpoint())['weights_sha256']
+        distributed.finish()
         print(json.dumps({'step': trainer.step, 'elapsed_s': round(trainer.elapsed, 1),
-                          **{k: v for k, v in last.items() if k.startswith('val')}}))
+                          **{k: v for k, v in last.items() if k.startswith('val')},
+                          'rank': rank, 'world_size': size, 'weights_sha256': weights}))
         return 0
     return run_cli('sik-train', body)
 

@@ -43,6 +43,10 @@ from sik_ros.solver import IKResult, SelectiveIK
 from sik_ros.solver_pool import SolverCrashed, SolverPool, SolverTimeout
 
 NODE_NAME = 'sik_node'
+#: Goals ``~/goal`` keeps while the solvers are busy (KEEP_LAST): a burst of more loses the
+#: oldest, as any KEEP_LAST subscription does; a client that needs every answer calls the
+#: service.
+GOAL_QUEUE = 100
 #: Executor threads, and solver instances in the pool (one per thread).
 WORKERS = 4
 #: Longest time the main thread waits in the executor before it checks for signals [s].
@@ -104,7 +108,8 @@ class SikNode(Node):
         self._markers_pub = self.create_publisher(MarkerArray, '~/markers', 5)
         self.create_service(SolveIK, '~/solve_ik', self._on_solve_ik, callback_group=group)
         self.create_service(SolvePath, '~/solve_path', self._on_solve_path, callback_group=group)
-        self.create_subscription(PoseStamped, '~/goal', self._on_goal, 10, callback_group=group)
+        self.create_subscription(PoseStamped, '~/goal', self._on_goal, GOAL_QUEUE,
+                                 callback_group=group)
         self._update_joint_state_subscription()
         latched = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL,
                              reliability=ReliabilityPolicy.RELIABLE)
