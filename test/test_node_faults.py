@@ -110,3 +110,47 @@ def test_hostile_requests_get_codes_in_time_and_shutdown_under_load_is_clean(
     finally:
         node.destroy_client(client)
         demo.stop_node(proc)
+
+
+def _rss_mb(pid):
+    with open(f'/proc/{pid}/status') as f:
+        return next(int(line.split()[1]) for line in f if line.startswith('VmRSS:')) / 1024
+
+
+def test_parameter_churn_does_not_grow_the_solver_process(tiny_bundle, graph, tmp_path):
+    """40 distinct position_tolerance values, a request each: the solver process stays flat."""
+    import os
+    from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
+    from rcl_interfaces.srv import SetParameters
+    env, node = graph
+    with open(tmp_path / 'node.log', 'wb') as log:
+        proc = demo.launch_node(str(tiny_bundle), ['solver_processes:=1'], env=env, stdout=log,
+                                stderr=subprocess.STDOUT)
+    client = node.create_client(SolveIK, '/sik_node/solve_ik')
+    params = node.create_client(SetParameters, '/sik_node/set_parameters')
+    try:
+        assert demo.wait_for_service(node, client, proc, 90.0)
+        assert params.wait_for_service(timeout_sec=10.0)
+        with open(f'/proc/{proc.pid}/task/{proc.pid}/children') as f:
+            child = [int(c) for c in f.read().split()
+                     if 'multiprocessing' in open(f'/proc/{c}/cmdline').read()][0]
+
+        def churn(k):
+            value = ParameterValue(type=ParameterType.PARAMETER_DOUBLE,
+                                   double_value=1e-4 * (1 + k / 1000))
+            demo.call(node, params, SetParameters.Request(
+                parameters=[Parameter(name='position_tolerance', value=value)]), 10.0)
+            answer = demo.call(node, client, demo.pose_request((0.4, 0.1, 0.4), None, 4), 20.0)
+            assert answer.error_code in (R.SUCCESS, R.NO_SOLUTION), answer.message
+        for k in range(8):  # warm-up: the cache fills to its bound
+            churn(k)
+        before = _rss_mb(child)
+        for k in range(8, 48):
+            churn(k)
+        grown = _rss_mb(child) - before
+        assert grown < 15.0, f'{grown:.1f} MB after 40 new settings'
+        assert os.path.exists(f'/proc/{child}')  # the same process all along
+    finally:
+        node.destroy_client(client)
+        node.destroy_client(params)
+        demo.stop_node(proc)
