@@ -149,7 +149,7 @@ def test_pso_trains_an_anfis_through_the_same_loop(panda, uniform_small, tmp_pat
 
 def test_two_gloo_processes_train_in_sync_and_the_checkpoint_serves(
         panda, uniform_small, tmp_path):
-    """torchrun with 2 CPU processes: same weights on both ranks; rank 0's model solves."""
+    """Two CPU processes under torchrun: same weights on both ranks; rank 0's model solves."""
     import json
     import os
     from sik_ros.bundle import build_bundle

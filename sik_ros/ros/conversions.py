@@ -226,3 +226,37 @@ def posture_markers(chain, solutions: Sequence[Solution], header: Header,
             joints.scale.x = joints.scale.y = joints.scale.z = 2.5 * width
             markers += [line, joints]
     return MarkerArray(markers=markers)
+
+
+def solution_count(asked: int, default: int, cap: int) -> Tuple[int, str]:
+    """Solutions to return for a request's ``max_solutions`` (0: the default), and a note."""
+    if asked == 0:
+        return default, ''
+    if asked > cap:
+        return cap, f'max_solutions {asked} clamped to the cap max_solutions_cap={cap}'
+    return asked, ''
+
+
+def result_code(result, obstacles: bool, timeout: float) -> Tuple[int, str]:
+    """The SolveIK code and message of a library result.
+
+    ``TIMEOUT`` when the deadline stopped the collision checks before a collision-free
+    solution was confirmed, or came before any solution within tolerance.
+    """
+    R = SolveIK.Response
+    exact = sum(s.converged for s in result.solutions)
+    summary = f'{len(result.solutions)} solutions, {exact} within tolerance'
+    if obstacles:
+        summary += f', {sum(not s.in_collision for s in result.solutions)} collision-free'
+    summary += f', {result.goal} goal, {result.elapsed * 1e3:.1f} ms'
+    unchecked = result.timed_out and obstacles and not any(
+        s.converged and not s.in_collision for s in result.solutions)
+    if unchecked:
+        return R.TIMEOUT, (f'timed out after {timeout * 1e3:.0f} ms before a collision-free '
+                           f'solution was confirmed ({summary})')
+    if result.success:
+        return R.SUCCESS, summary
+    if result.timed_out:
+        return R.TIMEOUT, (f'timed out after {timeout * 1e3:.0f} ms with no solution within '
+                           f'tolerance ({summary})')
+    return R.NO_SOLUTION, f'{result.message or "no solution"} ({summary})'

@@ -38,7 +38,7 @@ from sik_ros.errors import SikError
 from sik_ros.robots import chain_differences
 from sik_ros.ros import conversions as conv
 from sik_ros.ros.params import declarations, NodeParams, validate
-from sik_ros.ros.path_service import answer_path, path_markers
+from sik_ros.ros.path_service import handle_path
 from sik_ros.solver import IKResult, SelectiveIK
 from sik_ros.solver_pool import SolverCrashed, SolverPool, SolverTimeout
 
@@ -238,14 +238,6 @@ class SikNode(Node):
             return None
         return np.clip(q, self._ik.robot.lower, self._ik.robot.upper)
 
-    def _count(self, asked: int, p: NodeParams) -> Tuple[int, str]:
-        if asked == 0:
-            return p.num_solutions, ''
-        if asked > p.max_solutions_cap:
-            return p.max_solutions_cap, (f'max_solutions {asked} clamped to the cap '
-                                         f'max_solutions_cap={p.max_solutions_cap}')
-        return asked, ''
-
     def _solve(self, request: SolveIK.Request, p: NodeParams
                ) -> Tuple[int, str, Optional[IKResult]]:
         """Error code, message and (when the goal was valid) the library's result."""
@@ -257,7 +249,8 @@ class SikNode(Node):
             return (Response.INVALID_FRAME,
                     f'target frame_id {request.target.header.frame_id!r} is not the base frame '
                     f'{base!r} (or empty); sik_node does not transform frames', None)
-        num, note = self._count(request.max_solutions, p)
+        num, note = conv.solution_count(request.max_solutions, p.num_solutions,
+                                        p.max_solutions_cap)
         try:
             position, orientation = conv.goal_from_pose(request.target.pose,
                                                         request.use_orientation)
@@ -282,24 +275,7 @@ class SikNode(Node):
             return Response.INTERNAL_ERROR, f'internal error: {exc}', None
         except SikError as exc:
             return conv.error_code_for(exc), str(exc), None
-        exact = sum(s.converged for s in result.solutions)
-        summary = f'{len(result.solutions)} solutions, {exact} within tolerance'
-        if obstacles:
-            free = sum(not s.in_collision for s in result.solutions)
-            summary += f', {free} collision-free'
-        summary += f', {result.goal} goal, {result.elapsed * 1e3:.1f} ms'
-        unchecked = result.timed_out and obstacles and not any(
-            s.converged and not s.in_collision for s in result.solutions)
-        if unchecked:  # the deadline stopped the collision checks before a free solution
-            code, text = Response.TIMEOUT, (f'timed out after {timeout * 1e3:.0f} ms before a '
-                                            f'collision-free solution was confirmed ({summary})')
-        elif result.success:
-            code, text = Response.SUCCESS, summary
-        elif result.timed_out:
-            code, text = Response.TIMEOUT, (f'timed out after {timeout * 1e3:.0f} ms with no '
-                                            f'solution within tolerance ({summary})')
-        else:
-            code, text = Response.NO_SOLUTION, f'{result.message or "no solution"} ({summary})'
+        code, text = conv.result_code(result, bool(obstacles), timeout)
         return code, '; '.join(t for t in (text, note) if t), result
 
     def _answer(self, request: SolveIK.Request, where: str
@@ -309,13 +285,28 @@ class SikNode(Node):
         header = self._header(p)
         if self.closing:
             return Response.TIMEOUT, 'sik_node is shutting down', [], header
-        with self._in_flight_lock:
-            self._in_flight += 1
-        try:
+        with self._counted():
             return self._answer_counted(request, where, p, header)
-        finally:
-            with self._in_flight_lock:
-                self._in_flight -= 1
+
+    @property
+    def params(self) -> NodeParams:
+        """The parameters in force."""
+        return self._params
+
+    @property
+    def ik(self) -> SelectiveIK:
+        """The loaded solver (the one the clones and processes are made from)."""
+        return self._ik
+
+    @property
+    def mismatch(self) -> Optional[str]:
+        """Why requests are refused (the robot_description differs), or None."""
+        return self._mismatch
+
+    @property
+    def markers_pub(self):
+        """The ``~/markers`` publisher."""
+        return self._markers_pub
 
     @property
     def in_flight(self) -> int:
@@ -351,40 +342,22 @@ class SikNode(Node):
 
     def _on_solve_path(self, request: SolvePath.Request, response: SolvePath.Response
                        ) -> SolvePath.Response:
-        p = self._params
-        header = self._header(p)
-        if self.closing:
-            response.error_code, response.message = SolvePath.Response.TIMEOUT, 'shutting down'
-            return response
-        if self._mismatch is not None:
-            response.error_code = SolvePath.Response.ROBOT_MISMATCH
-            response.message = self._mismatch
-            return response
+        with self._counted():
+            return handle_path(self, request, response)
+
+    @contextmanager
+    def _counted(self) -> Iterator[None]:
+        """Count a request as in flight while it is answered."""
         with self._in_flight_lock:
             self._in_flight += 1
         try:
-            timeout = conv.seconds_from_duration(request.timeout) or p.path_timeout
-            with self._path_solver(p) as ik:
-                code, message, fraction, trajs, metrics, result = answer_path(
-                    ik, request, timeout, header)
-            if result is not None and result.paths and p.publish_markers and \
-                    not self.closing and self._markers_pub.get_subscription_count() > 0:
-                self._markers_pub.publish(path_markers(self._ik, result, header))
-        except Exception as exc:  # the node answers every request, whatever fails
-            self.get_logger().error(f'solve_path: unexpected {type(exc).__name__}: {exc}\n'
-                                    f'{traceback.format_exc()}')
-            code, message, fraction, trajs, metrics = (
-                SolvePath.Response.INTERNAL_ERROR,
-                f'internal error: {type(exc).__name__}: {exc}', 0.0, [], [])
+            yield
         finally:
             with self._in_flight_lock:
                 self._in_flight -= 1
-        response.error_code, response.message, response.fraction = code, message, fraction
-        response.trajectories, response.metrics = trajs, metrics
-        return response
 
     @contextmanager
-    def _path_solver(self, p: NodeParams) -> Iterator[SelectiveIK]:
+    def path_solver(self, p: NodeParams) -> Iterator[SelectiveIK]:
         """A solver for a path: from the pool of clones, or (solver processes) the node's own."""
         if self._processes is None:
             with self._solver(p) as ik:

@@ -1,5 +1,6 @@
 """``~/solve_path``: Cartesian paths as timed joint trajectories, and their RViz markers."""
 
+import traceback
 from typing import List, Tuple
 
 import numpy as np
@@ -76,3 +77,32 @@ def answer_path(ik: SelectiveIK, request: SolvePath.Request, timeout: float, hea
         code = Response.NO_SOLUTION
     text = summary if result.success else f'{result.message} ({summary})'
     return code, text, result.fraction, trajectories, metrics, result
+
+
+def handle_path(node, request: SolvePath.Request, response: SolvePath.Response
+                ) -> SolvePath.Response:
+    """The node's answer to a ``~/solve_path`` request (never raises)."""
+    p = node.params
+    header = Header(stamp=node.get_clock().now().to_msg(), frame_id=node.ik.robot.base_frame)
+    if node.closing:
+        response.error_code, response.message = Response.TIMEOUT, 'sik_node is shutting down'
+        return response
+    if node.mismatch is not None:
+        response.error_code, response.message = Response.ROBOT_MISMATCH, node.mismatch
+        return response
+    try:
+        timeout = conv.seconds_from_duration(request.timeout) or p.path_timeout
+        with node.path_solver(p) as ik:
+            code, message, fraction, trajs, metrics, result = answer_path(
+                ik, request, timeout, header)
+        if result is not None and result.paths and p.publish_markers and not node.closing \
+                and node.markers_pub.get_subscription_count() > 0:
+            node.markers_pub.publish(path_markers(node.ik, result, header))
+    except Exception as exc:  # the node answers every request, whatever fails
+        node.get_logger().error(f'solve_path: unexpected {type(exc).__name__}: {exc}\n'
+                                f'{traceback.format_exc()}')
+        code, message, fraction, trajs, metrics = (
+            Response.INTERNAL_ERROR, f'internal error: {type(exc).__name__}: {exc}', 0.0, [], [])
+    response.error_code, response.message, response.fraction = code, message, fraction
+    response.trajectories, response.metrics = trajs, metrics
+    return response
