@@ -3,7 +3,8 @@
 200 paths on the Panda: straight lines and circular arcs (radius 5-15 cm) of 10-60 cm with 20-60
 waypoints, the tool orientation held (pose paths) or free (position paths). Each path is drawn
 from a random configuration and kept only if a damped least squares continuation from it
-reaches every waypoint with steps of at most 0.3 rad (a continuous joint path exists); it is
+reaches every waypoint with steps of at most 0.3 rad (a continuous joint path exists) from a
+start clear of self-collision; it is
 then solved from a *different* random current state. Peers in the same run, path by path:
 TRAC-IK seeded with the previous waypoint's solution (the first with the current state; 5 ms
 per waypoint; the MoveIt way) for pose paths, a damped least squares continuation from the
@@ -96,10 +97,12 @@ class SeededTracIK:
         return True, np.array(out)
 
 
-def make_path(rng, robot, cont):
+def make_path(rng, robot, cont, checker):
     """A feasible path: waypoints (N, 3), rotations (N, 3, 3), quaternions, length, kind."""
     while True:
         q0 = rng.uniform(robot.lower, robot.upper)
+        if checker.self_collision(q0[None])[0]:
+            continue  # a path an arm can follow starts clear of itself
         p0, r0 = chain_forward(robot.chain, q0[None])
         p0, r0 = p0[0], r0[0]
         length = rng.uniform(0.10, 0.60)
@@ -140,7 +143,7 @@ def main() -> None:
     rng = np.random.default_rng(args.seed)
     rows = []
     for k in range(args.paths):
-        pos, rots, quats, length, kind = make_path(rng, robot, cont)
+        pos, rots, quats, length, kind = make_path(rng, robot, cont, ik.checker)
         pose = k % 2 == 0
         q_cur = rng.uniform(robot.lower, robot.upper)
         t0 = time.perf_counter()

@@ -154,7 +154,7 @@ def test_sik_build_makes_a_bundle_that_solves_with_2pi_equivalents(ur5_bundle, u
                 repeat = np.array([same[i, :i].any() for i in range(len(qs))])
                 assert np.all(repeat[np.argmax(repeat):]), repeat
     # the seed picks the nearest equivalent: a solution turned by 2 pi is found as it is
-    p, quat = ur5.fk(np.zeros(6))
+    p, quat = ur5.fk(np.array([0.3, -1.0, 1.2, -1.5, 1.2, 0.5]))
     best = ik.solve(p, quat, num_solutions=8).solutions[0].q
     j = int(np.argmax(ur5.upper - np.abs(best)))  # a joint with room to turn
     seed = best.copy()

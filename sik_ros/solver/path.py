@@ -75,7 +75,7 @@ class PathSettings:
     path_tolerance: float = 0.005
     orientation_path_tolerance: float = 0.05
     starts: int = 16
-    tracks: int = 8
+    tracks: int = 12
     seed_weight: float = 1.0
 
 

@@ -34,8 +34,9 @@ def initial_postures(ctx: Context, goal: Goal, num: int, q_seed: Optional[np.nda
                      refined: bool) -> Candidates:
     """Stages 1 and 2: the starting postures and their indices (errors not yet known).
 
-    Order: the seed's own posture first, then the oriented ones (pose goals), then the
-    table's. Oriented postures have no index of the pose model yet: NaN, encoded once ranked.
+    Order: the seed itself, the seed's own posture (its index decoded), then the oriented ones
+    (pose goals), then the table's. The seed and the oriented postures have no index of the
+    goal's model yet: NaN, encoded once ranked.
     """
     extra = oriented_postures(ctx, goal, ctx.config.oriented_candidates) \
         if goal.kind == POSE and refined else np.empty((0, ctx.robot.dof))
@@ -45,6 +46,10 @@ def initial_postures(ctx: Context, goal: Goal, num: int, q_seed: Optional[np.nda
         head = 1 if q_seed is not None else 0
         q = np.concatenate([q[:head], extra, q[head:]])
         z = np.concatenate([z[:head], np.full((len(extra), z.shape[1]), np.nan), z[head:]])
+    if q_seed is not None and refined:
+        # the current state itself: refined, it is the solution nearest to it
+        q = np.concatenate([q_seed[None], q])
+        z = np.concatenate([np.full((1, z.shape[1]), np.nan), z])
     unknown = np.full(len(q), np.inf)
     return Candidates(q, z, unknown, np.zeros(len(q)), np.zeros(len(q), dtype=bool))
 
