@@ -1,0 +1,36 @@
+"""Markdown helpers of the report: numbers, tables and verdicts against the paper."""
+
+from typing import List, Optional, Sequence
+
+import numpy as np
+
+
+def fmt(v: Optional[float], nd: int = 2) -> str:
+    """A number for a table with ``nd`` decimals; a dash for missing or NaN."""
+    if v is None:
+        return '—'
+    v = float(v)
+    return '—' if not np.isfinite(v) else f'{v:.{nd}f}'
+
+
+def table(header: Sequence[str], rows: Sequence[Sequence]) -> List[str]:
+    """A markdown table, as lines."""
+    lines = ['| ' + ' | '.join(str(h) for h in header) + ' |',
+             '|' + '|'.join('---' for _ in header) + '|']
+    lines += ['| ' + ' | '.join(str(c) for c in r) + ' |' for r in rows]
+    return lines
+
+
+def verdict(ours: Optional[float], paper: float, unit: str, what: str, nd: int = 2) -> str:
+    """A plain sentence: ours against the paper's figure, lower is better."""
+    if ours is None or not np.isfinite(ours):
+        return f'{what}: not measured.'
+    unit = f' {unit}' if unit else ''
+    if ours > paper:
+        return (f'**{what}: ours is worse than the paper** ({fmt(ours, nd)}{unit} against '
+                f'{fmt(paper, nd)}{unit}).')
+    return f'{what}: ours is as good or better ({fmt(ours, nd)}{unit} against ' \
+        f'{fmt(paper, nd)}{unit}).'
+
+
+# -- the report -----------------------------------------------------------------------------------
