@@ -69,6 +69,8 @@ def main() -> None:
     parser.add_argument('--churn', type=int, default=50, help='requests per parameter change')
     parser.add_argument('--timeout', type=float, default=0.5, help='request timeout [s]')
     parser.add_argument('--processes', type=int, default=0, help='solver_processes')
+    parser.add_argument('--rounds', type=int, default=1,
+                        help='rounds of --requests on the same node (RSS after each)')
     args = parser.parse_args()
     env = demo.ros_env()
     proc = demo.launch_node(None, [f'solver_processes:={args.processes}'], env=env)
@@ -109,24 +111,31 @@ def main() -> None:
                     times.append(time.perf_counter() - t0)
         client.close()
 
-    t0 = time.perf_counter()
-    threads = [threading.Thread(target=client_loop, args=(k,)) for k in range(args.clients)]
-    for t in threads:
-        t.start()
-    for t in threads:
-        t.join()
-    wall = time.perf_counter() - t0
-    time.sleep(1.0)
-    rss1 = rss_mb(proc.pid)
-    ms = 1e3 * np.array(times)
-    print(f'# bench/soak.py: {args.requests} requests from {args.clients} clients, '
-          f'solver_processes {args.processes}, timeout {args.timeout} s, a parameter change '
-          f'every {args.churn}')
-    print(f'answered {len(times)}, lost {lost[0]}, codes {dict(codes)}, {wall:.0f} s '
-          f'({len(times) / wall:.0f} req/s)')
-    print(f'round trip p50 {np.percentile(ms, 50):.1f} ms, p99 {np.percentile(ms, 99):.1f} ms, '
-          f'max {ms.max():.1f} ms')
-    print(f'node RSS {rss0:.1f} MB at start, {rss1:.1f} MB at end ({rss1 - rss0:+.1f} MB)')
+    print(f'# bench/soak.py: {args.requests} requests from {args.clients} clients per round, '
+          f'{args.rounds} rounds on one node, solver_processes {args.processes}, timeout '
+          f'{args.timeout} s, a parameter change every {args.churn}', flush=True)
+    print(f'node RSS {rss0:.1f} MB after the warm-up', flush=True)
+    for round_ in range(args.rounds):
+        codes.clear()
+        times.clear()
+        lost[0] = 0
+        counter[0] = 0
+        t0 = time.perf_counter()
+        threads = [threading.Thread(target=client_loop, args=(k + 100 * round_,))
+                   for k in range(args.clients)]
+        for t in threads:
+            t.start()
+        for t in threads:
+            t.join()
+        wall = time.perf_counter() - t0
+        time.sleep(1.0)
+        rss1 = rss_mb(proc.pid)
+        ms = 1e3 * np.array(times)
+        print(f'round {round_ + 1}: answered {len(times)}, lost {lost[0]}, codes {dict(codes)}, '
+              f'{wall:.0f} s ({len(times) / wall:.0f} req/s); round trip p50 '
+              f'{np.percentile(ms, 50):.1f} ms, p99 {np.percentile(ms, 99):.1f} ms, max '
+              f'{ms.max():.1f} ms; node RSS {rss1:.1f} MB ({rss1 - rss0:+.1f} MB since the '
+              f'warm-up)', flush=True)
     admin.close()
     rclpy.shutdown()
     demo.stop_node(proc)
