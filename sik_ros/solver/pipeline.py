@@ -101,7 +101,9 @@ def solve(ctx: Context, goal: Goal, num: int, q_seed: Optional[np.ndarray],
         c = c.take(c.exact)
     c = best_distinct(c, cfg.distinct_threshold, ctx.ignores_last(goal.kind))
     if ctx.robot.periodic.any():
-        c = c.take(~same_postures(c.q, ctx.robot.periodic))
+        centre = q_seed if q_seed is not None else (ctx.robot.lower + ctx.robot.upper) / 2
+        c = c.take(~same_postures(c.q, ctx.robot.periodic,
+                                  np.linalg.norm(c.q - centre, axis=1)))
         c = best_distinct(periodic_equivalents(ctx, c), cfg.distinct_threshold,
                           ctx.ignores_last(goal.kind))
     sols = rank(ctx, c, q_seed, obstacles, objective, limit=num, deadline=deadline)

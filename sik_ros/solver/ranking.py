@@ -84,17 +84,21 @@ def equivalents(q: np.ndarray, periodic: np.ndarray, cost: np.ndarray) -> np.nda
     return out
 
 
-def same_postures(q: np.ndarray, periodic: np.ndarray, tol: float = 1e-3) -> np.ndarray:
-    """(M,) bool: rows that are 2 pi equivalents of an earlier row, within ``tol`` [rad].
+def same_postures(q: np.ndarray, periodic: np.ndarray, key: np.ndarray,
+                  tol: float = 1e-3) -> np.ndarray:
+    """(M,) bool: rows that are 2 pi equivalents, within ``tol`` [rad], of a row of lower ``key``.
 
-    The same posture found twice, from different starts, with a periodic joint a turn apart.
+    The same posture found twice, from different starts, with periodic joints turns apart: the
+    row of lowest ``key`` (the nearest to the seed, or to the middle of the joint ranges) stays,
+    and the equivalents added afterwards (one or two joints turned) start from it.
     """
     if not periodic.any() or len(q) < 2:
         return np.zeros(len(q), dtype=bool)
     d = q[:, None] - q[None]
     d[..., periodic] = np.angle(np.exp(1j * d[..., periodic]))
     close = np.abs(d).max(axis=2) < tol
-    return np.tril(close, -1).any(axis=1)
+    rank = np.argsort(np.argsort(key, kind='stable'), kind='stable')
+    return (close & (rank[None, :] < rank[:, None])).any(axis=1)
 
 
 def rank(ctx: Context, c: Candidates, q_seed: Optional[np.ndarray],
