@@ -3,6 +3,7 @@
 import argparse
 import json
 from pathlib import Path
+import sys
 from typing import List, Optional
 
 from tqdm import tqdm
@@ -112,9 +113,12 @@ def main(argv: Optional[List[str]] = None) -> int:
                 export_model(trainer.checkpoint(), Path(args.export))
         weights = model_signature(trainer.checkpoint())['weights_sha256']
         distributed.finish()
-        print(json.dumps({'step': trainer.step, 'elapsed_s': round(trainer.elapsed, 1),
-                          **{k: v for k, v in last.items() if k.startswith('val')},
-                          'rank': rank, 'world_size': size, 'weights_sha256': weights}))
+        # one write of the whole line: ranks sharing a pipe (torchrun) never interleave it
+        sys.stdout.write(json.dumps({
+            'step': trainer.step, 'elapsed_s': round(trainer.elapsed, 1),
+            **{k: v for k, v in last.items() if k.startswith('val')},
+            'rank': rank, 'world_size': size, 'weights_sha256': weights}) + '\n')
+        sys.stdout.flush()
         return 0
     return run_cli('sik-train', body)
 
