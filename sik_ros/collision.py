@@ -115,6 +115,7 @@ class CollisionChecker:
         self.self_geom.addAllCollisionPairs()
         if robot.srdf_path is not None:
             pin.removeCollisionPairs(self.model, self.self_geom, str(robot.srdf_path))
+        self._drop_adjacent_pairs()
         self.self_data = pin.GeometryData(self.self_geom)
         self.geom_data = pin.GeometryData(self.geom)
         # each robot part's bounding sphere: its local box's centre and half diagonal [m]
@@ -125,6 +126,19 @@ class CollisionChecker:
             centers.append(np.asarray(box.center(), dtype=float))
             radii.append(0.5 * float(np.linalg.norm(np.asarray(box.max_) - np.asarray(box.min_))))
         self._local_centers, self._radii = centers, np.array(radii)
+
+    def _drop_adjacent_pairs(self) -> None:
+        """Leave out pairs of parts on one link or on two links a joint connects.
+
+        Their meshes touch at the joint in every posture (MoveIt's "adjacent" rule); an SRDF,
+        when the robot has one, disables more.
+        """
+        objs, parents = self.self_geom.geometryObjects, self.model.parents
+        for k in reversed(range(len(self.self_geom.collisionPairs))):
+            pair = self.self_geom.collisionPairs[k]
+            a, b = objs[pair.first].parentJoint, objs[pair.second].parentJoint
+            if a == b or parents[a] == b or parents[b] == a:
+                self.self_geom.removeCollisionPair(pair)
 
     def self_collision(self, q: np.ndarray) -> np.ndarray:
         """Whether each configuration (N, n) collides with itself, (N,) bool."""
