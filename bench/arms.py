@@ -24,12 +24,11 @@ import time
 os.environ.setdefault('OMP_NUM_THREADS', '1')
 
 import numpy as np  # noqa: E402
-import pinocchio as pin  # noqa: E402
-import pytracik  # noqa: E402
 import torch  # noqa: E402
 
 from sik_ros import SelectiveIK  # noqa: E402
-from sik_ros.kinematics import find_frame  # noqa: E402
+
+from peers import DLS, TracIK  # noqa: E402,I100 (bench/peers.py, beside this script)
 
 DISTINCT = 0.5  # rad, as the solver's distinct_threshold
 
@@ -49,51 +48,6 @@ def branches(qs):
         if all(np.linalg.norm(np.angle(np.exp(1j * (q - k)))) >= DISTINCT for k in kept):
             kept.append(q)
     return len(kept)
-
-
-class DLS:
-    """Single-solution damped least squares on Pinocchio (position goals), as users write it."""
-
-    def __init__(self, robot, tol=1e-4, iters=100, damping=1e-3, max_step=0.4):
-        self.robot, self.tol, self.iters = robot, tol, iters
-        self.damping, self.max_step = damping, max_step
-        self.model, self.data = robot.model, robot.model.createData()
-        self.fid = find_frame(robot.model, robot.tip_frame)
-        self.base = find_frame(robot.model, robot.base_frame)
-
-    def solve(self, target, q):
-        """One solve from ``q``: (converged, q)."""
-        for _ in range(self.iters):
-            pin.framesForwardKinematics(self.model, self.data, q)
-            tip = self.data.oMf[self.base].actInv(self.data.oMf[self.fid]).translation
-            err = self.data.oMf[self.base].rotation @ (target - tip)
-            if np.linalg.norm(target - tip) < self.tol:
-                return True, q
-            jac = pin.computeFrameJacobian(self.model, self.data, q, self.fid,
-                                           pin.LOCAL_WORLD_ALIGNED)[:3]
-            dq = jac.T @ np.linalg.solve(jac @ jac.T + self.damping ** 2 * np.eye(3), err)
-            dq *= min(1.0, self.max_step / max(np.abs(dq).max(), 1e-12))
-            q = np.clip(q + dq, self.robot.lower, self.robot.upper)
-        return False, q
-
-
-class TracIK:
-    """TRAC-IK through pytracik (5 ms timeout, eps 1e-5, Speed), limits set from the robot."""
-
-    def __init__(self, robot, timeout=0.005):
-        self.robot = robot
-        self.solver = pytracik.TRAC_IK(robot.base_frame, robot.tip_frame,
-                                       robot.urdf_path.read_text(), timeout, 1e-5,
-                                       pytracik.SolveType.Speed)
-        pytracik.set_joint_limits(self.solver, list(robot.lower), list(robot.upper))
-
-    def solve(self, position, quat, q0):
-        """One solve from ``q0``: (converged, q)."""
-        out = pytracik.ik(self.solver, q0, *position, *quat)
-        q = np.asarray(out[1:], dtype=float)
-        ok = out[0] >= 0 and len(q) == self.robot.dof and np.all(
-            q >= self.robot.lower - 1e-9) and np.all(q <= self.robot.upper + 1e-9)
-        return bool(ok), q
 
 
 def peer_until(count, solve_once, rng, ik, goal, max_attempts):

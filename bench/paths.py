@@ -23,13 +23,14 @@ os.environ.setdefault('OMP_NUM_THREADS', '1')
 
 import numpy as np  # noqa: E402
 import pinocchio as pin  # noqa: E402
-import pytracik  # noqa: E402
 from scipy.spatial.transform import Rotation  # noqa: E402
 import torch  # noqa: E402
 
 from sik_ros import Obstacle, SelectiveIK  # noqa: E402
 from sik_ros.chain import chain_forward  # noqa: E402
 from sik_ros.kinematics import find_frame  # noqa: E402
+
+from peers import TracIK  # noqa: E402,I100 (bench/peers.py)
 
 STEP = 0.3  # rad
 
@@ -74,23 +75,15 @@ class Continuation:
         return True, np.array(out)
 
 
-class SeededTracIK:
+class SeededTracIK(TracIK):
     """TRAC-IK, each waypoint seeded with the previous waypoint's solution (5 ms each)."""
-
-    def __init__(self, robot, timeout=0.005):
-        self.robot = robot
-        self.solver = pytracik.TRAC_IK(robot.base_frame, robot.tip_frame,
-                                       robot.urdf_path.read_text(), timeout, 1e-5,
-                                       pytracik.SolveType.Speed)
-        pytracik.set_joint_limits(self.solver, list(robot.lower), list(robot.upper))
 
     def path(self, pos, quats, q):
         """The whole path from ``q``: (success, joint path so far)."""
         out = []
         for p, quat in zip(pos, quats):
-            res = pytracik.ik(self.solver, q, *p, *quat)
-            q2 = np.asarray(res[1:], dtype=float)
-            if res[0] < 0 or (out and np.abs(q2 - out[-1]).max() > STEP):
+            ok, q2 = self.solve(p, quat, q)
+            if not ok or (out and np.abs(q2 - out[-1]).max() > STEP):
                 return False, np.array(out)
             out.append(q2)
             q = q2

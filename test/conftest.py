@@ -74,3 +74,17 @@ def ur5_bundle(tmp_path_factory):
     run = subprocess.run(cmd, capture_output=True, text=True, timeout=300)
     assert run.returncode == 0, run.stderr[-2000:]
     return out, run.stdout
+
+
+@pytest.fixture(scope='module')
+def graph(request):
+    """An isolated ROS graph on a random domain, and an rclpy node in this process."""
+    import rclpy
+    from rclpy.signals import SignalHandlerOptions
+    from sik_ros.ros import demo
+    env = demo.ros_env()
+    rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
+    node = rclpy.create_node(request.module.__name__.split('.')[-1])
+    yield env, node
+    node.destroy_node()
+    rclpy.shutdown()

@@ -11,9 +11,7 @@ import time
 
 import numpy as np
 import pytest
-import rclpy
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
-from rclpy.signals import SignalHandlerOptions
 from std_msgs.msg import String
 
 from sik_interfaces.srv import SolveIK
@@ -31,17 +29,6 @@ def start(bundle, env, log, *params, params_file=None):
     for item in (f'model_dir:={bundle}',) + params:
         cmd += ['-p', item]
     return subprocess.Popen(cmd, env=env, stdout=log, stderr=subprocess.STDOUT)
-
-
-@pytest.fixture(scope='module')
-def graph():
-    """An isolated ROS graph and an rclpy node in this process."""
-    env = demo.ros_env()
-    rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
-    node = rclpy.create_node('sik_node_arms_test')
-    yield env, node
-    node.destroy_node()
-    rclpy.shutdown()
 
 
 def test_any_bundle_is_served_by_model_dir_alone(ur5_bundle, ur5, graph, tmp_path):

@@ -7,9 +7,7 @@ import time
 
 import numpy as np
 import pytest
-import rclpy
 from rclpy.executors import SingleThreadedExecutor
-from rclpy.signals import SignalHandlerOptions
 from shape_msgs.msg import SolidPrimitive
 
 from sik_interfaces.srv import SolveIK
@@ -17,17 +15,6 @@ from sik_ros.ros import demo
 
 pytestmark = pytest.mark.timeout(240)
 R = SolveIK.Response
-
-
-@pytest.fixture(scope='module')
-def graph():
-    """An isolated ROS graph and an rclpy node in this process."""
-    env = demo.ros_env()
-    rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
-    node = rclpy.create_node('sik_node_faults_test')
-    yield env, node
-    node.destroy_node()
-    rclpy.shutdown()
 
 
 @pytest.mark.parametrize('args, words', [

@@ -26,15 +26,15 @@ import numpy as np
 
 from sik_ros.bundle import GoalModel, load_bundle
 from sik_ros.collision import CollisionChecker, Obstacle
-from sik_ros.errors import InvalidArgument, InvalidGoal
+from sik_ros.errors import InvalidArgument
 from sik_ros.kinematics import Robot
 from sik_ros.objectives import Objective
 from sik_ros.solver import candidates as _candidates, codec, path as _path, pipeline
 from sik_ros.solver.adjust import adjust_index
 from sik_ros.solver.config import SolverConfig
 from sik_ros.solver.context import Context, Goal
-from sik_ros.solver.inputs import (check_goal, check_num_solutions, check_objective,
-                                   check_obstacles, check_path, check_seed)
+from sik_ros.solver.inputs import (check_arrays, check_goal, check_num_solutions,
+                                   check_objective, check_obstacles, check_path, check_seed)
 from sik_ros.solver.path import JointPath, PathResult, PathSettings
 from sik_ros.solver.ranking import distinct_mask
 from sik_ros.solver.refine import errors, refine
@@ -153,20 +153,7 @@ class SelectiveIK:
 
     def solve_batch(self, positions, orientations=None, **kw) -> List[IKResult]:
         """:meth:`solve` for many targets: positions (N, 3), orientations (N, 4) or None."""
-        try:
-            positions = np.asarray(positions, dtype=float)
-        except (TypeError, ValueError, OverflowError) as exc:
-            raise InvalidGoal(f'positions must be an (N, 3) array; got {positions!r}') from exc
-        if positions.ndim != 2 or positions.shape[1] != 3:
-            raise InvalidGoal(f'positions must have shape (N, 3); got {positions.shape}')
-        if orientations is not None:
-            try:
-                orientations = np.asarray(orientations, dtype=float)
-            except (TypeError, ValueError, OverflowError) as exc:
-                raise InvalidGoal('orientations must be an (N, 4) array') from exc
-            if orientations.shape != (len(positions), 4):
-                raise InvalidGoal(f'orientations must have shape ({len(positions)}, 4); got '
-                                  f'{orientations.shape}')
+        positions, orientations = check_arrays(positions, orientations)
         return [self.solve(p, None if orientations is None else orientations[i], **kw)
                 for i, p in enumerate(positions)]
 

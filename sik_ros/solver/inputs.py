@@ -34,19 +34,20 @@ def check_goal(position, orientation, goals: Sequence[str]) -> Goal:
     return goal
 
 
-def check_path(positions, orientations, goals: Sequence[str]) -> List[Goal]:
-    """Waypoints: (N, 3) positions [m] and None or (N, 4) quaternions, as :class:`Goal` s.
+def check_arrays(positions, orientations, min_rows: int = 0):
+    """Positions (N, 3) and None or quaternions (N, 4) as float arrays, N >= ``min_rows``.
 
     Raises:
-        InvalidGoal: no waypoints, mismatched lengths, or a bad waypoint (naming it).
+        InvalidGoal: not arrays of those shapes.
     """
     try:
         pos = np.asarray(positions, dtype=float)
     except (TypeError, ValueError, OverflowError) as exc:
         raise InvalidGoal(f'positions must be an (N, 3) array; got {positions!r}') from exc
-    if pos.ndim != 2 or pos.shape[1] != 3 or len(pos) == 0:
-        raise InvalidGoal(f'positions must be an (N, 3) array with N >= 1; got shape '
+    if pos.ndim != 2 or pos.shape[1] != 3 or len(pos) < min_rows:
+        raise InvalidGoal(f'positions must be an (N, 3) array with N >= {min_rows}; got shape '
                           f'{pos.shape}')
+    quat = None
     if orientations is not None:
         try:
             quat = np.asarray(orientations, dtype=float)
@@ -55,6 +56,16 @@ def check_path(positions, orientations, goals: Sequence[str]) -> List[Goal]:
         if quat.shape != (len(pos), 4):
             raise InvalidGoal(f'orientations must have shape ({len(pos)}, 4) like the '
                               f'positions; got {quat.shape}')
+    return pos, quat
+
+
+def check_path(positions, orientations, goals: Sequence[str]) -> List[Goal]:
+    """Waypoints: (N, 3) positions [m] and None or (N, 4) quaternions, as :class:`Goal` s.
+
+    Raises:
+        InvalidGoal: no waypoints, mismatched lengths, or a bad waypoint (naming it).
+    """
+    pos, quat = check_arrays(positions, orientations, min_rows=1)
     out = []
     for i, p in enumerate(pos):
         try:
