@@ -19,11 +19,15 @@ from torch.nn.parallel import DistributedDataParallel
 from sik_ros import distributed
 from sik_ros.artifacts import (atomic_write, check_robot_manifest, FORMAT_VERSION,
                                library_versions)
+from sik_ros.checkpoints import normalizer_from_dict
 from sik_ros.dataset import Dataset, dataset_summary
 from sik_ros.errors import ArtifactMismatch, InvalidArgument, TrainingDiverged
 from sik_ros.kinematics import Robot
 from sik_ros.models import (anfis_forward, build_model, kl_normal, make_goal, ModelConfig,
                             Normalizer, TorchChain)
+
+
+SAMPLERS = ('dataset', 'uniform')
 
 
 @dataclass(frozen=True)
@@ -53,6 +57,17 @@ class TrainConfig:
         bf16: run forward and backward under bfloat16 autocast (weights and optimiser stay
             float32); about twice the samples/s on CPUs with bfloat16 units
             (bench/train_step.py).
+        sampler: ``dataset`` (batches of the collected rows) or ``uniform`` (every batch drawn
+            afresh: joint angles uniform within the limits, their tips by torch FK; the
+            dataset still gives the normaliser and the validation rows).
+        cycle_weight: weight of the cycle term (SIK, PSIK): each sample's posture index is
+            decoded at its goal position moved by a random offset (``cycle_shift`` [m] per
+            axis, as an index from a nearby table cell is used), re-encoded, and must give
+            the index back (squared error over the batch's index variance); the FK error of
+            that posture at the moved goal joins the FK term. It keeps an FK-driven decoder
+            from ignoring the index (docs/training.md).
+        cycle_shift: standard deviation of the goal offset of the cycle term [m].
+        init: model file the weights started from (``--init``; provenance only).
     """
 
     steps: int = 100_000
@@ -75,6 +90,10 @@ class TrainConfig:
     pso_particles: int = 100
     pso_batch: int = 4096
     bf16: bool = False
+    sampler: str = 'dataset'
+    cycle_weight: float = 0.0
+    cycle_shift: float = 0.02
+    init: str = ''
 
     def __post_init__(self):
         """Validate the fields."""
@@ -83,6 +102,12 @@ class TrainConfig:
                 raise InvalidArgument(f'{name} must be at least 1; got {getattr(self, name)}')
         if not (self.lr > 0 and math.isfinite(self.lr)):
             raise InvalidArgument(f'lr must be a positive number; got {self.lr}')
+        if self.sampler not in SAMPLERS:
+            raise InvalidArgument(f'sampler must be one of {", ".join(SAMPLERS)}; '
+                                  f'got {self.sampler!r}')
+        if not (self.cycle_weight >= 0 and math.isfinite(self.cycle_weight)):
+            raise InvalidArgument(f'cycle_weight must be a non-negative number; '
+                                  f'got {self.cycle_weight}')
         if self.device not in ('cpu', 'cuda'):
             raise InvalidArgument(f'device must be cpu or cuda; got {self.device!r}')
         if self.device == 'cuda' and not torch.cuda.is_available():
@@ -168,27 +193,63 @@ class Trainer:
         d = self.data
         return tuple(t[idx].to(self.device) for t in (d.q, d.goal, d.position, d.rot6))
 
-    def losses(self, idx: torch.Tensor) -> Dict[str, torch.Tensor]:
-        """The loss terms of a batch of row indices."""
-        q, goal, pos, rot6 = self._batch(idx)
+    def _fresh_batch(self, n: int):
+        """``n`` joint configurations uniform within the limits and their goals (torch FK)."""
+        lo = torch.as_tensor(self.robot.lower, dtype=torch.float32)
+        hi = torch.as_tensor(self.robot.upper, dtype=torch.float32)
+        q = (lo + (hi - lo) * torch.rand(n, len(lo), generator=self.gen)).to(self.device)
+        with torch.no_grad(), torch.autocast(self.device.type, enabled=False):
+            pos, rot = self.fk(q)
+        rot6 = torch.cat([rot[:, :, 0], rot[:, :, 1]], 1)
+        goal = pos if self.model_cfg.goal == 'position' else torch.cat([pos, rot6], 1)
+        return q, goal, pos, rot6
+
+    def _fk_error(self, x_hat: torch.Tensor, pos: torch.Tensor, rot6: torch.Tensor):
+        """The FK term of normalised joints against their goals."""
+        p_hat, r_hat = self.fk(self.norm.q_from_net(x_hat))
+        err = ((p_hat - pos) ** 2).sum(1).mean() / self.cfg.fk_scale ** 2
+        if self.model_cfg.goal == 'pose':
+            r6 = torch.cat([r_hat[:, :, 0], r_hat[:, :, 1]], 1)
+            err = err + self.cfg.rot_weight * ((r6 - rot6) ** 2).sum(1).mean()
+        return err
+
+    def losses(self, idx: torch.Tensor = None, batch=None) -> Dict[str, torch.Tensor]:
+        """The loss terms of a batch: dataset row indices, or ``(q, goal, pos, rot6)``."""
+        q, goal, pos, rot6 = self._batch(idx) if batch is None else batch
         g = self.norm.goal_to_net(goal)
         x = self.norm.q_to_net(q)
         out = {}
-        if self.model_cfg.kind in ('sik', 'psik'):
+        sik = self.model_cfg.kind in ('sik', 'psik')
+        if sik:
             x_hat, mu, logvar = self.net(g, x)
             if logvar is not None:
                 out['kl'] = kl_normal(mu, logvar).mean()
         else:
             x_hat = self.net(g)
         out['recon'] = torch.mean((x_hat - x) ** 2)
+        fk_on = self.cfg.fk_weight > 0 and self.step >= self.cfg.fk_start
         if self.cfg.fk_weight > 0:
-            p_hat, r_hat = self.fk(self.norm.q_from_net(x_hat))
-            out['fk'] = ((p_hat - pos) ** 2).sum(1).mean() / self.cfg.fk_scale ** 2
-            if self.model_cfg.goal == 'pose':
-                r6 = torch.cat([r_hat[:, :, 0], r_hat[:, :, 1]], 1)
-                out['fk'] = out['fk'] + self.cfg.rot_weight * ((r6 - rot6) ** 2).sum(1).mean()
-        fk_weight = self.cfg.fk_weight if self.step >= self.cfg.fk_start else 0.0
-        total = out['recon'] + fk_weight * out.get('fk', 0.0)
+            out['fk'] = self._fk_error(x_hat, pos, rot6)
+        if sik and self.cfg.cycle_weight > 0:
+            # the table's use of the model: an index found at a nearby position decoded at the
+            # goal. Each index is decoded at its goal moved by about cycle_shift; the posture
+            # must re-encode to the same index there (so the decoder cannot ignore the index)
+            # and reach the moved goal (FK term)
+            shift = torch.randn(len(pos), 3, generator=self.gen).to(self.device)
+            pos_other = pos + self.cfg.cycle_shift * shift
+            goal_other = torch.cat([pos_other, goal[:, 3:]], 1)
+            g_other = self.norm.goal_to_net(goal_other)
+            z = mu.detach()
+            x_other = self.model.decode(g_other, z)
+            z_back, _ = self.model.encode(g_other, x_other)
+            spread = z.var(dim=0).sum().clamp_min(1e-8)
+            out['cycle'] = ((z_back - z) ** 2).sum(1).mean() / spread
+            if self.cfg.fk_weight > 0:
+                out['fk_other'] = self._fk_error(x_other, pos_other, rot6)
+        fk_weight = self.cfg.fk_weight if fk_on else 0.0
+        total = out['recon'] + fk_weight * (out.get('fk', 0.0) + out.get('fk_other', 0.0))
+        if 'cycle' in out:
+            total = total + self.cfg.cycle_weight * out['cycle']
         if 'kl' in out:
             total = total + self.cfg.kl_weight * out['kl']
         out['loss'] = total
@@ -198,12 +259,19 @@ class Trainer:
     def validate(self) -> Dict[str, float]:
         """Distance error [m] (and orientation error [deg]) of decoded validation rows."""
         self.model.eval()
-        errs, oerrs, losses = [], [], []
+        errs, oerrs, losses, spreads = [], [], [], []
         for s in range(0, len(self.val_idx), 8192):
             idx = self.val_idx[s:s + 8192]
             q, goal, pos, rot6 = self._batch(idx)
             losses.append(float(self.losses(idx)['loss']) * len(idx))
-            q_hat = self.norm.q_from_net(self.predict_net(goal, q))
+            x_hat = self.predict_net(goal, q)
+            if self.model_cfg.kind in ('sik', 'psik'):
+                # how far apart the postures of two indices at one goal are (0: collapsed)
+                g = self.norm.goal_to_net(goal)
+                mu, _ = self.model.encode(g, self.norm.q_to_net(q))
+                x_other = self.model.decode(g, mu.roll(1, dims=0))
+                spreads.append(torch.linalg.norm(x_other - x_hat, dim=1))
+            q_hat = self.norm.q_from_net(x_hat)
             p_hat, r_hat = self.fk(q_hat)
             errs.append(torch.linalg.norm(p_hat - pos, dim=1))
             if self.model_cfg.goal == 'pose':
@@ -218,6 +286,8 @@ class Trainer:
                'val_dist_mean_m': float(err.mean()), 'val_dist_median_m': float(err.median())}
         if oerrs:
             res['val_orient_mean_deg'] = float(torch.cat(oerrs).mean())
+        if spreads:
+            res['val_index_spread'] = float(torch.cat(spreads).mean())
         return res
 
     def predict_net(self, goal: torch.Tensor, q: torch.Tensor) -> torch.Tensor:
@@ -259,6 +329,12 @@ class Trainer:
                 progress(self.step, last)
             if self._stop(max_time is not None and time.perf_counter() - t0 >= max_time):
                 break
+        if not pso and self.step > 0 and (not self.history
+                                          or self.history[-1]['step'] != self.step):
+            # stopped between validations (--max-time): the run ends with its figures
+            last = {'step': self.step, 'elapsed_s': round(self.elapsed, 1),
+                    'lr': lr_at(self.cfg, self.step - 1), **last, **self.validate()}
+            self.history.append(last)
         self.save()
         return last
 
@@ -285,9 +361,14 @@ class Trainer:
         """One optimiser step on a random batch; the losses it saw."""
         for group in self.opt.param_groups:
             group['lr'] = lr_at(self.cfg, self.step)
-        pick = torch.randint(len(self.train_idx), (self.cfg.batch_size,), generator=self.gen)
+        if self.cfg.sampler == 'uniform':
+            args = {'batch': self._fresh_batch(self.cfg.batch_size)}
+        else:
+            pick = torch.randint(len(self.train_idx), (self.cfg.batch_size,),
+                                 generator=self.gen)
+            args = {'idx': self.train_idx[pick]}
         with torch.autocast(self.device.type, dtype=torch.bfloat16, enabled=self.cfg.bf16):
-            out = self.losses(self.train_idx[pick])
+            out = self.losses(**args)
         if not torch.isfinite(out['loss']):
             bad = float(out['loss'].detach())
             raise TrainingDiverged(
@@ -366,6 +447,28 @@ class Trainer:
         with atomic_write(path) as tmp:
             torch.save(self.checkpoint(), tmp)
         return path
+
+    def initialise(self, ckpt: Dict, source: str) -> None:
+        """Start from the weights of another checkpoint or exported model (a warm start).
+
+        The model config, the robot and the normaliser must match; the optimiser, the step
+        count and the schedule start afresh.
+        """
+        found = ModelConfig.from_dict(ckpt['model_config'])
+        if found != self.model_cfg:
+            raise ArtifactMismatch(f'--init {source} model config', asdict(self.model_cfg),
+                                   ckpt['model_config'])
+        check_robot_manifest(f'--init {source}', self.robot.manifest(), ckpt['robot'])
+        norm = normalizer_from_dict(ckpt['normalizer'])
+        mine = np.concatenate([self.norm.lower, self.norm.upper, self.norm.position_center,
+                               [self.norm.position_scale]])
+        theirs = np.concatenate([norm.lower, norm.upper, norm.position_center,
+                                 [norm.position_scale]])
+        if not np.allclose(mine, theirs, rtol=1e-6, atol=1e-9):
+            raise ArtifactMismatch(f'--init {source} normaliser (another dataset)',
+                                   asdict(self.norm), ckpt['normalizer'])
+        self.norm = norm  # bit for bit the one the weights were trained with
+        self.model.load_state_dict(ckpt['model_state'])
 
     def restore(self, ckpt: Dict) -> None:
         """Continue from a checkpoint of the same model on the same robot and dataset."""

@@ -105,6 +105,7 @@ def test_paths_are_deterministic(ik):
     ({'orientations': np.zeros((2, 4)) + [0, 0, 0, 1]}, InvalidGoal, 'like the positions'),
     ({'max_joint_step': -0.1}, InvalidArgument, 'max_joint_step'),
     ({'num_paths': 0}, InvalidArgument, 'between 1 and'),
+    ({'positions': np.zeros((2001, 3)) + [0.4, 0.0, 0.4]}, InvalidGoal, 'at most 2000'),
 ])
 def test_bad_path_input_is_refused(ik, kwargs, error, words):
     """Empty, NaN, mismatched or negative inputs raise SikErrors naming the problem."""

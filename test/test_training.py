@@ -4,11 +4,13 @@ import subprocess
 import sys
 
 import numpy as np
+import pinocchio as pin
 import pytest
 import torch
 
 from sik_ros.checkpoints import export_model, load_checkpoint, model_from_checkpoint
 from sik_ros.errors import ArtifactMismatch, CorruptArtifact, TrainingDiverged
+from sik_ros.kinematics import find_frame
 from sik_ros.models import ModelConfig, PRESETS
 from sik_ros.training import TrainConfig, Trainer
 
@@ -177,3 +179,52 @@ def test_two_gloo_processes_train_in_sync_and_the_checkpoint_serves(
     p, _ = panda.fk(panda.lower * 0.3 + panda.upper * 0.7)
     res = SelectiveIK.load(bundle).solve(p, num_solutions=4)
     assert res.solutions and np.isfinite(res.solutions[0].position_error)
+
+
+def test_fresh_samples_and_the_cycle_term_train_and_keep_the_index(panda, uniform_small,
+                                                                    tmp_path):
+    """Batches drawn afresh by torch FK, with the FK and cycle terms, lower the FK error and
+    keep decoded postures apart for different indices (no collapse of the posture index)."""
+    t = trainer(panda, uniform_small, tmp_path, steps=300, eval_every=300, sampler='uniform',
+                fk_weight=0.05, cycle_weight=1.0)
+    before = t.validate()
+    after = t.run()
+    assert after['val_dist_mean_m'] < 0.7 * before['val_dist_mean_m'], (before, after)
+    assert after['cycle'] >= 0 and after['fk_other'] > 0
+    assert after['val_index_spread'] > 0.1, after
+
+
+def test_fresh_batches_are_within_the_limits_and_match_pinocchio(panda, uniform_small, tmp_path):
+    """The uniform sampler's joints lie within the limits and its goals are Pinocchio's FK."""
+    t = trainer(panda, uniform_small, tmp_path, sampler='uniform')
+    q, goal, pos, rot6 = t._fresh_batch(64)
+    assert torch.all(q >= torch.as_tensor(panda.lower, dtype=torch.float32))
+    assert torch.all(q <= torch.as_tensor(panda.upper, dtype=torch.float32))
+    data, fid = panda.model.createData(), find_frame(panda.model, panda.tip_frame)
+    for row, g in zip(q.double().numpy()[:8], goal.numpy()):
+        pin.framesForwardKinematics(panda.model, data, row)
+        assert np.abs(data.oMf[fid].translation - g).max() < 1e-5
+
+
+def test_init_starts_from_a_model_and_refuses_another_config(panda, uniform_small, tmp_path):
+    """--init copies the weights of a matching model; another config is refused."""
+    a = trainer(panda, uniform_small, tmp_path / 'a', steps=20)
+    a.run()
+    export_model(a.checkpoint(), tmp_path / 'a.pt')
+    b = trainer(panda, uniform_small, tmp_path / 'b', steps=20)
+    b.initialise(load_checkpoint(tmp_path / 'a.pt'), 'a.pt')
+    for k, v in a.model.state_dict().items():
+        assert torch.equal(v, b.model.state_dict()[k]), k
+    assert b.step == 0
+    other = ModelConfig(encoder=PRESETS['tiny'][0], decoder=PRESETS['tiny'][1], latent_dim=2)
+    with pytest.raises(ArtifactMismatch, match='model config'):
+        trainer(panda, uniform_small, tmp_path / 'c', model=other).initialise(
+            load_checkpoint(tmp_path / 'a.pt'), 'a.pt')
+
+
+def test_a_run_stopped_by_time_ends_with_its_validation(panda, uniform_small, tmp_path):
+    """A run stopped between validations (max_time) still reports validation figures."""
+    t = trainer(panda, uniform_small, tmp_path, steps=60, eval_every=30)
+    rec = t.run(max_time=0.0)
+    assert rec['step'] == 1 and rec['val_dist_mean_m'] > 0
+    assert t.history[-1]['step'] == 1

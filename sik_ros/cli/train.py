@@ -39,6 +39,14 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument('--rot-weight', type=float,
                    help='weight of the orientation part of the FK term (pose goals)')
     p.add_argument('--kl-weight', type=float, help='KL weight (PSIK)')
+    p.add_argument('--sampler', choices=('dataset', 'uniform'),
+                   help='batches from the dataset rows (default) or drawn afresh every step '
+                   '(uniform joint angles, torch FK)')
+    p.add_argument('--cycle-weight', type=float,
+                   help='cycle term: another index decoded at each goal must re-encode to it '
+                   'and reach the goal (keeps an FK-trained decoder from ignoring the index)')
+    p.add_argument('--init', help='start from the weights of this checkpoint or model file '
+                   '(same model config, robot and dataset normaliser)')
     p.add_argument('--uni-position', action='store_true',
                    help='one row per distinct position (the paper\'s uni-position dataset)')
     p.add_argument('--eval-every', type=int)
@@ -66,13 +74,16 @@ def main(argv: Optional[List[str]] = None) -> int:
         if args.max_time is not None and args.max_time <= 0:
             raise InvalidArgument(f'--max-time must be positive; got {args.max_time}')
         ckpt = None
+        if args.resume and args.init:
+            raise InvalidArgument('--init starts a new run; --resume continues one: give one')
         if args.resume:
             ckpt = load_checkpoint(out / 'last.pt')
             model_cfg = ModelConfig.from_dict(ckpt['model_config'])
             train_cfg = TrainConfig(**ckpt['train_config'])
             # a resumed run may extend its schedule or switch the FK term on later
             train_cfg = with_overrides(train_cfg, steps=args.steps, fk_weight=args.fk_weight,
-                                       fk_start=args.fk_start, rot_weight=args.rot_weight)
+                                       fk_start=args.fk_start, rot_weight=args.rot_weight,
+                                       cycle_weight=args.cycle_weight)
         else:
             if (out / 'last.pt').exists():
                 raise ArtifactExists(f'{out}/last.pt exists: use --resume, or another --out')
@@ -86,7 +97,8 @@ def main(argv: Optional[List[str]] = None) -> int:
                 rot_weight=args.rot_weight,
                 eval_every=args.eval_every, checkpoint_every=args.checkpoint_every,
                 seed=args.seed, threads=args.threads, device=args.device,
-                uni_position=args.uni_position or None, bf16=args.bf16)
+                uni_position=args.uni_position or None, bf16=args.bf16,
+                sampler=args.sampler, cycle_weight=args.cycle_weight, init=args.init)
             if args.model in ('fcn', 'anfis') and args.fk_weight is None:
                 train_cfg = with_overrides(train_cfg, fk_weight=0.0)
         robot = robot_from_manifest(Dataset.load(args.dataset).manifest['robot'],
@@ -97,6 +109,8 @@ def main(argv: Optional[List[str]] = None) -> int:
         trainer = Trainer(robot, ds, model_cfg, train_cfg, out)
         if ckpt is not None:
             trainer.restore(ckpt)
+        elif args.init:
+            trainer.initialise(load_checkpoint(Path(args.init)), args.init)
         bar = tqdm(total=train_cfg.steps, initial=trainer.step, disable=args.quiet or rank > 0,
                    desc=f'train {model_cfg.kind}/{model_cfg.goal}', mininterval=2.0)
 

@@ -204,7 +204,8 @@ class SikNode(Node):
     def _solver_settings(p: NodeParams) -> dict:
         return {'position_tolerance': p.position_tolerance,
                 'orientation_tolerance': p.orientation_tolerance,
-                'max_solutions_cap': p.max_solutions_cap, 'max_obstacles': p.max_obstacles}
+                'max_solutions_cap': p.max_solutions_cap, 'max_obstacles': p.max_obstacles,
+                'max_waypoints': p.max_waypoints}
 
     @contextmanager
     def _solver(self, p: NodeParams) -> Iterator[SelectiveIK]:

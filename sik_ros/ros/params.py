@@ -120,6 +120,9 @@ SPECS: Tuple[ParamSpec, ...] = (
     ParamSpec('max_obstacles', int, 256,
               'most obstacles a request may give (more: INVALID_GOAL); 0..10000',
               min=0, max=10000),
+    ParamSpec('max_waypoints', int, 2000,
+              'most waypoints a solve_path request may give (more: INVALID_GOAL); 1..100000',
+              min=1, max=100000),
     ParamSpec('shutdown_grace', float, 1.0,
               'on SIGINT/SIGTERM, time in-flight requests get to finish before the node exits '
               '(new ones are answered TIMEOUT) [s]; (0, 60]',

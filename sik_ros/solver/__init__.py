@@ -178,7 +178,7 @@ class SelectiveIK:
             InvalidGoal, InvalidSeed, InvalidArgument: bad input (see docs/interfaces.md).
         """
         t0 = time.perf_counter()
-        goals = check_path(positions, orientations, self.goals)
+        goals = check_path(positions, orientations, self.goals, self.config.max_waypoints)
         q_seed = None if seed is None else check_seed(self.robot, seed)
         obstacles = check_obstacles(obstacles, self.config.max_obstacles)
         settings = PathSettings(

@@ -59,6 +59,8 @@ class SolverConfig:
             iterations; the new exact solutions at least ``distinct_threshold`` from every
             found one are kept and walk on.
         max_obstacles: most obstacles a request may give (their checks bound its work).
+        max_waypoints: most waypoints a path request may give (its work and memory grow
+            with them).
         branch_restarts: pose goals of arms with six joints or fewer (isolated solutions, no
             self-motion): starts drawn uniformly in joint space and refined, for the branches
             the candidates missed (0 disables it).
@@ -92,6 +94,7 @@ class SolverConfig:
     walk_step: float = 0.6
     walk_iterations: int = 4
     max_obstacles: int = 256
+    max_waypoints: int = 2000
     branch_restarts: int = 32
 
     def __post_init__(self):
@@ -114,7 +117,7 @@ class SolverConfig:
                           ('refine_iterations', 1), ('adjust_budget', 0), ('give_up_after', 1),
                           ('stall_window', 0), ('stall_after', 0), ('early_stop_margin', -1),
                           ('walk_rounds', 0), ('walk_iterations', 1), ('max_obstacles', 0),
-                          ('branch_restarts', 0)):
+                          ('max_waypoints', 1), ('branch_restarts', 0)):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, int) or value < low:
                 raise InvalidArgument(f'SolverConfig.{name} must be an integer >= {low}; got '

@@ -3,7 +3,7 @@
 Every problem raises a :class:`~sik_ros.errors.SikError` subclass naming the field.
 """
 
-from typing import List, Sequence
+from typing import List, Optional, Sequence
 
 import numpy as np
 from scipy.spatial.transform import Rotation
@@ -59,13 +59,18 @@ def check_arrays(positions, orientations, min_rows: int = 0):
     return pos, quat
 
 
-def check_path(positions, orientations, goals: Sequence[str]) -> List[Goal]:
+def check_path(positions, orientations, goals: Sequence[str],
+               max_waypoints: Optional[int] = None) -> List[Goal]:
     """Waypoints: (N, 3) positions [m] and None or (N, 4) quaternions, as :class:`Goal` s.
 
     Raises:
-        InvalidGoal: no waypoints, mismatched lengths, or a bad waypoint (naming it).
+        InvalidGoal: no waypoints, more than ``max_waypoints``, mismatched lengths, or a bad
+            waypoint (naming it).
     """
     pos, quat = check_arrays(positions, orientations, min_rows=1)
+    if max_waypoints is not None and len(pos) > max_waypoints:
+        raise InvalidGoal(f'{len(pos)} waypoints; at most {max_waypoints} are accepted '
+                          f'(SolverConfig.max_waypoints)')
     out = []
     for i, p in enumerate(pos):
         try:
