@@ -13,7 +13,6 @@ Library errors (:class:`~sik_ros.errors.SikError` subclasses) come back with the
 message.
 """
 
-from collections import OrderedDict
 from dataclasses import asdict
 import multiprocessing
 from multiprocessing.connection import Connection
@@ -21,7 +20,7 @@ import queue
 import signal
 import threading
 import time
-from typing import Any, Dict, List, Optional, Tuple
+from typing import Any, Dict, List, Optional
 
 from sik_ros import errors
 from sik_ros.errors import SikError
@@ -29,8 +28,6 @@ from sik_ros.solver import IKResult, SelectiveIK, SolverConfig
 
 #: Seconds a new solver process may take to import its modules and load the bundle.
 START_TIMEOUT = 120.0
-#: Solvers kept per process for distinct settings (least recently used dropped).
-CACHED_SETTINGS = 4
 #: Time a process may take beyond a request's timeout before the watchdog replaces it [s].
 WATCHDOG_MARGIN = 0.5
 
@@ -65,7 +62,6 @@ def _serve(conn: Connection, bundle: str, config: Dict[str, Any]) -> None:
         conn.send(('error', type(exc).__name__, str(exc)))
         return
     conn.send(('ready', None, None))
-    solvers: 'OrderedDict[Tuple, SelectiveIK]' = OrderedDict()  # least recently used first
     while True:
         try:
             message = conn.recv()
@@ -75,13 +71,10 @@ def _serve(conn: Connection, bundle: str, config: Dict[str, Any]) -> None:
             return
         settings, args, kwargs = message
         try:
-            key = tuple(sorted(settings.items()))
-            if key not in solvers:
-                solvers[key] = base.with_config(**settings)
-                while len(solvers) > CACHED_SETTINGS:
-                    solvers.popitem(last=False)
-            solvers.move_to_end(key)
-            reply = ('ok', solvers[key].solve(*args, **kwargs), None)
+            # one instance follows the settings (in place: no memory grows with their churn)
+            if any(getattr(base.config, k) != v for k, v in settings.items()):
+                base.configure(**settings)
+            reply = ('ok', base.solve(*args, **kwargs), None)
         except SikError as exc:
             reply = ('error', type(exc).__name__, str(exc))
         except Exception as exc:  # any other failure is the request's, not the process's

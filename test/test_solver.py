@@ -308,3 +308,18 @@ def test_sik_solve_cli_bad_input(tiny_bundle):
                         '--bundle', str(tiny_bundle), '--seed', '1', '2'],
                        capture_output=True, text=True, timeout=120)
     assert r.returncode == 2 and 'seed must have 7' in r.stderr
+
+
+def test_configure_changes_settings_in_place_and_keeps_the_instance_data(tiny_bundle, targets):
+    """configure() gives an instance the new settings, answering as a fresh instance with
+    them does, without loading its collision geometry again; unknown fields are refused."""
+    ik = SelectiveIK.load(tiny_bundle)
+    checker = ik.checker
+    assert ik.configure(position_tolerance=2e-4) is ik
+    assert ik.config.position_tolerance == 2e-4 and ik.checker is checker
+    fresh = SelectiveIK.load(tiny_bundle).with_config(position_tolerance=2e-4)
+    _, pos, _ = targets
+    a, b = ik.solve(pos[0], num_solutions=4), fresh.solve(pos[0], num_solutions=4)
+    assert [s.q.tolist() for s in a.solutions] == [s.q.tolist() for s in b.solutions]
+    with pytest.raises(InvalidArgument, match='unknown SolverConfig'):
+        ik.configure(tolerance=1.0)

@@ -47,6 +47,12 @@ NODE_NAME = 'sik_node'
 #: oldest, as any KEEP_LAST subscription does; a client that needs every answer calls the
 #: service.
 GOAL_QUEUE = 100
+
+#: Depth of the services' request queues. ROS 2's default for services keeps the last 10
+#: requests: with more clients waiting than that while every executor thread is busy, Fast
+#: DDS drops the oldest unread requests, and their clients wait for a resend (measured:
+#: bench/soak.py, docs/benchmarks.md).
+SERVICE_QUEUE = 256
 #: Executor threads, and solver instances in the pool (one per thread).
 WORKERS = 4
 #: Longest time the main thread waits in the executor before it checks for signals [s].
@@ -106,8 +112,11 @@ class SikNode(Node):
         group = ReentrantCallbackGroup()
         self._solutions_pub = self.create_publisher(IKSolutionArray, '~/solutions', 10)
         self._markers_pub = self.create_publisher(MarkerArray, '~/markers', 5)
-        self.create_service(SolveIK, '~/solve_ik', self._on_solve_ik, callback_group=group)
-        self.create_service(SolvePath, '~/solve_path', self._on_solve_path, callback_group=group)
+        requests = QoSProfile(depth=SERVICE_QUEUE, reliability=ReliabilityPolicy.RELIABLE)
+        self.create_service(SolveIK, '~/solve_ik', self._on_solve_ik, qos_profile=requests,
+                            callback_group=group)
+        self.create_service(SolvePath, '~/solve_path', self._on_solve_path,
+                            qos_profile=requests, callback_group=group)
         self.create_subscription(PoseStamped, '~/goal', self._on_goal, GOAL_QUEUE,
                                  callback_group=group)
         self._update_joint_state_subscription()
@@ -214,7 +223,7 @@ class SikNode(Node):
         try:
             settings = self._solver_settings(p)
             if any(getattr(ik.config, k) != v for k, v in settings.items()):
-                ik = self._ik.with_config(**settings)
+                ik.configure(**settings)  # keeps its Pinocchio and coal data
             yield ik
         finally:
             self._pool.put(ik)

@@ -88,10 +88,29 @@ class SelectiveIK:
         Raises:
             InvalidArgument: an unknown field or a bad value.
         """
+        return SelectiveIK(self.robot, self.models, self._changed(changes), self.bundle)
+
+    def configure(self, **changes) -> 'SelectiveIK':
+        """Change some :class:`SolverConfig` fields of this instance, in place; returns it.
+
+        Unlike :meth:`with_config`, the instance keeps its Pinocchio data and collision
+        checker (no geometry is loaded again): for a pool whose instances follow parameter
+        changes. Calls already running finish with the old settings.
+
+        Raises:
+            InvalidArgument: an unknown field or a bad value.
+        """
+        config = self._changed(changes)
+        with self._lock:
+            self.config = config
+            self._ctx = replace(self._ctx, config=config)
+        return self
+
+    def _changed(self, changes: Dict) -> SolverConfig:
         unknown = sorted(set(changes) - {f.name for f in fields(SolverConfig)})
         if unknown:
             raise InvalidArgument(f'unknown SolverConfig fields {unknown}')
-        return SelectiveIK(self.robot, self.models, replace(self.config, **changes), self.bundle)
+        return replace(self.config, **changes)
 
     # -- what it is ------------------------------------------------------------------------------
 

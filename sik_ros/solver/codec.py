@@ -8,21 +8,15 @@ from sik_ros.solver.context import Context, Goal
 
 
 def goal_net(ctx: Context, goal: Goal, rows: int) -> torch.Tensor:
-    """The goal repeated ``rows`` times (or its ``rows`` targets), in network units."""
-    if goal.position.ndim == 2:
-        g = make_goal(goal.kind, goal.position, goal.rotation)
-    else:
-        g = make_goal(goal.kind, np.repeat(goal.position[None], rows, 0),
-                      None if goal.rotation is None else np.repeat(goal.rotation[None], rows, 0))
+    """The goal repeated ``rows`` times, in the network's normalised units."""
+    g = make_goal(goal.kind, np.repeat(goal.position[None], rows, 0),
+                  None if goal.rotation is None else np.repeat(goal.rotation[None], rows, 0))
     return ctx.models[goal.kind].norm.goal_to_net(torch.from_numpy(g.astype(np.float32)))
 
 
 @torch.no_grad()
 def decode(ctx: Context, goal: Goal, z: np.ndarray) -> np.ndarray:
-    """Joint solutions (M, n) [rad] decoded from posture indices (M, latent), clipped.
-
-    ``goal`` is one target or one per row (positions (M, 3)).
-    """
+    """Joint solutions (M, n) [rad] decoded from posture indices (M, latent), clipped."""
     gm = ctx.models[goal.kind]
     x = gm.model.decode(goal_net(ctx, goal, len(z)),
                         torch.from_numpy(np.asarray(z, dtype=np.float32)))

@@ -1,20 +1,16 @@
 """Cartesian paths: joint paths through a sequence of tool poses, without flips.
 
-At the first waypoint the solver's distinct exact solutions (with the seed's own posture and the
-2 pi equivalents of periodic joints) start *tracks*. Each track is first carried along the whole
-path at once (:func:`_sweep`, the paper's "keep the posture": the start's posture index decoded
-at key waypoints, refined at every waypoint in one batch). Then, waypoint by waypoint, the
-candidates are the swept configurations, plus the continuations (damped least squares from the
-previous configuration: the smallest joint steps) of the few cheapest tracks and of tracks whose
-swept row is lost or off the segment. The candidates of consecutive waypoints form a ladder
-graph; an edge is allowed when no joint moves more than ``max_joint_step`` and the tool stays on
-the Cartesian segment between the two waypoints (checked by FK of interpolated configurations;
-along a track with the sweep, elsewhere only for the edges that would be chosen), and is
+At the first waypoint (and wherever every track is lost) the solver's distinct exact solutions
+(with the seed's own posture and the 2 pi equivalents of periodic joints) start *tracks*; at each
+next waypoint every track is continued by refining its last configuration onto the new pose (a
+warm start: the posture is kept, the paper's "keep the posture" strategy). The candidates of
+consecutive waypoints form a ladder graph; an edge is allowed when no joint moves more than
+``max_joint_step`` and the tool stays on the Cartesian segment between the two waypoints
+(checked by FK of interpolated configurations, only for the edges that would be chosen), and is
 weighted by its joint travel (plus the distance of the start from the seed). Dynamic
 programming over the ladder (a beam of the ``tracks`` cheapest candidates per waypoint) gives
-the cheapest paths; the best few, from distinct starts, are returned. Where every track is
-lost, the solver's solutions there start new ones. When no candidate of a waypoint can be
-reached, the longest feasible prefix is returned with its ``fraction``, as MoveIt's
+the cheapest paths; the best few, from distinct starts, are returned. When no candidate of a
+waypoint can be reached, the longest feasible prefix is returned with its ``fraction``, as MoveIt's
 ``computeCartesianPath`` does.
 """
 
@@ -27,16 +23,13 @@ import numpy as np
 from sik_ros.chain import chain_forward
 from sik_ros.collision import Obstacle
 from sik_ros.rotations import rotation_angle
-from sik_ros.solver import codec, pipeline  # noqa: I100 (sibling modules)
+from sik_ros.solver import pipeline  # noqa: I100 (a sibling module, not the package)
 from sik_ros.solver.context import Context, Goal
 from sik_ros.solver.ranking import distinct_mask
 from sik_ros.solver.refine import refine
 
 #: Interpolation points checked on every edge (fractions of the edge).
 EDGE_CHECKS = (0.25, 0.5, 0.75)
-
-#: Waypoints between the key waypoints at which a path's tracks are decoded (:func:`_sweep`).
-KEY_EVERY = 8
 
 
 @dataclass
@@ -83,7 +76,6 @@ class PathSettings:
     orientation_path_tolerance: float = 0.05
     starts: int = 16
     tracks: int = 12
-    follow: int = 2
     seed_weight: float = 1.0
 
 
@@ -133,81 +125,18 @@ def _on_segment(ctx: Context, qa: np.ndarray, qb: np.ndarray, ga: Goal, gb: Goal
     return ok.reshape(checks, k).all(axis=0)
 
 
-def _stack(goals: Sequence[Goal]) -> Goal:
-    """Waypoints as one goal with a target per row."""
-    rot = None if goals[0].rotation is None else np.array([g.rotation for g in goals])
-    return Goal(np.array([g.position for g in goals]), rot)
-
-
-def _sweep(ctx: Context, goals: Sequence[Goal], starts: np.ndarray, deadline) -> np.ndarray:
-    """Every start carried along the whole path at once: (N, M, n), NaN rows where not exact.
-
-    The paper's "keep the posture": each start's posture index, encoded at the first waypoint,
-    is decoded at key waypoints (every :data:`KEY_EVERY`-th and the last), shifted by the
-    start's own decoding offset (so that the first waypoint gives the start back) and
-    interpolated in between; then the N x M configurations are refined together in one
-    batched damped least squares.
-    """
-    n, m, dof = len(goals), len(starts), ctx.robot.dof
-    out = np.full((n, m, dof), np.nan)
-    out[0] = starts
-    if n == 1 or m == 0:
-        return out
-    keys = np.unique(np.r_[np.arange(0, n, KEY_EVERY), n - 1])
-    z = codec.encode(ctx, goals[0], starts)
-    at_keys = _stack([goals[i] for i in keys])
-    rows = Goal(np.repeat(at_keys.position, m, 0),
-                None if at_keys.rotation is None else np.repeat(at_keys.rotation, m, 0))
-    decoded = codec.decode(ctx, rows, np.tile(z, (len(keys), 1))).reshape(len(keys), m, dof)
-    decoded += starts - decoded[0]
-    # joint values between key waypoints: linear in the waypoint number
-    q0 = np.stack([np.stack([np.interp(np.arange(1, n), keys, decoded[:, k, j])
-                             for j in range(dof)], axis=1) for k in range(m)], axis=1)
-    rest = _stack(goals[1:])
-    rows = Goal(np.repeat(rest.position, m, 0),
-                None if rest.rotation is None else np.repeat(rest.rotation, m, 0))
-    q0 = np.clip(q0.reshape(-1, dof), ctx.robot.lower, ctx.robot.upper)
-    r = refine(ctx, q0, rows, deadline)
-    ok = r.perr <= ctx.config.position_tolerance
-    if rows.rotation is not None:
-        ok &= r.oerr <= ctx.config.orientation_tolerance
-    out[1:] = np.where(ok[:, None], r.q, np.nan).reshape(n - 1, m, dof)
-    return out
-
-
-def _natural_edges(ctx: Context, sweep: np.ndarray, goals: Sequence[Goal],
-                   s: PathSettings) -> np.ndarray:
-    """(N, M) bool: whether each swept row is reached from the same track's previous row."""
-    n, m, _ = sweep.shape
-    ok = np.zeros((n, m), dtype=bool)
-    if n < 2:
-        return ok
-    qa, qb = sweep[:-1].reshape(-1, sweep.shape[2]), sweep[1:].reshape(-1, sweep.shape[2])
-    short = np.all(np.isfinite(qa) & np.isfinite(qb), axis=1)
-    short[short] = np.abs(qb[short] - qa[short]).max(axis=1) <= s.max_joint_step
-    idx = np.flatnonzero(short)
-    seg = np.repeat(np.arange(n - 1), m)[idx]
-    fine = _on_segment(ctx, qa[idx], qb[idx], _stack([goals[i] for i in seg]),
-                       _stack([goals[i + 1] for i in seg]), s)
-    flat = np.zeros((n - 1) * m, dtype=bool)
-    flat[idx[fine]] = True
-    ok[1:] = flat.reshape(n - 1, m)
-    return ok
-
-
 def _edges(ctx: Context, prev: np.ndarray, prev_cost: np.ndarray, q: np.ndarray,
-           known: np.ndarray, ga: Goal, gb: Goal, s: PathSettings) -> np.ndarray:
+           ga: Goal, gb: Goal, s: PathSettings) -> np.ndarray:
     """(P, Q) cost of reaching each candidate ``q`` from each ``prev`` (inf: not allowed).
 
-    Edges with a joint step above ``max_joint_step`` are out; ``known`` (P, Q) holds edges
-    already checked on the segment (1 fine, 0 off it, -1 not checked). Unchecked edges are
-    checked lazily, only those that would be a candidate's cheapest way in.
+    Edges with a joint step above ``max_joint_step`` are out. The others are checked on the
+    segment ``ga`` -> ``gb`` lazily: only those that would be a candidate's cheapest way in,
+    until every candidate's cheapest edge passes (the same choice as checking them all).
     """
     travel = np.linalg.norm(q[None] - prev[:, None], axis=2)
     step = np.abs(q[None] - prev[:, None]).max(axis=2)
-    total = np.where((step <= s.max_joint_step) & (known != 0),
-                     prev_cost[:, None] + travel, np.inf)
-    checked = known >= 0
+    total = np.where(step <= s.max_joint_step, prev_cost[:, None] + travel, np.inf)
+    checked = np.zeros(total.shape, dtype=bool)
     cols = np.arange(len(q))
     while True:
         best = np.argmin(total, axis=0)
@@ -232,68 +161,45 @@ def solve_path(ctx: Context, goals: Sequence[Goal], q_seed: Optional[np.ndarray]
     t0 = time.perf_counter()
     n = len(goals)
     cand: List[np.ndarray] = []          # candidates per waypoint (M_i, dof)
-    track: List[np.ndarray] = []         # the swept track of each candidate (-1: none)
     back: List[np.ndarray] = []          # best predecessor per candidate (-1: a start)
     cost: List[np.ndarray] = []          # best cost to reach each candidate
     reached = 0
     timed_out = False
-    starts = _starts(ctx, goals[0], q_seed, obstacles, s.starts, deadline)[:s.tracks]
-    sweep = _sweep(ctx, goals, starts, deadline)
-    natural = _natural_edges(ctx, sweep, goals, s)
     for i, goal in enumerate(goals):
         if deadline is not None and time.perf_counter() > deadline:
             timed_out = True
             break
         if i == 0:
-            q = starts
-            if len(q) == 0:
-                break
+            q = _starts(ctx, goal, q_seed, obstacles, s.starts, deadline)
             c0 = np.zeros(len(q)) if q_seed is None else \
                 s.seed_weight * np.linalg.norm(q - q_seed, axis=1)
-            cand.append(q), back.append(np.full(len(q), -1)), cost.append(c0)
-            track.append(np.arange(len(q)))
-            reached = 1
-            continue
-        alive = np.isfinite(cost[-1])
-        prev, prev_idx, prev_track = cand[-1][alive], np.flatnonzero(alive), track[-1][alive]
-        # the swept rows here; tracks whose swept row is lost or not reached are continued
-        # from their previous configuration (and rows that belong to no track always are)
-        swept = np.flatnonzero(np.all(np.isfinite(sweep[i]), axis=1))
-        goes_on = prev_track >= 0
-        goes_on[goes_on] = natural[i, prev_track[goes_on]]
-        # the cheapest few are also followed by the smallest joint steps (damped least
-        # squares from where they are): posture keeping need not be the shortest way
-        goes_on[np.argsort(cost[-1][prev_idx], kind='stable')[:s.follow]] = False
-        extra = np.zeros((0, ctx.robot.dof))
-        if not goes_on.all():
-            extra = _continue(ctx, prev[~goes_on], goal, deadline)
-            extra = extra[np.all(np.isfinite(extra), axis=1)]
-        q = np.concatenate([sweep[i][swept], extra])
-        tr = np.concatenate([swept, np.full(len(extra), -1)])
-        if len(q) < 2:  # tracks lost: new starts here, joined by the edges that allow it
-            fresh = _starts(ctx, goal, None, obstacles, s.starts, deadline)
-            q, tr = np.concatenate([q, fresh]), np.concatenate([tr, np.full(len(fresh), -1)])
-        if len(q) == 0:
-            break
-        keep = distinct_mask(q, 1e-3)
-        q, tr = q[keep], tr[keep]
-        if obstacles:
-            clear = ctx.checker.clearance(q, obstacles, deadline) > 0
-            q, tr = q[clear], tr[clear]
             if len(q) == 0:
                 break
-        # edges along a track were checked with the sweep; the rest are checked when needed
-        known = np.full((len(prev), len(q)), -1, dtype=np.int8)
-        a, b = np.nonzero((prev_track[:, None] >= 0) & (prev_track[:, None] == tr[None]))
-        known[a, b] = natural[i, tr[b]]
-        total = _edges(ctx, prev, cost[-1][prev_idx], q, known, goals[i - 1], goal, s)
+            cand.append(q), back.append(np.full(len(q), -1)), cost.append(c0)
+            reached = 1
+            continue
+        prev = cand[-1][np.isfinite(cost[-1])]
+        prev_idx = np.flatnonzero(np.isfinite(cost[-1]))
+        q = _continue(ctx, prev, goal, deadline)
+        q = q[np.all(np.isfinite(q), axis=1)]
+        if len(q) < 2:  # tracks lost: new starts here, joined by the edges that allow it
+            fresh = _starts(ctx, goal, None, obstacles, s.starts, deadline)
+            q = np.concatenate([q, fresh]) if len(q) else fresh
+        if len(q) == 0:
+            break
+        q = q[distinct_mask(q, 1e-3)]
+        if obstacles:
+            clear = ctx.checker.clearance(q, obstacles, deadline)
+            q = q[clear > 0]
+            if len(q) == 0:
+                break
+        total = _edges(ctx, prev, cost[-1][prev_idx], q, goals[i - 1], goal, s)
         best = np.argmin(total, axis=0)
         c = total[best, np.arange(len(q))]
         if not np.isfinite(c).any():
             break
         keep = np.argsort(c, kind='stable')[:s.tracks]  # a beam: the cheapest tracks go on
         cand.append(q[keep]), back.append(prev_idx[best][keep]), cost.append(c[keep])
-        track.append(tr[keep])
         reached = i + 1
     paths = _paths(ctx, goals, cand, back, cost, obstacles, s)
     success = reached == n and bool(paths)

@@ -34,22 +34,8 @@ class Refined:
     cut_short: bool = False
 
 
-#: Above this many rows the vectorised Jacobian beats one Pinocchio call per row.
-BATCH_ROWS = 200
-
-
-def goal_rows(goal: Goal, idx: np.ndarray) -> Goal:
-    """The rows ``idx`` of a goal with one target per row (a one-target goal as it is)."""
-    if goal.position.ndim == 1:
-        return goal
-    return Goal(goal.position[idx], None if goal.rotation is None else goal.rotation[idx])
-
-
 def errors(ctx: Context, q: np.ndarray, goal: Goal) -> Tuple[np.ndarray, np.ndarray]:
-    """Position errors [m] and orientation errors [rad] (zeros for position goals), (M,).
-
-    ``goal`` is one target, or one per row (positions (M, 3), rotations (M, 3, 3)).
-    """
+    """Position errors [m] and orientation errors [rad] (zeros for position goals), (M,)."""
     robot = ctx.robot
     p, r = robot.fk_loop(q, ctx.data) if len(q) <= 256 else robot.fk_rot(q)
     perr = np.linalg.norm(p - goal.position, axis=1)
@@ -79,15 +65,14 @@ def refine(ctx: Context, q: np.ndarray, goal: Goal, deadline: Optional[float] = 
     Args:
         ctx: the solver's parts.
         q: starting configurations (M, n) [rad].
-        goal: the target, or one per row (positions (M, 3), rotations (M, 3, 3); with
-            neither ``prune`` nor ``enough``).
+        goal: the target.
         deadline: a ``time.perf_counter()`` value after which no iteration starts.
         iterations: most iterations (default: ``config.refine_iterations``).
         prune: merge candidates heading for the same solution.
         enough: stop once this many distinct candidates are exact.
     """
     cfg = ctx.config
-    rot = goal.rotation
+    pos, rot = goal.position, goal.rotation
     q = q.copy()
     n = len(q)
     rows = 3 if rot is None else 6
@@ -116,17 +101,13 @@ def refine(ctx: Context, q: np.ndarray, goal: Goal, deadline: Optional[float] = 
         if deadline is not None and time.perf_counter() > deadline:
             cut_short = True
             break
-        if len(idx) > BATCH_ROWS:
-            p, r, jac = ctx.robot.jacobian_batch(q[idx])
-        else:
-            p, r, jac = ctx.robot.jacobian_loop(q[idx], ctx.data)
-        here = goal_rows(goal, idx)
-        err = here.position - p
+        p, r, jac = ctx.robot.jacobian_loop(q[idx], ctx.data)
+        err = pos - p
         perr = np.sqrt((err * err).sum(1))
         done = perr < cfg.position_tolerance * 0.5
         stuck = perr > 10 * cfg.position_tolerance
         if rot is not None:
-            rot_err = rotation_log(here.rotation @ r.transpose(0, 2, 1))
+            rot_err = rotation_log(rot @ r.transpose(0, 2, 1))
             oerr = np.sqrt((rot_err * rot_err).sum(1))
             err = np.concatenate([err, rot_err], axis=1)
             done &= oerr < cfg.orientation_tolerance * 0.5
@@ -173,5 +154,5 @@ def refine(ctx: Context, q: np.ndarray, goal: Goal, deadline: Optional[float] = 
         stale[idx] = True
     moved = np.flatnonzero(stale)
     if len(moved):
-        perr_all[moved], oerr_all[moved] = errors(ctx, q[moved], goal_rows(goal, moved))
+        perr_all[moved], oerr_all[moved] = errors(ctx, q[moved], goal)
     return Refined(q, perr_all, oerr_all, cut_short)
