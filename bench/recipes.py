@@ -71,9 +71,10 @@ def main() -> None:
     torch.set_num_threads(1)
     runs = [Path(r) for r in args.runs]
     ckpts = {r: load_checkpoint(r / 'last.pt') for r in runs}
+    solver_cols = (' raw mean of 10 [cm] | raw 1st [cm] | distinct of 16 (p10) '
+                   '| Table 4 [cm] |') if args.solver else ''
     print('| run | sampler | FK weight | cycle | steps | samples | time [s] | val dist [cm] '
-          '| index spread |' + (' raw mean of 10 [cm] | raw 1st [cm] | distinct of 16 (p10) '
-                                 '| Table 4 [cm] |' if args.solver else ''))
+          '| index spread |' + solver_cols)
     print('|---' * (9 + 4 * args.solver) + '|')
     with tempfile.TemporaryDirectory() as tmp:
         for r, c in ckpts.items():

@@ -5,7 +5,8 @@ Starts the node on the bundled Panda model, then ``--clients`` threads (each wit
 ``--requests`` requests in all: position and pose goals, some with obstacles, some with a seed;
 meanwhile ``position_tolerance`` is changed every ``--churn`` requests (a new value each time).
 Prints answered / lost, the codes, round-trip p50 / p99 [ms] and the node's RSS (with its solver
-processes) at start and end.
+processes) after the node's warm-up, once every client is connected and answered once (each
+client is a new DDS participant: its discovery data is the node's too), and at the end.
 
     python bench/soak.py --requests 10000 --clients 16
 """
@@ -85,11 +86,15 @@ def main() -> None:
     rss0 = rss_mb(proc.pid)
     codes, times, lost = Counter(), [], [0]
     counter, lock = [0], threading.Lock()
+    connected = threading.Barrier(args.clients + 1)
 
     def client_loop(k: int) -> None:
         rng = np.random.default_rng(100 + k)
         client = SolveIKClient(node_name=f'soak_{k}')
         client.wait_for_service(30.0)
+        client.call(make_request(rng, robot, args.timeout), args.timeout + 5.0)  # not counted
+        connected.wait()  # every client matched and answered once: RSS measured here
+        connected.wait()
         while True:
             with lock:
                 if counter[0] >= args.requests:
@@ -125,6 +130,9 @@ def main() -> None:
                    for k in range(args.clients)]
         for t in threads:
             t.start()
+        connected.wait()
+        rss_c = rss_mb(proc.pid)
+        connected.wait()
         for t in threads:
             t.join()
         wall = time.perf_counter() - t0
@@ -135,7 +143,8 @@ def main() -> None:
               f'{wall:.0f} s ({len(times) / wall:.0f} req/s); round trip p50 '
               f'{np.percentile(ms, 50):.1f} ms, p99 {np.percentile(ms, 99):.1f} ms, max '
               f'{ms.max():.1f} ms; node RSS {rss1:.1f} MB ({rss1 - rss0:+.1f} MB since the '
-              f'warm-up)', flush=True)
+              f'warm-up, {rss1 - rss_c:+.1f} MB since the {args.clients} clients were connected '
+              f'and answered once, at {rss_c:.1f} MB)', flush=True)
     admin.close()
     rclpy.shutdown()
     demo.stop_node(proc)

@@ -58,6 +58,7 @@ def _serve(conn: Connection, bundle: str, config: Dict[str, Any]) -> None:
     torch.set_num_threads(1)
     try:
         base = SelectiveIK.load(bundle, SolverConfig(**config))
+        base.warm_up()
     except Exception as exc:  # reported to the parent, which refuses to start
         conn.send(('error', type(exc).__name__, str(exc)))
         return

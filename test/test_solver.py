@@ -323,3 +323,13 @@ def test_configure_changes_settings_in_place_and_keeps_the_instance_data(tiny_bu
     assert [s.q.tolist() for s in a.solutions] == [s.q.tolist() for s in b.solutions]
     with pytest.raises(InvalidArgument, match='unknown SolverConfig'):
         ik.configure(tolerance=1.0)
+
+
+def test_warm_up_solves_each_kind_once_and_leaves_answers_unchanged(tiny_bundle, targets):
+    """warm_up() runs position, pose, obstacle and path requests without changing answers."""
+    cold, warm = SelectiveIK.load(tiny_bundle), SelectiveIK.load(tiny_bundle)
+    assert warm.warm_up() > 0
+    _, pos, quat = targets
+    a, b = cold.solve(pos[1], quat[1], num_solutions=4), warm.solve(pos[1], quat[1],
+                                                                     num_solutions=4)
+    assert [s.q.tolist() for s in a.solutions] == [s.q.tolist() for s in b.solutions]

@@ -102,8 +102,12 @@ class SikNode(Node):
             except SikError as exc:
                 raise StartupError(f'cannot start the solver processes: {exc}') from exc
         else:
+            took = 0.0
             for _ in range(workers):
-                self._pool.put(self._ik.clone())
+                ik = self._ik.clone()
+                took += ik.warm_up()
+                self._pool.put(ik)
+            self.get_logger().info(f'{workers} solvers warmed up in {took:.2f} s')
         self._joint_state: Optional[JointState] = None
         self._joint_state_sub = None
         self.add_on_set_parameters_callback(self._on_set_parameters)

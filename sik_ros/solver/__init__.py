@@ -112,6 +112,29 @@ class SelectiveIK:
             raise InvalidArgument(f'unknown SolverConfig fields {unknown}')
         return replace(self.config, **changes)
 
+    def warm_up(self) -> float:
+        """Solve one of each kind of request once (position, pose, an obstacle, a short path).
+
+        The first calls of an instance allocate its working memory (and the first of a process
+        its allocator arenas): a server warms its solvers before it accepts requests, so that
+        neither the first answers' latency nor the memory measured afterwards carries that.
+
+        Returns:
+            the time it took [s].
+        """
+        t0 = time.perf_counter()
+        q = 0.5 * (self.robot.lower + self.robot.upper)
+        pos, quat = self.fk(q)
+        ball = Obstacle('sphere', (0.05,), position=tuple(pos + 0.3))
+        for goal in self.goals:
+            rot = quat if goal == 'pose' else None
+            self.solve(pos, rot, seed=q, timeout=1.0)
+            self.solve(pos, rot, obstacles=[ball], timeout=1.0)
+            line = pos + np.linspace(0.0, 0.02, 3)[:, None] * [0.0, 0.0, 1.0]
+            self.solve_path(line, None if rot is None else np.repeat(quat[None], 3, 0), seed=q,
+                            timeout=1.0)
+        return time.perf_counter() - t0
+
     # -- what it is ------------------------------------------------------------------------------
 
     @property
