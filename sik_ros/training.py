@@ -305,8 +305,17 @@ class Trainer:
         """Train until ``cfg.steps`` or ``max_time`` seconds of this call; checkpoint on exit.
 
         One loop for both optimisers: a gradient step (SIK, PSIK, FCN) or a particle swarm
-        step (ANFIS, the paper's solver), then validation, checkpoints and progress.
+        step (ANFIS, the paper's solver), then validation, checkpoints and progress. A
+        ``KeyboardInterrupt`` (Ctrl-C; ``sik-train`` also turns SIGTERM into one) checkpoints
+        the steps done so far before it goes on up.
         """
+        try:
+            return self._run(max_time, progress)
+        except KeyboardInterrupt:
+            self.save()
+            raise
+
+    def _run(self, max_time: Optional[float], progress) -> Dict:
         pso = self.model_cfg.kind == 'anfis'
         step = self._pso_step if pso else self._gradient_step
         t0 = time.perf_counter()

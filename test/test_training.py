@@ -228,3 +228,15 @@ def test_a_run_stopped_by_time_ends_with_its_validation(panda, uniform_small, tm
     rec = t.run(max_time=0.0)
     assert rec['step'] == 1 and rec['val_dist_mean_m'] > 0
     assert t.history[-1]['step'] == 1
+
+
+def test_an_interrupted_run_checkpoints_its_last_step(panda, uniform_small, tmp_path):
+    """Ctrl-C (or SIGTERM in sik-train) in the middle of a run saves the steps done so far."""
+    t = trainer(panda, uniform_small, tmp_path, steps=60, checkpoint_every=1000)
+
+    def stop_at_7(step, rec):
+        if step == 7:
+            raise KeyboardInterrupt
+    with pytest.raises(KeyboardInterrupt):
+        t.run(progress=stop_at_7)
+    assert load_checkpoint(tmp_path / 'last.pt')['step'] == 7

@@ -3,6 +3,7 @@
 import argparse
 import json
 from pathlib import Path
+import signal
 import sys
 from typing import List, Optional
 
@@ -64,11 +65,19 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
+def _interrupt(signum, frame):
+    raise KeyboardInterrupt
+
+
 def main(argv: Optional[List[str]] = None) -> int:
     """Entry point of sik-train."""
     args = build_parser().parse_args(argv_or_default(argv))
 
     def body() -> int:
+        # Ctrl-C, kill -INT (also of a job started in the background, which ignores SIGINT)
+        # and SIGTERM stop a run with a checkpoint of its last step
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+        signal.signal(signal.SIGTERM, _interrupt)
         rank, size = distributed.init(args.device or 'cpu')
         out = Path(args.out)
         if args.max_time is not None and args.max_time <= 0:
