@@ -27,7 +27,8 @@ EXPECTED = [
     ('path_timeout', float, 2.0),
     ('use_joint_states', bool, False), ('goal_use_orientation', bool, False),
     ('publish_markers', bool, True), ('solver_processes', int, 0),
-    ('max_obstacles', int, 256), ('max_waypoints', int, 2000), ('shutdown_grace', float, 1.0), ('robot_description', str, '')]
+    ('max_obstacles', int, 256), ('max_waypoints', int, 2000), ('shutdown_grace', float, 1.0),
+    ('robot_description', str, '')]
 READ_ONLY = {'robot', 'model_dir', 'base_frame', 'tip_frame', 'solver_processes',
              'robot_description'}
 

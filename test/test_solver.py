@@ -311,8 +311,10 @@ def test_sik_solve_cli_bad_input(tiny_bundle):
 
 
 def test_configure_changes_settings_in_place_and_keeps_the_instance_data(tiny_bundle, targets):
-    """configure() gives an instance the new settings, answering as a fresh instance with
-    them does, without loading its collision geometry again; unknown fields are refused."""
+    """configure() gives an instance new settings in place, keeping its collision checker.
+
+    It answers as a fresh instance with those settings does; unknown fields are refused.
+    """
     ik = SelectiveIK.load(tiny_bundle)
     checker = ik.checker
     assert ik.configure(position_tolerance=2e-4) is ik
@@ -330,6 +332,6 @@ def test_warm_up_solves_each_kind_once_and_leaves_answers_unchanged(tiny_bundle,
     cold, warm = SelectiveIK.load(tiny_bundle), SelectiveIK.load(tiny_bundle)
     assert warm.warm_up() > 0
     _, pos, quat = targets
-    a, b = cold.solve(pos[1], quat[1], num_solutions=4), warm.solve(pos[1], quat[1],
-                                                                     num_solutions=4)
+    a = cold.solve(pos[1], quat[1], num_solutions=4)
+    b = warm.solve(pos[1], quat[1], num_solutions=4)
     assert [s.q.tolist() for s in a.solutions] == [s.q.tolist() for s in b.solutions]

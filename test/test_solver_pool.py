@@ -1,5 +1,7 @@
-"""Solver processes: a process killed while it serves a request is replaced, and the request
-is answered by another within its deadline."""
+"""Solver processes: a process killed while it serves a request is replaced.
+
+The request is answered by another process within its deadline.
+"""
 
 import os
 import signal
@@ -14,8 +16,10 @@ from sik_ros.solver_pool import SolverPool
 
 
 def test_a_request_whose_process_dies_is_retried_on_another(panda, tiny_bundle):
-    """kill -9 of the busy process: the request is answered (FK-verified) within its deadline
-    by the other process, and the pool is back to two living processes."""
+    """A kill -9 of the busy process: another one answers the request within its deadline.
+
+    The answer is FK-verified, and the pool is back to two living processes.
+    """
     pool = SolverPool(tiny_bundle, SolverConfig(), 2)
     try:
         pos, _ = panda.fk(np.full(panda.dof, 0.3))

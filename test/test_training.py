@@ -181,10 +181,13 @@ def test_two_gloo_processes_train_in_sync_and_the_checkpoint_serves(
     assert res.solutions and np.isfinite(res.solutions[0].position_error)
 
 
-def test_fresh_samples_and_the_cycle_term_train_and_keep_the_index(panda, uniform_small,
-                                                                    tmp_path):
-    """Batches drawn afresh by torch FK, with the FK and cycle terms, lower the FK error and
-    keep decoded postures apart for different indices (no collapse of the posture index)."""
+def test_fresh_samples_and_the_cycle_term_train_and_keep_the_index(
+        panda, uniform_small, tmp_path):
+    """Fresh batches with the FK and cycle terms lower the FK error and keep the index.
+
+    Batches drawn afresh by torch FK; decoded postures of different indices stay apart (no
+    collapse of the posture index).
+    """
     t = trainer(panda, uniform_small, tmp_path, steps=300, eval_every=300, sampler='uniform',
                 fk_weight=0.05, cycle_weight=1.0)
     before = t.validate()
