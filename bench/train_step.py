@@ -52,8 +52,9 @@ def main() -> None:
     print(f'# bench/train_step.py: {args.preset} preset ({enc} / {dec}), {args.goal} goals, '
           f'torch {torch.__version__}, {os.cpu_count()} cores')
     print('| batch | threads | float32 [samples/s] | bfloat16 autocast [samples/s] |'
-          + (' compiled float32 [samples/s] |' if args.compile else ''))
-    print('|---|---|---|---|' + ('---|' if args.compile else ''))
+          + (' compiled float32 [samples/s] | compiled bfloat16 [samples/s] |'
+             if args.compile else ''))
+    print('|---|---|---|---|' + ('---|---|' if args.compile else ''))
     for batch in map(int, args.batches.split(',')):
         for threads in map(int, args.threads.split(',')):
             cfg = TrainConfig(steps=10 ** 6, batch_size=batch, threads=threads, val_rows=1000)
@@ -62,7 +63,8 @@ def main() -> None:
                    rate(trainer, args.steps, args.repeats, True)]
             if args.compile:
                 trainer.net = torch.compile(trainer.model)
-                row.append(rate(trainer, args.steps, args.repeats, False))
+                row += [rate(trainer, args.steps, args.repeats, False),
+                        rate(trainer, args.steps, args.repeats, True)]
             print(f'| {batch} | {threads} | ' + ' | '.join(f'{r:,.0f}' for r in row) + ' |',
                   flush=True)
 
