@@ -1,6 +1,7 @@
 """Benchmark of sik_node's ``~/solve_ik`` over loopback DDS (issue 5's targets).
 
-Measures, for position goals at FK of random configurations and 16 ranked refined solutions:
+Measures, for goals at FK of random configurations (position goals, pose goals, or both
+alternating: ``--goals mixed``) and 16 ranked refined solutions:
 
 - round-trip latency of sequential requests (p50, p99) [ms] from a :class:`SolveIKClient` (a
   background-spun client: ``spin_until_future_complete`` alone costs several ms per call), beside
@@ -11,7 +12,8 @@ Measures, for position goals at FK of random configurations and 16 ranked refine
 - resident memory (VmRSS) growth of the node and its solver processes over all the requests
   sent [MB].
 
-Usage: ``python bench/service.py [--quick] [--requests N] [--model-dir DIR]``. Prints a table; the
+Usage: ``python bench/service.py [--quick] [--requests N] [--goals position|pose|mixed]
+[--model-dir DIR]``. Prints a table; the
 figures are never asserted (see docs/benchmarks.md).
 """
 
@@ -55,11 +57,16 @@ def vm_rss_mb(pid: int) -> float:
     return total + sum(vm_rss_mb(c) for c in children)
 
 
-def targets(count: int, seed: int = 0) -> np.ndarray:
-    """Reachable tip positions (count, 3) [m]: FK of random valid configurations."""
+def targets(count: int, seed: int = 0, kinds: str = 'position') -> List[tuple]:
+    """Reachable goals: (position (3,) [m], quaternion (4,) or None) of random configurations.
+
+    ``kinds``: ``position``, ``pose``, or ``mixed`` (pose goals at odd places).
+    """
     robot = load_robot('panda')
     q = np.random.default_rng(seed).uniform(robot.lower, robot.upper, (count, robot.dof))
-    return robot.fk_batch(q)[0]
+    pos, quat = robot.fk_batch(q)
+    pose = [kinds == 'pose' or (kinds == 'mixed' and i % 2 == 1) for i in range(count)]
+    return [(pos[i], quat[i] if pose[i] else None) for i in range(count)]
 
 
 def percentiles(seconds) -> str:
@@ -68,7 +75,7 @@ def percentiles(seconds) -> str:
     return f'{p50:.2f} / {p99:.2f}'
 
 
-def sequential(client: SolveIKClient, goals: np.ndarray):
+def sequential(client: SolveIKClient, goals: List[tuple]):
     """Time one request per goal, one at a time.
 
     Returns:
@@ -76,8 +83,8 @@ def sequential(client: SolveIKClient, goals: np.ndarray):
         the answer codes (None: no answer).
     """
     times, inside, codes = [], [], []
-    for p in goals:
-        req = demo.pose_request(p, max_solutions=NUM_SOLUTIONS)
+    for p, quat in goals:
+        req = demo.pose_request(p, quat, max_solutions=NUM_SOLUTIONS)
         t0 = time.perf_counter()
         answer = client.call(req)
         times.append(time.perf_counter() - t0)
@@ -87,7 +94,7 @@ def sequential(client: SolveIKClient, goals: np.ndarray):
     return times, inside, codes
 
 
-def concurrent(goals: np.ndarray, clients: int, duration: float):
+def concurrent(goals: List[tuple], clients: int, duration: float):
     """Count requests answered to ``clients`` threads calling back to back for ``duration`` [s]."""
     counts = [0] * clients
     start = threading.Barrier(clients + 1)
@@ -99,8 +106,8 @@ def concurrent(goals: np.ndarray, clients: int, duration: float):
             start.wait()
             i = k
             while not stop.is_set():
-                answer = cli.call(demo.pose_request(goals[i % len(goals)],
-                                                    max_solutions=NUM_SOLUTIONS))
+                p, quat = goals[i % len(goals)]
+                answer = cli.call(demo.pose_request(p, quat, max_solutions=NUM_SOLUTIONS))
                 counts[k] += answer is not None
                 i += clients
 
@@ -116,15 +123,15 @@ def concurrent(goals: np.ndarray, clients: int, duration: float):
     return sum(counts), time.perf_counter() - t0
 
 
-def in_process(bundle: str, goals: np.ndarray) -> List[float]:
+def in_process(bundle: str, goals: List[tuple]) -> List[float]:
     """Time the solver alone [s] on the same goals, as the node runs it (one thread)."""
     torch.set_num_threads(1)
     ik = SelectiveIK.load(bundle).with_config(position_tolerance=1e-4,
                                               orientation_tolerance=1e-3)
-    for p in goals[:10]:
-        ik.solve(p, num_solutions=NUM_SOLUTIONS, timeout=NODE_TIMEOUT)
-    return [ik.solve(p, num_solutions=NUM_SOLUTIONS, timeout=NODE_TIMEOUT).elapsed
-            for p in goals]
+    for p, quat in goals[:10]:
+        ik.solve(p, quat, num_solutions=NUM_SOLUTIONS, timeout=NODE_TIMEOUT)
+    return [ik.solve(p, quat, num_solutions=NUM_SOLUTIONS, timeout=NODE_TIMEOUT).elapsed
+            for p, quat in goals]
 
 
 def main(argv: Optional[List[str]] = None) -> int:
@@ -136,6 +143,8 @@ def main(argv: Optional[List[str]] = None) -> int:
                         help='sequential requests for latency and memory (default 10000)')
     parser.add_argument('--clients', type=int, default=4, help='concurrent clients')
     parser.add_argument('--duration', type=float, help='concurrent phase [s] (default 20)')
+    parser.add_argument('--goals', choices=('position', 'pose', 'mixed'), default='position',
+                        help='goal kinds of the requests (mixed: alternating)')
     parser.add_argument('--model-dir', help='bundle directory (default: the bundled panda)')
     parser.add_argument('-p', '--param', action='append', default=[],
                         help='a node parameter override name:=value (repeatable)')
@@ -143,7 +152,7 @@ def main(argv: Optional[List[str]] = None) -> int:
     n = args.requests or (200 if args.quick else 10_000)
     duration = args.duration or (3.0 if args.quick else 20.0)
     bundle = args.model_dir or 'panda'
-    goals = targets(n)
+    goals = targets(n, kinds=args.goals)
 
     env = demo.ros_env()
     proc = demo.launch_node(args.model_dir, args.param, env=env, stdout=subprocess.DEVNULL,
@@ -159,7 +168,7 @@ def main(argv: Optional[List[str]] = None) -> int:
             return 1
         with SolveIKClient(SERVICE, 'sik_bench') as client:
             client.wait_for_service(10.0)
-            sequential(client, targets(20, seed=1))  # warm-up
+            sequential(client, targets(20, seed=1, kinds=args.goals))  # warm-up
             rss0 = vm_rss_mb(proc.pid)
             rtt, inside, codes = sequential(client, goals)
         answered, wall = concurrent(goals, args.clients, duration)
@@ -180,7 +189,13 @@ def main(argv: Optional[List[str]] = None) -> int:
          f'{rss1 - rss0:+.1f} ({rss0:.0f} -> {rss1:.0f})', '< 10 over 10,000'),
         ('SUCCESS answers (sequential)', f'{ok}/{len(codes)}', ''),
     ]
-    print(f'sik_node ~/solve_ik over loopback DDS: bundle {bundle}, position goals, '
+    if args.goals == 'mixed':
+        pose = np.array([quat is not None for _, quat in goals])
+        rtt_a = np.asarray(rtt)
+        rows[1:1] = [('  position goals: round trip p50 / p99 [ms]', percentiles(rtt_a[~pose]),
+                      ''),
+                     ('  pose goals: round trip p50 / p99 [ms]', percentiles(rtt_a[pose]), '')]
+    print(f'sik_node ~/solve_ik over loopback DDS: bundle {bundle}, {args.goals} goals, '
           f'{NUM_SOLUTIONS} ranked refined solutions, node timeout {NODE_TIMEOUT * 1e3:.0f} ms'
           + (f', parameters {" ".join(args.param)}' if args.param else '')
           + (' (quick run)' if args.quick else ''))
