@@ -35,10 +35,6 @@ def rotation_log(rot: np.ndarray) -> np.ndarray:
 
 
 def rotation_angle(target: np.ndarray, rot: np.ndarray) -> np.ndarray:
-    """Angles [rad] between a rotation (3, 3), or one per row (N, 3, 3), and rotations (N, 3, 3).
-
-    |log(target^T rot)|.
-    """
-    spec = 'nij,nij->n' if target.ndim == 3 else 'ij,nij->n'
-    cos = (np.einsum(spec, target, rot) - 1) / 2
+    """Angles [rad] between a rotation (3, 3) and rotations (N, 3, 3): |log(target^T rot)|."""
+    cos = (np.einsum('ij,nij->n', target, rot) - 1) / 2
     return np.arccos(np.clip(cos, -1.0, 1.0))

@@ -100,29 +100,26 @@ def _continue(ctx: Context, q: np.ndarray, goal: Goal, deadline) -> np.ndarray:
 
 def _on_segment(ctx: Context, qa: np.ndarray, qb: np.ndarray, ga: Goal, gb: Goal,
                 s: PathSettings) -> np.ndarray:
-    """(K,) bool: whether the tool stays on its segment between rows ``qa[k]`` and ``qb[k]``.
+    """(K,) bool: whether the tool stays on segment ``ga`` -> ``gb`` from ``qa[k]`` to ``qb[k]``.
 
-    ``ga`` and ``gb`` hold each row's segment ends (positions (K, 3), rotations (K, 3, 3) or
-    None). Checked by FK at :data:`EDGE_CHECKS` along the joint-space edge: the tool within
+    Checked by FK at :data:`EDGE_CHECKS` along the joint-space edge: the tool within
     ``path_tolerance`` of the segment and, for pose waypoints, its orientation within
     ``orientation_path_tolerance`` of the turn between the two waypoints' orientations.
     """
-    k = len(qa)
-    if k == 0:
-        return np.zeros(0, dtype=bool)
-    checks = len(EDGE_CHECKS)
-    t = np.repeat(np.asarray(EDGE_CHECKS), k)[:, None]
-    q = (1 - t) * np.tile(qa, (checks, 1)) + t * np.tile(qb, (checks, 1))
+    pa, pb = ga.position, gb.position
+    seg = pb - pa
+    length2 = max(float(seg @ seg), 1e-18)
+    t = np.repeat(np.asarray(EDGE_CHECKS), len(qa))
+    q = (1 - t)[:, None] * np.tile(qa, (len(EDGE_CHECKS), 1)) + \
+        t[:, None] * np.tile(qb, (len(EDGE_CHECKS), 1))
     p, r = chain_forward(ctx.robot.chain, q)
-    pa, seg = np.tile(ga.position, (checks, 1)), np.tile(gb.position - ga.position, (checks, 1))
-    u = np.clip(((p - pa) * seg).sum(1) / np.maximum((seg * seg).sum(1), 1e-18), 0.0, 1.0)
+    u = np.clip(((p - pa) @ seg) / length2, 0.0, 1.0)
     ok = np.linalg.norm(p - (pa + u[:, None] * seg), axis=1) <= s.path_tolerance
-    if ga.rotation is not None:
-        ra, rb = np.tile(ga.rotation, (checks, 1, 1)), np.tile(gb.rotation, (checks, 1, 1))
-        turn = rotation_angle(ra, rb)
-        near = np.minimum(rotation_angle(ra, r), rotation_angle(rb, r))
+    if gb.rotation is not None:
+        turn = rotation_angle(ga.rotation, gb.rotation[None])[0]
+        near = np.minimum(rotation_angle(ga.rotation, r), rotation_angle(gb.rotation, r))
         ok &= near <= s.orientation_path_tolerance + turn
-    return ok.reshape(checks, k).all(axis=0)
+    return ok.reshape(len(EDGE_CHECKS), len(qa)).all(axis=0)
 
 
 def _edges(ctx: Context, prev: np.ndarray, prev_cost: np.ndarray, q: np.ndarray,
@@ -144,12 +141,7 @@ def _edges(ctx: Context, prev: np.ndarray, prev_cost: np.ndarray, q: np.ndarray,
         if not pending.any():
             return total
         a, b = best[pending], cols[pending]
-        fine = _on_segment(ctx, prev[a], q[b], Goal(np.repeat(ga.position[None], len(a), 0),
-                           None if ga.rotation is None else
-                           np.repeat(ga.rotation[None], len(a), 0)),
-                           Goal(np.repeat(gb.position[None], len(a), 0),
-                                None if gb.rotation is None else
-                                np.repeat(gb.rotation[None], len(a), 0)), s)
+        fine = _on_segment(ctx, prev[a], q[b], ga, gb, s)
         checked[a, b] = True
         total[a[~fine], b[~fine]] = np.inf
 
