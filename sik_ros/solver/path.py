@@ -16,17 +16,17 @@ waypoint can be reached, the longest feasible prefix is returned with its ``frac
 
 from dataclasses import dataclass, field
 import time
-from typing import List, Optional, Sequence
+from typing import List, Optional, Sequence, Tuple
 
 import numpy as np
 
-from sik_ros.chain import chain_forward
+from sik_ros.chain import chain_forward, SerialChain
 from sik_ros.collision import Obstacle
 from sik_ros.rotations import rotation_angle
 from sik_ros.solver import pipeline  # noqa: I100 (a sibling module, not the package)
 from sik_ros.solver.context import Context, Goal
 from sik_ros.solver.ranking import distinct_mask
-from sik_ros.solver.refine import refine
+from sik_ros.solver.refine import Evaluation, refine
 
 #: Interpolation points checked on every edge (fractions of the edge).
 EDGE_CHECKS = (0.25, 0.5, 0.75)
@@ -87,15 +87,32 @@ def _starts(ctx: Context, goal: Goal, q_seed, obstacles, count: int,
     return q.reshape(-1, ctx.robot.dof)
 
 
-def _continue(ctx: Context, q: np.ndarray, goal: Goal, deadline) -> np.ndarray:
-    """Each configuration refined onto the next waypoint; the exact ones, NaN rows elsewhere."""
-    r = refine(ctx, q, goal, deadline, iterations=ctx.config.refine_iterations)
+def _continue(ctx: Context, q: np.ndarray, ev: Evaluation, goal: Goal,
+              deadline) -> Tuple[np.ndarray, Evaluation]:
+    """Each configuration refined onto the next waypoint: the exact ones and their evaluation.
+
+    ``ev`` is the evaluation of ``q`` carried from the previous waypoint (its fresh rows are not
+    computed again).
+    """
+    r = refine(ctx, q, goal, deadline, iterations=ctx.config.refine_iterations, start=ev,
+               keep_evaluation=True)
     ok = r.perr <= ctx.config.position_tolerance
     if goal.rotation is not None:
         ok &= r.oerr <= ctx.config.orientation_tolerance
-    out = np.full_like(q, np.nan)
-    out[ok] = r.q[ok]
-    return out
+    return r.q[ok], r.evaluation.rows(ok)
+
+
+def _join(a: Evaluation, b: Evaluation) -> Evaluation:
+    """The rows of ``a``, then those of ``b``."""
+    return Evaluation(*(np.concatenate([x, y]) for x, y in
+                        zip((a.p, a.r, a.jac, a.fresh), (b.p, b.r, b.jac, b.fresh))))
+
+
+def _unevaluated(q: np.ndarray) -> Evaluation:
+    """An evaluation of ``q`` with nothing computed yet."""
+    n, dof = q.shape
+    return Evaluation(np.zeros((n, 3)), np.zeros((n, 3, 3)), np.zeros((n, 6, dof)),
+                      np.zeros(n, dtype=bool))
 
 
 def _on_segment(ctx: Context, qa: np.ndarray, qb: np.ndarray, ga: Goal, gb: Goal,
@@ -122,27 +139,68 @@ def _on_segment(ctx: Context, qa: np.ndarray, qb: np.ndarray, ga: Goal, gb: Goal
     return ok.reshape(len(EDGE_CHECKS), len(qa)).all(axis=0)
 
 
+def _reach(chain: SerialChain) -> np.ndarray:
+    """(n, n) ``D[i, j]``: a bound on the tip's distance from the axis of joint ``max(i, j)``.
+
+    The distance from joint k's origin to the tip is at most the sum of the link lengths after
+    it, in every configuration; ``d^2 p / dq_i dq_j`` is a double cross product with the
+    later joint's lever, so its norm is at most that joint's bound.
+    """
+    links = np.append(np.linalg.norm(chain.joint_translations[1:], axis=1),
+                      np.linalg.norm(chain.tip_translation))
+    d = np.cumsum(links[::-1])[::-1]
+    k = np.arange(len(d))
+    return d[np.maximum(k[:, None], k[None, :])]
+
+
+def _certified(ctx: Context, qa: np.ndarray, qb: np.ndarray, gb: Goal, turn: float,
+               reach: np.ndarray, s: PathSettings) -> np.ndarray:
+    """(K,) bool: edges proven to keep the tool on the segment, so FK need not check them.
+
+    Both ends are exact (within the solver's tolerances). Along ``q(t) = qa + t dq`` the tip's
+    acceleration is at most ``M = sum_ij D_ij |dq_i| |dq_j|`` (:func:`_reach`), so the tip is
+    within ``M / 8`` of the chord between the ends, itself within the position tolerance of the
+    segment. The tool turns at most ``S = sum_i |dq_i|`` over the edge, so it is within
+    ``(S + 2 orientation_tolerance) / 2`` of the nearer end's waypoint orientation. Edges that
+    meet both bounds meet :func:`_on_segment`'s test at every point, not only at its samples.
+    """
+    cfg = ctx.config
+    v = np.abs(qb - qa)
+    bend = np.einsum('ki,ij,kj->k', v, reach, v)
+    ok = cfg.position_tolerance + bend / 8 <= s.path_tolerance
+    if gb.rotation is not None:
+        ok &= (v.sum(axis=1) + 2 * cfg.orientation_tolerance) / 2 <= \
+            s.orientation_path_tolerance + turn
+    return ok
+
+
 def _edges(ctx: Context, prev: np.ndarray, prev_cost: np.ndarray, q: np.ndarray,
-           ga: Goal, gb: Goal, s: PathSettings) -> np.ndarray:
+           ga: Goal, gb: Goal, reach: np.ndarray, s: PathSettings) -> np.ndarray:
     """(P, Q) cost of reaching each candidate ``q`` from each ``prev`` (inf: not allowed).
 
     Edges with a joint step above ``max_joint_step`` are out. The others are checked on the
     segment ``ga`` -> ``gb`` lazily: only those that would be a candidate's cheapest way in,
     until every candidate's cheapest edge passes (the same choice as checking them all).
+    Edges :func:`_certified` by a bound (``reach``: :func:`_reach`) pass without FK.
     """
     travel = np.linalg.norm(q[None] - prev[:, None], axis=2)
     step = np.abs(q[None] - prev[:, None]).max(axis=2)
     total = np.where(step <= s.max_joint_step, prev_cost[:, None] + travel, np.inf)
     checked = np.zeros(total.shape, dtype=bool)
     cols = np.arange(len(q))
+    turn = 0.0 if gb.rotation is None else rotation_angle(ga.rotation, gb.rotation[None])[0]
     while True:
         best = np.argmin(total, axis=0)
         pending = np.isfinite(total[best, cols]) & ~checked[best, cols]
         if not pending.any():
             return total
         a, b = best[pending], cols[pending]
-        fine = _on_segment(ctx, prev[a], q[b], ga, gb, s)
         checked[a, b] = True
+        proven = _certified(ctx, prev[a], q[b], gb, turn, reach, s)
+        a, b = a[~proven], b[~proven]
+        if not len(a):
+            continue
+        fine = _on_segment(ctx, prev[a], q[b], ga, gb, s)
         total[a[~fine], b[~fine]] = np.inf
 
 
@@ -157,6 +215,7 @@ def solve_path(ctx: Context, goals: Sequence[Goal], q_seed: Optional[np.ndarray]
     cost: List[np.ndarray] = []          # best cost to reach each candidate
     reached = 0
     timed_out = False
+    reach = _reach(ctx.robot.chain)
     for i, goal in enumerate(goals):
         if deadline is not None and time.perf_counter() > deadline:
             timed_out = True
@@ -168,30 +227,33 @@ def solve_path(ctx: Context, goals: Sequence[Goal], q_seed: Optional[np.ndarray]
             if len(q) == 0:
                 break
             cand.append(q), back.append(np.full(len(q), -1)), cost.append(c0)
+            ev = _unevaluated(q)
             reached = 1
             continue
-        prev = cand[-1][np.isfinite(cost[-1])]
-        prev_idx = np.flatnonzero(np.isfinite(cost[-1]))
-        q = _continue(ctx, prev, goal, deadline)
-        q = q[np.all(np.isfinite(q), axis=1)]
+        live = np.isfinite(cost[-1])
+        prev, prev_idx = cand[-1][live], np.flatnonzero(live)
+        q, ev = _continue(ctx, prev, ev.rows(live), goal, deadline)
         if len(q) < 2:  # tracks lost: new starts here, joined by the edges that allow it
             fresh = _starts(ctx, goal, None, obstacles, s.starts, deadline)
-            q = np.concatenate([q, fresh]) if len(q) else fresh
+            q = np.concatenate([q, fresh])
+            ev = _join(ev, _unevaluated(fresh))
         if len(q) == 0:
             break
-        q = q[distinct_mask(q, 1e-3)]
+        unique = distinct_mask(q, 1e-3)
+        q, ev = q[unique], ev.rows(unique)
         if obstacles:
-            clear = ctx.checker.clearance(q, obstacles, deadline)
-            q = q[clear > 0]
+            clear = ctx.checker.clearance(q, obstacles, deadline) > 0
+            q, ev = q[clear], ev.rows(clear)
             if len(q) == 0:
                 break
-        total = _edges(ctx, prev, cost[-1][prev_idx], q, goals[i - 1], goal, s)
+        total = _edges(ctx, prev, cost[-1][prev_idx], q, goals[i - 1], goal, reach, s)
         best = np.argmin(total, axis=0)
         c = total[best, np.arange(len(q))]
         if not np.isfinite(c).any():
             break
         keep = np.argsort(c, kind='stable')[:s.tracks]  # a beam: the cheapest tracks go on
         cand.append(q[keep]), back.append(prev_idx[best][keep]), cost.append(c[keep])
+        ev = ev.rows(keep)
         reached = i + 1
     paths = _paths(ctx, goals, cand, back, cost, obstacles, s)
     success = reached == n and bool(paths)

@@ -26,12 +26,34 @@ class Refined:
         perr: their position errors (M,) [m].
         oerr: their orientation errors (M,) [rad] (zeros for position goals).
         cut_short: the deadline stopped refinement before every candidate had finished.
+        evaluation: with ``keep_evaluation``, an :class:`Evaluation` of the rows whose last
+            Jacobian was taken where they ended (the others' ``fresh`` is False).
     """
 
     q: np.ndarray
     perr: np.ndarray
     oerr: np.ndarray
     cut_short: bool = False
+    evaluation: Optional['Evaluation'] = None
+
+
+@dataclass(frozen=True)
+class Evaluation:
+    """Tip poses and Jacobians of configurations, to carry into the next :func:`refine`.
+
+    Attributes:
+        p: tip positions (M, 3) [m]; r: rotations (M, 3, 3); jac: Jacobians (M, 6, n).
+        fresh: (M,) whether a row's entries belong to its configuration.
+    """
+
+    p: np.ndarray
+    r: np.ndarray
+    jac: np.ndarray
+    fresh: np.ndarray
+
+    def rows(self, keep: np.ndarray) -> 'Evaluation':
+        """The evaluation of the rows ``keep`` (an index or mask)."""
+        return Evaluation(self.p[keep], self.r[keep], self.jac[keep], self.fresh[keep])
 
 
 def errors(ctx: Context, q: np.ndarray, goal: Goal) -> Tuple[np.ndarray, np.ndarray]:
@@ -52,7 +74,8 @@ def dls_step(j: np.ndarray, err: np.ndarray, lam2: float, eye: np.ndarray) -> np
 
 def refine(ctx: Context, q: np.ndarray, goal: Goal, deadline: Optional[float] = None,
            iterations: Optional[int] = None, prune: bool = False,
-           enough: Optional[int] = None) -> Refined:
+           enough: Optional[int] = None, start: Optional[Evaluation] = None,
+           keep_evaluation: bool = False) -> Refined:
     """Batched damped least squares from ``q`` (M, n) towards ``goal``, within the limits.
 
     With ``prune``, at the iterations in ``config.prune_at`` a candidate closer than
@@ -70,6 +93,9 @@ def refine(ctx: Context, q: np.ndarray, goal: Goal, deadline: Optional[float] = 
         iterations: most iterations (default: ``config.refine_iterations``).
         prune: merge candidates heading for the same solution.
         enough: stop once this many distinct candidates are exact.
+        start: an evaluation of ``q`` whose fresh rows the first iteration uses instead of
+            computing them again (a path's tracks carry theirs from waypoint to waypoint).
+        keep_evaluation: return the last evaluation of every row (``Refined.evaluation``).
     """
     cfg = ctx.config
     pos, rot = goal.position, goal.rotation
@@ -89,6 +115,14 @@ def refine(ctx: Context, q: np.ndarray, goal: Goal, deadline: Optional[float] = 
     exact = np.zeros(n, dtype=bool)
     cut_short = False
     roll_free = ctx.ignores_last(goal.kind)
+    carry = keep_evaluation or start is not None
+    if carry:
+        dof = ctx.robot.dof
+        last = Evaluation(np.empty((n, 3)), np.empty((n, 3, 3)), np.empty((n, 6, dof)),
+                          np.zeros(n, dtype=bool))
+        if start is not None:
+            last = Evaluation(start.p.copy(), start.r.copy(), start.jac.copy(),
+                              start.fresh.copy())
     for it in range(iterations or cfg.refine_iterations):
         if prune and it in cfg.prune_at:
             alive = np.flatnonzero(~given_up)
@@ -101,7 +135,15 @@ def refine(ctx: Context, q: np.ndarray, goal: Goal, deadline: Optional[float] = 
         if deadline is not None and time.perf_counter() > deadline:
             cut_short = True
             break
-        p, r, jac = ctx.robot.jacobian_loop(q[idx], ctx.data)
+        if carry:
+            todo = idx[~last.fresh[idx]]
+            if len(todo):
+                last.p[todo], last.r[todo], last.jac[todo] = \
+                    ctx.robot.jacobian_loop(q[todo], ctx.data)
+                last.fresh[todo] = True
+            p, r, jac = last.p[idx], last.r[idx], last.jac[idx]
+        else:
+            p, r, jac = ctx.robot.jacobian_loop(q[idx], ctx.data)
         err = pos - p
         perr = np.sqrt((err * err).sum(1))
         done = perr < cfg.position_tolerance * 0.5
@@ -152,7 +194,9 @@ def refine(ctx: Context, q: np.ndarray, goal: Goal, deadline: Optional[float] = 
         scale = np.maximum(1.0, np.abs(dq).max(axis=1) / cfg.max_step)
         q[idx] = np.clip(qa + dq / scale[:, None], lower, upper)
         stale[idx] = True
+        if carry:
+            last.fresh[idx] = False
     moved = np.flatnonzero(stale)
     if len(moved):
         perr_all[moved], oerr_all[moved] = errors(ctx, q[moved], goal)
-    return Refined(q, perr_all, oerr_all, cut_short)
+    return Refined(q, perr_all, oerr_all, cut_short, last if keep_evaluation else None)
