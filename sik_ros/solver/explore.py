@@ -45,23 +45,21 @@ def restart(ctx: Context, c: Candidates, goal: Goal, deadline, keep: int = 8
     return Candidates.concat(c, new), r.cut_short
 
 
-def branch_restarts(ctx: Context, c: Candidates, goal: Goal, deadline, count: int
-                    ) -> Candidates:
-    """``c`` and ``count`` starts drawn uniformly in joint space, refined onto the goal.
+def branch_starts(ctx: Context, goal: Goal, count: int, latent: int) -> Candidates:
+    """``count`` starts drawn uniformly in joint space, to be refined with the model's own.
 
     A pose of an arm with six joints or fewer has isolated solutions (up to 8 branches for a
     6-joint wrist-partitioned arm): no self-motion leads from one to another, and the model's
     candidates seldom cover them all, so random starts look for the rest, as TRAC-IK's random
-    restarts do. The draws are fixed per target (deterministic answers).
+    restarts do. They join the model's candidates in one refinement (one pass of the batched
+    loop, and neighbours heading for one solution are merged across both). The draws are
+    fixed per target (deterministic answers).
     """
-    if count < 1:
-        return c
     robot = ctx.robot
     rng = np.random.default_rng(zlib.crc32(goal.position.tobytes()) + 1)
-    q = rng.uniform(robot.lower, robot.upper, (count, robot.dof))
-    r = refine(ctx, q, goal, deadline, prune=True)
-    return Candidates.concat(c, assess(r.q, _unindexed(r.q, c.z.shape[1]), r.perr, r.oerr,
-                                       goal.kind, ctx.config))
+    q = rng.uniform(robot.lower, robot.upper, (max(count, 0), robot.dof))
+    inf = np.full(len(q), np.inf)
+    return Candidates(q, _unindexed(q, latent), inf, inf, np.zeros(len(q), dtype=bool))
 
 
 def periodic_equivalents(ctx: Context, c: Candidates, per_solution: int = 16) -> Candidates:

@@ -23,7 +23,7 @@ from sik_ros.solver.batch import Candidates
 from sik_ros.solver.candidates import oriented_postures, starting_postures, table_candidates
 from sik_ros.solver.codec import decode, encode
 from sik_ros.solver.context import Context, Goal, POSE
-from sik_ros.solver.explore import branch_restarts, periodic_equivalents, restart, walk
+from sik_ros.solver.explore import branch_starts, periodic_equivalents, restart, walk
 from sik_ros.solver.ranking import (assess, best_distinct, distinct_mask, merge, rank,
                                     same_postures)
 from sik_ros.solver.refine import errors, refine
@@ -84,6 +84,12 @@ def solve(ctx: Context, goal: Goal, num: int, q_seed: Optional[np.ndarray],
         # good as any: stop refining once there are enough
         enough = None if (q_seed is not None or obstacles or objective is not None
                           or cfg.early_stop_margin < 0) else num + cfg.early_stop_margin
+        isolated = goal.kind == POSE and not far and ctx.robot.dof <= 6
+        if isolated and cfg.branch_restarts > 0:
+            # isolated solutions: no self-motion to walk along; random starts find branches
+            c = Candidates.concat(c, branch_starts(ctx, goal, cfg.branch_restarts,
+                                                   c.z.shape[1]))
+            enough = None
         r = refine(ctx, c.q, goal, deadline, 5 if far else None, prune=True, enough=enough)
         c = assess(r.q, c.z, r.perr, r.oerr, goal.kind, cfg)
         timed_out = r.cut_short
@@ -92,9 +98,6 @@ def solve(ctx: Context, goal: Goal, num: int, q_seed: Optional[np.ndarray],
             timed_out = timed_out or cut
         if goal.kind == POSE and not far and ctx.robot.dof > 6 and cfg.walk_rounds > 0:
             c = walk(ctx, c, goal, deadline, num + max(cfg.early_stop_margin, 0))
-        elif goal.kind == POSE and not far and ctx.robot.dof <= 6 and not past(deadline):
-            # isolated solutions: no self-motion to walk along; random starts find branches
-            c = branch_restarts(ctx, c, goal, deadline, cfg.branch_restarts)
     else:
         c = assess(c.q, c.z, *errors(ctx, c.q, goal), goal.kind, cfg)
     if c.exact.any():  # with exact solutions, only exact ones are returned
