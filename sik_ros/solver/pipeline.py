@@ -30,6 +30,10 @@ from sik_ros.solver.refine import errors, refine
 from sik_ros.solver.results import IKResult, Solution
 
 
+#: Oriented postures (pose goals) decoded at least, however few solutions a call asks for.
+ORIENTED_MIN = 8
+
+
 def initial_postures(ctx: Context, goal: Goal, num: int, q_seed: Optional[np.ndarray],
                      refined: bool) -> Candidates:
     """Stages 1 and 2: the starting postures and their indices (errors not yet known).
@@ -38,7 +42,8 @@ def initial_postures(ctx: Context, goal: Goal, num: int, q_seed: Optional[np.nda
     (pose goals), then the table's. The seed and the oriented postures have no index of the
     goal's model yet: NaN, encoded once ranked.
     """
-    extra = oriented_postures(ctx, goal, ctx.config.oriented_candidates) \
+    count = min(ctx.config.oriented_candidates, max(ORIENTED_MIN, 2 * num))
+    extra = oriented_postures(ctx, goal, count) \
         if goal.kind == POSE and refined else np.empty((0, ctx.robot.dof))
     z, rows = table_candidates(ctx, goal, q_seed, num, refined, len(extra))
     q = starting_postures(ctx, goal, z, rows) if refined else decode(ctx, goal, z)
