@@ -112,3 +112,52 @@ def test_bad_path_input_is_refused(ik, kwargs, error, words):
     args = {'positions': line(ik, 0.1, 3)[0], **kwargs}
     with pytest.raises(error, match=words):
         ik.solve_path(**args)
+
+
+@pytest.mark.parametrize('arm', ['panda', 'ur5'])
+def test_the_edge_bound_holds_along_whole_edges(arm, request):
+    """The tip never leaves the chord by more than the bound that lets edges skip FK checks.
+
+    Dense FK along random joint-space edges (small to large) against ``M / 8`` of
+    :func:`_reach`, and the tool's turn from the nearer end against ``S / 2``.
+    """
+    from sik_ros.solver.path import _reach
+    robot = request.getfixturevalue(arm)
+    rng = np.random.default_rng(4)
+    qa = rng.uniform(robot.lower, robot.upper, (400, robot.dof))
+    dq = rng.normal(size=qa.shape) * rng.choice([0.01, 0.05, 0.2, 1.0], (len(qa), 1))
+    t = np.linspace(0, 1, 41)
+    q = qa[:, None] + t[None, :, None] * dq[:, None]
+    p, r = chain_forward(robot.chain, q.reshape(-1, robot.dof))
+    p, r = p.reshape(len(qa), len(t), 3), r.reshape(len(qa), len(t), 3, 3)
+    chord = p[:, :1] + t[None, :, None] * (p[:, -1:] - p[:, :1])
+    v = np.abs(dq)
+    bend = np.einsum('ki,ij,kj->k', v, _reach(robot.chain), v)
+    assert (np.linalg.norm(p - chord, axis=2).max(axis=1) <= bend / 8 + 1e-12).all()
+    turn_a = np.arccos(np.clip((np.einsum('kij,ktij->kt', r[:, 0], r) - 1) / 2, -1, 1))
+    turn_b = np.arccos(np.clip((np.einsum('kij,ktij->kt', r[:, -1], r) - 1) / 2, -1, 1))
+    assert (np.minimum(turn_a, turn_b).max(axis=1) <= v.sum(axis=1) / 2 + 1e-9).all()
+    # the bound is not vacuous: small edges are proven, large ones are not
+    small = np.abs(dq).max(axis=1) < 0.02
+    assert (bend[small] / 8 < 0.005).all() and (bend[~small] / 8 > 0.005).any()
+
+
+def test_edges_skipping_fk_checks_give_the_same_paths(ik, monkeypatch):
+    """With every edge checked by FK (no bound), a path comes out the same, bit for bit."""
+    import sik_ros.solver.path as path_mod
+    positions, quats = line(ik, 0.25, 25, (0.0, 1.0, 0.3))
+    proven, certified = [], path_mod._certified
+
+    def counting(*args):
+        out = certified(*args)
+        proven.append(int(out.sum()))
+        return out
+    monkeypatch.setattr(path_mod, '_certified', counting)
+    fast = ik.solve_path(positions, quats, seed=Q0)
+    assert sum(proven) > 0  # the bound did spare FK checks
+    monkeypatch.setattr(path_mod, '_certified', lambda ctx, qa, *a: np.zeros(len(qa), bool))
+    slow = ik.solve_path(positions, quats, seed=Q0)
+    assert fast.success and slow.success
+    assert len(fast.paths) == len(slow.paths)
+    for a, b in zip(fast.paths, slow.paths):
+        assert np.array_equal(a.q, b.q)

@@ -6,7 +6,8 @@ next waypoint every track is continued by refining its last configuration onto t
 warm start: the posture is kept, the paper's "keep the posture" strategy). The candidates of
 consecutive waypoints form a ladder graph; an edge is allowed when no joint moves more than
 ``max_joint_step`` and the tool stays on the Cartesian segment between the two waypoints
-(checked by FK of interpolated configurations, only for the edges that would be chosen), and is
+(checked by FK of interpolated configurations, only for the edges that would be chosen and
+that a curvature bound does not already prove on the segment), and is
 weighted by its joint travel (plus the distance of the start from the seed). Dynamic
 programming over the ladder (a beam of the ``tracks`` cheapest candidates per waypoint) gives
 the cheapest paths; the best few, from distinct starts, are returned. When no candidate of a
