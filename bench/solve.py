@@ -134,16 +134,29 @@ def bench_goal(ik, goal, positions, quats, peers, args):
     return rows
 
 
-def single_solution_time(tracik, robot, positions, quats):
-    """TRAC-IK's time and success for one solution per target, from a random seed."""
+def single_solution_time(ik, tracik, robot, positions, quats):
+    """One pose solution per target, ours and TRAC-IK's, in turn target by target.
+
+    Ours unseeded and seeded, TRAC-IK from the same random seed. Returns medians [ms] and the
+    median of the per-target ratios, and the success rates.
+    """
     rng = np.random.default_rng(5)
-    ts, ok = [], 0
+    t = {'ours': [], 'ours seeded': [], 'trac-ik': []}
+    ok = {k: 0 for k in t}
     for p, q in zip(positions, quats):
-        t0 = time.perf_counter()
-        good, _ = tracik.solve(p, q, rng.uniform(robot.lower, robot.upper))
-        ts.append(time.perf_counter() - t0)
-        ok += good
-    return 1e3 * np.median(ts), 1e3 * np.mean(ts), 100 * ok / len(positions)
+        seed = rng.uniform(robot.lower, robot.upper)
+        for name, call in (('ours', lambda: ik.solve(p, q, num_solutions=1).success),
+                           ('ours seeded',
+                            lambda: ik.solve(p, q, num_solutions=1, seed=seed).success),
+                           ('trac-ik', lambda: tracik.solve(p, q, seed)[0])):
+            t0 = time.perf_counter()
+            good = call()
+            t[name].append(time.perf_counter() - t0)
+            ok[name] += bool(good)
+    t = {k: np.array(v) for k, v in t.items()}
+    return ({k: 1e3 * float(np.median(v)) for k, v in t.items()},
+            {k: float(np.median(t[k] / t['trac-ik'])) for k in ('ours', 'ours seeded')},
+            {k: 100 * v / len(positions) for k, v in ok.items()})
 
 
 def obstacle_case(ik):
@@ -196,9 +209,13 @@ def main():
     print(f'# bench/solve.py: {platform.processor() or platform.machine()}, '
           f'{os.cpu_count()} cores, torch threads 1, {args.targets} targets uniform in joint '
           f'space (seed 2024), bundle {ik.bundle}, solver config changes {args.config}')
-    med, mean, ok = single_solution_time(tracik, robot, positions, quats)
-    print(f'TRAC-IK single solution (pose, random seed): median {med:.3f} ms, mean {mean:.3f} '
-          f'ms, success {ok:.1f} %')
+    if 'pose' in ik.goals:
+        med, ratio, ok = single_solution_time(ik, tracik, robot, positions, quats)
+        print(f'single pose solution (num_solutions=1), in turn per target: TRAC-IK (random '
+              f'seed) median {med["trac-ik"]:.3f} ms, success {ok["trac-ik"]:.1f} %; ours '
+              f'{med["ours"]:.3f} ms (ratio {ratio["ours"]:.2f}), seeded '
+              f'{med["ours seeded"]:.3f} ms (ratio {ratio["ours seeded"]:.2f}), success '
+              f'{ok["ours"]:.1f} / {ok["ours seeded"]:.1f} %')
     goals = args.goals.split(',')
     if 'position' in goals and 'position' in ik.goals:
         bench_goal(ik, 'position', positions, quats, {
