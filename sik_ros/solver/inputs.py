@@ -71,13 +71,23 @@ def check_path(positions, orientations, goals: Sequence[str],
     if max_waypoints is not None and len(pos) > max_waypoints:
         raise InvalidGoal(f'{len(pos)} waypoints; at most {max_waypoints} are accepted '
                           f'(SolverConfig.max_waypoints)')
-    out = []
-    for i, p in enumerate(pos):
+    kind = 'position' if quat is None else 'pose'
+    fine = kind in goals and np.isfinite(pos).all() and (np.abs(pos) <= MAX_DISTANCE).all()
+    if fine and quat is not None:
+        scale = np.abs(quat).max(axis=1)
+        fine = bool(np.isfinite(quat).all() and (scale >= 1e-150).all())
+    if fine:  # every waypoint good: checked and converted at once
+        if quat is None:
+            return [Goal(p) for p in pos.copy()]
+        unit = quat / scale[:, None]  # normalised row by row as quaternion() does it
+        rot = Rotation.from_quat(np.array([u / np.linalg.norm(u) for u in unit])).as_matrix()
+        return [Goal(p, r) for p, r in zip(pos.copy(), rot)]
+    for i, p in enumerate(pos):  # one is bad: name it, as check_goal says it
         try:
-            out.append(check_goal(p, None if orientations is None else quat[i], goals))
+            check_goal(p, None if quat is None else quat[i], goals)
         except InvalidGoal as exc:
             raise InvalidGoal(f'waypoint {i}: {exc}') from exc
-    return out
+    raise AssertionError('a waypoint failed the batch check but passed check_goal')
 
 
 def check_num_solutions(num_solutions, cap: int) -> int:
