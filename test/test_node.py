@@ -531,7 +531,7 @@ def _solver_children(pid):
 
 
 def test_solver_processes_answer_and_a_dead_one_is_replaced(ros, panda, node_proc, bundle_dir,
-                                                            ros_domain):
+                                                            ros_domain, tmp_path):
     """With solver_processes:=2 the solves run in other processes, with the same answers.
 
     Answers are verified by FK; an error raised in a solver process keeps its code; a process
@@ -540,8 +540,13 @@ def test_solver_processes_answer_and_a_dead_one_is_replaced(ros, panda, node_pro
     replaced, and the node answers again. Runs after the module's node has stopped.
     """
     assert node_proc.poll() is not None, 'runs after test_sigint_exits_cleanly'
+    log_path = tmp_path / 'node.log'
+    log = open(log_path, 'w')
     proc = demo.launch_node(bundle_dir, ['solver_processes:=2'], env=ros_domain,
-                            stdout=subprocess.DEVNULL, stderr=subprocess.STDOUT)
+                            stdout=log, stderr=subprocess.STDOUT)
+
+    def node_log():
+        return log_path.read_text()[-3000:]
 
     def children(count):
         deadline = time.monotonic() + 90.0
@@ -589,13 +594,14 @@ def test_solver_processes_answer_and_a_dead_one_is_replaced(ros, panda, node_pro
         assert answer.error_code == R.SUCCESS, answer.message
         assert not set(fresh) & set(last), (fresh, last)
         proc.send_signal(signal.SIGINT)
-        assert proc.wait(60.0) == 0
+        assert proc.wait(60.0) == 0, node_log()
         deadline = time.monotonic() + 10.0
         while any(os.path.exists(f'/proc/{c}') for c in last) and time.monotonic() < deadline:
             time.sleep(0.1)
         assert not any(os.path.exists(f'/proc/{c}') for c in last), 'a solver outlived the node'
     finally:
         demo.stop_node(proc)
+        log.close()
 
 
 if __name__ == '__main__':  # pragma: no cover

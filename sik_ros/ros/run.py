@@ -59,8 +59,11 @@ def main(args: Optional[List[str]] = None) -> int:
         # in-flight requests get the grace period; requests arriving now get TIMEOUT
         node.closing = True
         deadline = time.monotonic() + node.shutdown_grace
-        while node.in_flight and time.monotonic() < deadline:
-            executor.spin_once(timeout_sec=0.02)  # lets finished requests send their answers
+        try:
+            while node.in_flight and time.monotonic() < deadline:
+                executor.spin_once(timeout_sec=0.02)  # lets finished requests send answers
+        except Exception as exc:  # the interrupted executor could not go on: exit anyway
+            _log_shutdown_error('draining the requests in flight', exc)
         if node.in_flight:  # still solving past the grace period: do not wait for it
             rclpy.logging.get_logger(NODE_NAME).warning(
                 f'exiting with {node.in_flight} request(s) still in flight after the '
@@ -69,7 +72,18 @@ def main(args: Optional[List[str]] = None) -> int:
             sys.stderr.flush()
             os._exit(0)
         time.sleep(0.1)  # the last answers leave their threads
-        executor.shutdown(timeout_sec=0)
-        node.destroy_node()
-        rclpy.try_shutdown()
+        for what, step in (('stopping the executor', lambda: executor.shutdown(timeout_sec=0)),
+                           ('closing the node', node.destroy_node),
+                           ('shutting ROS down', rclpy.try_shutdown)):
+            try:
+                step()
+            except Exception as exc:  # one line, and the other steps still run
+                _log_shutdown_error(what, exc)
     return 0
+
+
+def _log_shutdown_error(what: str, exc: Exception) -> None:
+    """One ERROR line for a step of the shutdown that failed (the shutdown goes on)."""
+    reason = ' '.join(str(exc).split())
+    rclpy.logging.get_logger(NODE_NAME).error(
+        f'during shutdown, {what} failed: {type(exc).__name__}: {reason}')
