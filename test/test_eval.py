@@ -140,3 +140,12 @@ def test_psik_without_table_solves_and_is_reported(tiny_bundle, panda, uniform_s
         assert np.all(np.isfinite(errors))
         assert errors[0] == pytest.approx(reported, rel=1e-5, abs=1e-7)
         assert psik.solve(p, num_solutions=1).solutions
+
+
+def test_verdicts_compare_with_the_paper_and_a_small_margin():
+    """Worse beyond 5 %, on a par within it, as good or better at or below the paper."""
+    from sik_ros.eval.markdown import verdict
+    assert 'worse than the paper' in verdict(0.60, 0.50, 'cm', 'x')
+    assert 'on a par' in verdict(0.51, 0.50, 'cm', 'x')
+    assert 'as good or better' in verdict(0.50, 0.50, 'cm', 'x')
+    assert 'not measured' in verdict(float('nan'), 0.50, 'cm', 'x')

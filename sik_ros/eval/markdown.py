@@ -21,16 +21,21 @@ def table(header: Sequence[str], rows: Sequence[Sequence]) -> List[str]:
     return lines
 
 
+#: Relative margin within which a figure above the paper's counts as on a par with it.
+PAR = 0.05
+
+
 def verdict(ours: Optional[float], paper: float, unit: str, what: str, nd: int = 2) -> str:
     """A plain sentence: ours against the paper's figure, lower is better."""
     if ours is None or not np.isfinite(ours):
         return f'{what}: not measured.'
     unit = f' {unit}' if unit else ''
+    figures = f'({fmt(ours, nd)}{unit} against {fmt(paper, nd)}{unit})'
+    if ours > paper * (1 + PAR):
+        return f'**{what}: ours is worse than the paper** {figures}.'
     if ours > paper:
-        return (f'**{what}: ours is worse than the paper** ({fmt(ours, nd)}{unit} against '
-                f'{fmt(paper, nd)}{unit}).')
-    return f'{what}: ours is as good or better ({fmt(ours, nd)}{unit} against ' \
-        f'{fmt(paper, nd)}{unit}).'
+        return f'{what}: ours is on a par with the paper, within {PAR:.0%} {figures}.'
+    return f'{what}: ours is as good or better {figures}.'
 
 
 # -- the report -----------------------------------------------------------------------------------
