@@ -24,7 +24,8 @@ class SolverConfig:
             the indices of its table (when it keeps orientations) whose rows' tip orientations
             were nearest the goal's, decoded at the goal position, the last joint then turned
             in closed form towards the goal orientation. 0 disables it. A call asking for
-            fewer solutions takes fewer: twice the solutions asked for, at least 8.
+            fewer solutions takes fewer: twice the solutions asked for, at least 8 (all of
+            them when none of those refines to an exact solution).
         oriented_cells: table cells pooled around the goal for those.
         raw_candidates: posture indices decoded when ``refine`` is off: the most accurate
             distinct decoded postures are returned, so a larger pool gives better raw answers.

@@ -22,6 +22,7 @@ from sik_ros.solver.adjust import adjust_index
 from sik_ros.solver.batch import Candidates
 from sik_ros.solver.candidates import oriented_postures, starting_postures, table_candidates
 from sik_ros.solver.codec import decode, encode
+from sik_ros.solver.config import SolverConfig
 from sik_ros.solver.context import Context, Goal, POSE
 from sik_ros.solver.explore import branch_starts, periodic_equivalents, restart, walk
 from sik_ros.solver.ranking import (assess, best_distinct, distinct_mask, merge, rank,
@@ -34,6 +35,11 @@ from sik_ros.solver.results import IKResult, Solution
 ORIENTED_MIN = 8
 
 
+def oriented_count(cfg: SolverConfig, num: int) -> int:
+    """Oriented postures a pose goal asking for ``num`` solutions starts from."""
+    return min(cfg.oriented_candidates, max(ORIENTED_MIN, 2 * num))
+
+
 def initial_postures(ctx: Context, goal: Goal, num: int, q_seed: Optional[np.ndarray],
                      refined: bool) -> Candidates:
     """Stages 1 and 2: the starting postures and their indices (errors not yet known).
@@ -42,8 +48,7 @@ def initial_postures(ctx: Context, goal: Goal, num: int, q_seed: Optional[np.nda
     (pose goals), then the table's. The seed and the oriented postures have no index of the
     goal's model yet: NaN, encoded once ranked.
     """
-    count = min(ctx.config.oriented_candidates, max(ORIENTED_MIN, 2 * num))
-    extra = oriented_postures(ctx, goal, count) \
+    extra = oriented_postures(ctx, goal, oriented_count(ctx.config, num)) \
         if goal.kind == POSE and refined else np.empty((0, ctx.robot.dof))
     z, rows = table_candidates(ctx, goal, q_seed, num, refined, len(extra))
     q = starting_postures(ctx, goal, z, rows) if refined else decode(ctx, goal, z)
@@ -98,6 +103,14 @@ def solve(ctx: Context, goal: Goal, num: int, q_seed: Optional[np.ndarray],
         r = refine(ctx, c.q, goal, deadline, 5 if far else None, prune=True, enough=enough)
         c = assess(r.q, c.z, r.perr, r.oerr, goal.kind, cfg)
         timed_out = r.cut_short
+        if goal.kind == POSE and not far and not c.exact.any() and not past(deadline) and \
+                oriented_count(cfg, num) < cfg.oriented_candidates:
+            # a call asking for few solutions took few oriented postures: all of them now
+            q = oriented_postures(ctx, goal, cfg.oriented_candidates)
+            r = refine(ctx, q, goal, deadline, prune=True, enough=enough)
+            c = Candidates.concat(c, assess(r.q, np.full((len(q), c.z.shape[1]), np.nan),
+                                            r.perr, r.oerr, goal.kind, cfg))
+            timed_out = timed_out or r.cut_short
         if not far and not c.exact.any():
             c, cut = restart(ctx, c, goal, deadline)
             timed_out = timed_out or cut
