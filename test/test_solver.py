@@ -335,3 +335,23 @@ def test_warm_up_solves_each_kind_once_and_leaves_answers_unchanged(tiny_bundle,
     a = cold.solve(pos[1], quat[1], num_solutions=4)
     b = warm.solve(pos[1], quat[1], num_solutions=4)
     assert [s.q.tolist() for s in a.solutions] == [s.q.tolist() for s in b.solutions]
+
+
+def test_a_single_pose_solution_wherever_sixteen_find_one(panda):
+    """``num_solutions=1`` takes fewer oriented postures, but falls back to all of them.
+
+    Target 605 of ``bench/solve.py`` (seed 2024) is near the workspace's edge: the bundled
+    solver's 16-solution call finds one exact solution there, and the 8 oriented postures of
+    a single-solution call alone none.
+    """
+    bundled = SelectiveIK.load('panda')
+    q = np.random.default_rng(2024).uniform(panda.lower, panda.upper, size=(1000, panda.dof))
+    positions, quats = panda.fk_batch(q[600:610])
+    for p, quat in zip(positions, quats):
+        many = bundled.solve(p, quat, num_solutions=16)
+        one = bundled.solve(p, quat, num_solutions=1)
+        assert one.success == many.success, (p, quat)
+        if one.success:
+            assert one.solutions[0].converged
+            pos, _ = bundled.fk(one.solutions[0].q)
+            assert np.linalg.norm(pos - p) <= bundled.config.position_tolerance
