@@ -19,7 +19,7 @@ from sik_ros.solver.ranking import assess, distinct_mask, pose_score
 from sik_ros.solver.refine import refine
 
 
-def _unindexed(q: np.ndarray, latent: int) -> np.ndarray:
+def unindexed(q: np.ndarray, latent: int) -> np.ndarray:
     """Posture indices of new candidates: NaN, encoded once ranked."""
     return np.full((len(q), latent), np.nan)
 
@@ -41,7 +41,7 @@ def restart(ctx: Context, c: Candidates, goal: Goal, deadline, keep: int = 8
     q2 = np.concatenate([c.q[best] + rng.normal(0, 0.15, (len(best), c.q.shape[1])) * span,
                          rng.uniform(robot.lower, robot.upper, (keep, c.q.shape[1]))])
     r = refine(ctx, np.clip(q2, robot.lower, robot.upper), goal, deadline)
-    new = assess(r.q, _unindexed(r.q, c.z.shape[1]), r.perr, r.oerr, goal.kind, ctx.config)
+    new = assess(r.q, unindexed(r.q, c.z.shape[1]), r.perr, r.oerr, goal.kind, ctx.config)
     return Candidates.concat(c, new), r.cut_short
 
 
@@ -59,7 +59,7 @@ def branch_starts(ctx: Context, goal: Goal, count: int, latent: int) -> Candidat
     rng = np.random.default_rng(zlib.crc32(goal.position.tobytes()) + 1)
     q = rng.uniform(robot.lower, robot.upper, (max(count, 0), robot.dof))
     inf = np.full(len(q), np.inf)
-    return Candidates(q, _unindexed(q, latent), inf, inf, np.zeros(len(q), dtype=bool))
+    return Candidates(q, unindexed(q, latent), inf, inf, np.zeros(len(q), dtype=bool))
 
 
 def periodic_equivalents(ctx: Context, c: Candidates, per_solution: int = 16) -> Candidates:
@@ -134,7 +134,7 @@ def walk(ctx: Context, c: Candidates, goal: Goal, deadline, need: int) -> Candid
             nvec *= np.where((nvec * heading).sum(1) < 0, -1.0, 1.0)[:, None]
         start = np.clip(frontier + cfg.walk_step * nvec, ctx.robot.lower, ctx.robot.upper)
         r = refine(ctx, start, goal, deadline, cfg.walk_iterations)
-        step = assess(r.q, _unindexed(r.q, c.z.shape[1]), r.perr, r.oerr, goal.kind, cfg)
+        step = assess(r.q, unindexed(r.q, c.z.shape[1]), r.perr, r.oerr, goal.kind, cfg)
         pick = np.empty(0, dtype=int)
         if step.exact.any():
             far_enough = cdist(step.q[step.exact], found).min(axis=1) >= cfg.distinct_threshold

@@ -103,19 +103,6 @@ def _continue(ctx: Context, q: np.ndarray, ev: Evaluation, goal: Goal,
     return r.q[ok], r.evaluation.rows(ok)
 
 
-def _join(a: Evaluation, b: Evaluation) -> Evaluation:
-    """The rows of ``a``, then those of ``b``."""
-    return Evaluation(*(np.concatenate([x, y]) for x, y in
-                        zip((a.p, a.r, a.jac, a.fresh), (b.p, b.r, b.jac, b.fresh))))
-
-
-def _unevaluated(q: np.ndarray) -> Evaluation:
-    """An evaluation of ``q`` with nothing computed yet."""
-    n, dof = q.shape
-    return Evaluation(np.zeros((n, 3)), np.zeros((n, 3, 3)), np.zeros((n, 6, dof)),
-                      np.zeros(n, dtype=bool))
-
-
 def _on_segment(ctx: Context, qa: np.ndarray, qb: np.ndarray, ga: Goal, gb: Goal,
                 s: PathSettings) -> np.ndarray:
     """(K,) bool: whether the tool stays on segment ``ga`` -> ``gb`` from ``qa[k]`` to ``qb[k]``.
@@ -228,7 +215,7 @@ def solve_path(ctx: Context, goals: Sequence[Goal], q_seed: Optional[np.ndarray]
             if len(q) == 0:
                 break
             cand.append(q), back.append(np.full(len(q), -1)), cost.append(c0)
-            ev = _unevaluated(q)
+            ev = Evaluation.empty(len(q), ctx.robot.dof)
             reached = 1
             continue
         live = np.isfinite(cost[-1])
@@ -237,7 +224,7 @@ def solve_path(ctx: Context, goals: Sequence[Goal], q_seed: Optional[np.ndarray]
         if len(q) < 2:  # tracks lost: new starts here, joined by the edges that allow it
             fresh = _starts(ctx, goal, None, obstacles, s.starts, deadline)
             q = np.concatenate([q, fresh])
-            ev = _join(ev, _unevaluated(fresh))
+            ev = Evaluation.concat(ev, Evaluation.empty(len(fresh), ctx.robot.dof))
         if len(q) == 0:
             break
         unique = distinct_mask(q, 1e-3)

@@ -24,7 +24,8 @@ from sik_ros.solver.candidates import oriented_postures, starting_postures, tabl
 from sik_ros.solver.codec import decode, encode
 from sik_ros.solver.config import SolverConfig
 from sik_ros.solver.context import Context, Goal, POSE
-from sik_ros.solver.explore import branch_starts, periodic_equivalents, restart, walk
+from sik_ros.solver.explore import (branch_starts, periodic_equivalents, restart, unindexed,
+                                    walk)
 from sik_ros.solver.ranking import (assess, best_distinct, distinct_mask, merge, rank,
                                     same_postures)
 from sik_ros.solver.refine import errors, refine
@@ -105,11 +106,12 @@ def solve(ctx: Context, goal: Goal, num: int, q_seed: Optional[np.ndarray],
         timed_out = r.cut_short
         if goal.kind == POSE and not far and not c.exact.any() and not past(deadline) and \
                 oriented_count(cfg, num) < cfg.oriented_candidates:
-            # a call asking for few solutions took few oriented postures: all of them now
-            q = oriented_postures(ctx, goal, cfg.oriented_candidates)
+            # a call asking for few solutions took few oriented postures: the others now (the
+            # table ranks them by orientation, so the first ones are those already refined)
+            q = oriented_postures(ctx, goal, cfg.oriented_candidates)[oriented_count(cfg, num):]
             r = refine(ctx, q, goal, deadline, prune=True, enough=enough)
-            c = Candidates.concat(c, assess(r.q, np.full((len(q), c.z.shape[1]), np.nan),
-                                            r.perr, r.oerr, goal.kind, cfg))
+            c = Candidates.concat(c, assess(r.q, unindexed(q, c.z.shape[1]), r.perr, r.oerr,
+                                            goal.kind, cfg))
             timed_out = timed_out or r.cut_short
         if not far and not c.exact.any():
             c, cut = restart(ctx, c, goal, deadline)

@@ -55,6 +55,18 @@ class Evaluation:
         """The evaluation of the rows ``keep`` (an index or mask)."""
         return Evaluation(self.p[keep], self.r[keep], self.jac[keep], self.fresh[keep])
 
+    @staticmethod
+    def empty(n: int, dof: int) -> 'Evaluation':
+        """An evaluation of ``n`` configurations with nothing computed yet."""
+        return Evaluation(np.zeros((n, 3)), np.zeros((n, 3, 3)), np.zeros((n, 6, dof)),
+                          np.zeros(n, dtype=bool))
+
+    @staticmethod
+    def concat(*parts: 'Evaluation') -> 'Evaluation':
+        """The rows of several evaluations, in order."""
+        return Evaluation(*(np.concatenate([getattr(e, name) for e in parts])
+                            for name in ('p', 'r', 'jac', 'fresh')))
+
 
 def errors(ctx: Context, q: np.ndarray, goal: Goal) -> Tuple[np.ndarray, np.ndarray]:
     """Position errors [m] and orientation errors [rad] (zeros for position goals), (M,)."""
@@ -117,12 +129,8 @@ def refine(ctx: Context, q: np.ndarray, goal: Goal, deadline: Optional[float] = 
     roll_free = ctx.ignores_last(goal.kind)
     carry = keep_evaluation or start is not None
     if carry:
-        dof = ctx.robot.dof
-        last = Evaluation(np.empty((n, 3)), np.empty((n, 3, 3)), np.empty((n, 6, dof)),
-                          np.zeros(n, dtype=bool))
-        if start is not None:
-            last = Evaluation(start.p.copy(), start.r.copy(), start.jac.copy(),
-                              start.fresh.copy())
+        last = Evaluation.empty(n, ctx.robot.dof) if start is None else \
+            Evaluation.concat(start)  # a copy: the caller's evaluation stays as it was
     for it in range(iterations or cfg.refine_iterations):
         if prune and it in cfg.prune_at:
             alive = np.flatnonzero(~given_up)
