@@ -119,9 +119,10 @@ def test_the_edge_bound_holds_along_whole_edges(arm, request):
     """The tip never leaves the chord by more than the bound that lets edges skip FK checks.
 
     Dense FK along random joint-space edges (small to large) against ``M / 8`` of
-    :func:`_reach`, and the tool's turn from the nearer end against ``S / 2``.
+    :func:`_reach`, and the tool's turn from the nearer end against :func:`turn_bound` (from
+    the ends' angular speeds) and against ``S / 2``.
     """
-    from sik_ros.solver.path import _reach
+    from sik_ros.solver.path import _reach, turn_bound
     robot = request.getfixturevalue(arm)
     rng = np.random.default_rng(4)
     qa = rng.uniform(robot.lower, robot.upper, (400, robot.dof))
@@ -134,11 +135,20 @@ def test_the_edge_bound_holds_along_whole_edges(arm, request):
     v = np.abs(dq)
     bend = np.einsum('ki,ij,kj->k', v, _reach(robot.chain), v)
     assert (np.linalg.norm(p - chord, axis=2).max(axis=1) <= bend / 8 + 1e-12).all()
+    small = np.abs(dq).max(axis=1) < 0.02
     turn_a = np.arccos(np.clip((np.einsum('kij,ktij->kt', r[:, 0], r) - 1) / 2, -1, 1))
     turn_b = np.arccos(np.clip((np.einsum('kij,ktij->kt', r[:, -1], r) - 1) / 2, -1, 1))
-    assert (np.minimum(turn_a, turn_b).max(axis=1) <= v.sum(axis=1) / 2 + 1e-9).all()
+    near = np.minimum(turn_a, turn_b).max(axis=1)
+    # the ends' angular speeds |J_w dq| from the Jacobians, and the crude sum |dq| bound
+    w_a = np.linalg.norm(np.einsum('krj,kj->kr', robot.jacobian_batch(qa)[2][:, 3:], dq), axis=1)
+    w_b = np.linalg.norm(np.einsum('krj,kj->kr', robot.jacobian_batch(qa + dq)[2][:, 3:], dq),
+                         axis=1)
+    bound = turn_bound(v, w_a, w_b)
+    assert (near <= bound + 1e-9).all()
+    assert (near <= v.sum(axis=1) / 2 + 1e-9).all()
+    # tighter than the crude bound on small edges, where it spares FK checks of pose paths
+    assert (bound[small] < v[small].sum(axis=1) / 2).mean() > 0.9
     # the bound is not vacuous: small edges are proven, large ones are not
-    small = np.abs(dq).max(axis=1) < 0.02
     assert (bend[small] / 8 < 0.005).all() and (bend[~small] / 8 > 0.005).any()
 
 
@@ -161,3 +171,41 @@ def test_edges_skipping_fk_checks_give_the_same_paths(ik, monkeypatch):
     assert len(fast.paths) == len(slow.paths)
     for a, b in zip(fast.paths, slow.paths):
         assert np.array_equal(a.q, b.q)
+
+
+def test_tracks_carry_their_evaluations_and_step_once(ik):
+    """``follow`` along a line: exact rows whose carried pose and Jacobian are their own.
+
+    Along a path (here waypoints 15 mm apart) the first step, on the Jacobian extrapolated to
+    its midpoint, leaves a residual within the tolerances for nearly every row: about one
+    evaluation per waypoint.
+    """
+    import importlib
+    refine = importlib.import_module('sik_ros.solver.refine')
+    from sik_ros.solver.context import Goal
+    ctx = ik._ctx
+    positions, quats = line(ik, 0.3, 21, (0.3, 1.0, 0.2))
+    rot = Rotation.from_quat(quats).as_matrix()
+    q = ik.solve(positions[0], quats[0], num_solutions=8).solutions
+    q = np.array([s.q for s in q if s.converged])
+    ev = refine.Evaluation.of(ctx, q)
+    steps = []
+    original = refine.limited_step
+
+    def counting(ctx_, qa, *args):
+        steps.append(len(qa))
+        return original(ctx_, qa, *args)
+    try:
+        refine.limited_step = counting
+        for i in range(1, len(positions)):
+            goal = Goal(positions[i], rot[i])
+            q, ev = refine.follow(ctx, q, ev, goal, 10)
+            p, r, jac = ik.robot.jacobian_loop(q)
+            assert np.allclose(ev.p, p) and np.allclose(ev.r, r) and np.allclose(ev.jac, jac)
+            perr = np.linalg.norm(p - goal.position, axis=1)
+            assert (perr <= ik.config.position_tolerance).all()
+    finally:
+        refine.limited_step = original
+    assert len(q) >= 4  # the tracks were kept
+    # a plain Newton step (the Jacobian where a row is) takes two steps per row here
+    assert sum(steps) <= 1.3 * len(q) * (len(positions) - 1)

@@ -27,10 +27,13 @@ from sik_ros.rotations import rotation_angle
 from sik_ros.solver import pipeline  # noqa: I100 (a sibling module, not the package)
 from sik_ros.solver.context import Context, Goal
 from sik_ros.solver.ranking import distinct_mask
-from sik_ros.solver.refine import Evaluation, refine
+from sik_ros.solver.refine import Evaluation, follow
 
 #: Interpolation points checked on every edge (fractions of the edge).
 EDGE_CHECKS = (0.25, 0.5, 0.75)
+
+#: Most refinement steps of a track onto its next waypoint (a few suffice from a step away).
+TRACK_ITERATIONS = 10
 
 
 @dataclass
@@ -81,26 +84,23 @@ class PathSettings:
 
 
 def _starts(ctx: Context, goal: Goal, q_seed, obstacles, count: int,
-            deadline) -> np.ndarray:
-    """Distinct exact configurations at a waypoint (the solver's ranked ones), (M, n)."""
+            deadline) -> Tuple[np.ndarray, Evaluation]:
+    """Distinct exact configurations at a waypoint (the solver's ranked ones) and evaluations."""
     res = pipeline.solve(ctx, goal, count, q_seed, obstacles, True, None, deadline)
     q = np.array([s.q for s in res.solutions if s.converged and not s.in_collision])
-    return q.reshape(-1, ctx.robot.dof)
+    q = q.reshape(-1, ctx.robot.dof)
+    return q, Evaluation.of(ctx, q)
 
 
 def _continue(ctx: Context, q: np.ndarray, ev: Evaluation, goal: Goal,
               deadline) -> Tuple[np.ndarray, Evaluation]:
     """Each configuration refined onto the next waypoint: the exact ones and their evaluation.
 
-    ``ev`` is the evaluation of ``q`` carried from the previous waypoint (its fresh rows are not
-    computed again).
+    ``ev`` is the evaluation of ``q`` carried from the previous waypoint (not computed
+    again). A track not exact after :data:`TRACK_ITERATIONS` steps is lost (a joint
+    limit or a singularity in the way); the others and new starts go on.
     """
-    r = refine(ctx, q, goal, deadline, iterations=ctx.config.refine_iterations, start=ev,
-               keep_evaluation=True)
-    ok = r.perr <= ctx.config.position_tolerance
-    if goal.rotation is not None:
-        ok &= r.oerr <= ctx.config.orientation_tolerance
-    return r.q[ok], r.evaluation.rows(ok)
+    return follow(ctx, q, ev, goal, TRACK_ITERATIONS, deadline)
 
 
 def _on_segment(ctx: Context, qa: np.ndarray, qb: np.ndarray, ga: Goal, gb: Goal,
@@ -141,15 +141,34 @@ def _reach(chain: SerialChain) -> np.ndarray:
     return d[np.maximum(k[:, None], k[None, :])]
 
 
+def turn_bound(v: np.ndarray, w_a: np.ndarray, w_b: np.ndarray) -> np.ndarray:
+    """(K,) a bound on how far the tool turns from the nearer end along joint-space edges.
+
+    Along ``q(t) = qa + t dq`` the tool's angular velocity is ``w(t) = sum_i a_i dq_i`` (the
+    joint axes ``a_i``); its derivative is ``sum_{j<i} (a_j x a_i) dq_j dq_i``, of norm at most
+    ``W = sum_{j<i} |dq_j| |dq_i|``. The angle from the end at ``t = 0`` is at most
+    ``|w(0)| t + W t^2 / 2``, the one from the other end alike, so the nearer end is within
+    ``max(|w(0)|, |w(1)|) / 2 + W / 8`` everywhere.
+
+    Args:
+        v: ``|dq|`` (K, n).
+        w_a, w_b: ``|w|`` at the edges' two ends (K,) [rad] (``sum |dq|`` bounds both).
+    """
+    total = v.sum(axis=1)
+    pairs = (total * total - (v * v).sum(axis=1)) / 2
+    return np.maximum(w_a, w_b) / 2 + pairs / 8
+
+
 def _certified(ctx: Context, qa: np.ndarray, qb: np.ndarray, gb: Goal, turn: float,
-               reach: np.ndarray, s: PathSettings) -> np.ndarray:
+               reach: np.ndarray, s: PathSettings, w_a: np.ndarray,
+               w_b: np.ndarray) -> np.ndarray:
     """(K,) bool: edges proven to keep the tool on the segment, so FK need not check them.
 
     Both ends are exact (within the solver's tolerances). Along ``q(t) = qa + t dq`` the tip's
     acceleration is at most ``M = sum_ij D_ij |dq_i| |dq_j|`` (:func:`_reach`), so the tip is
     within ``M / 8`` of the chord between the ends, itself within the position tolerance of the
-    segment. The tool turns at most ``S = sum_i |dq_i|`` over the edge, so it is within
-    ``(S + 2 orientation_tolerance) / 2`` of the nearer end's waypoint orientation. Edges that
+    segment. The tool is within :func:`turn_bound` (``w_a``, ``w_b``: its angular speeds at the
+    ends) plus the orientation tolerance of the nearer end's waypoint orientation. Edges that
     meet both bounds meet :func:`_on_segment`'s test at every point, not only at its samples.
     """
     cfg = ctx.config
@@ -157,22 +176,30 @@ def _certified(ctx: Context, qa: np.ndarray, qb: np.ndarray, gb: Goal, turn: flo
     bend = np.einsum('ki,ij,kj->k', v, reach, v)
     ok = cfg.position_tolerance + bend / 8 <= s.path_tolerance
     if gb.rotation is not None:
-        ok &= (v.sum(axis=1) + 2 * cfg.orientation_tolerance) / 2 <= \
+        ok &= turn_bound(v, w_a, w_b) + cfg.orientation_tolerance <= \
             s.orientation_path_tolerance + turn
     return ok
 
 
-def _edges(ctx: Context, prev: np.ndarray, prev_cost: np.ndarray, q: np.ndarray,
-           ga: Goal, gb: Goal, reach: np.ndarray, s: PathSettings) -> np.ndarray:
+def _angular_speed(ev: Evaluation, rows: np.ndarray, dq: np.ndarray) -> np.ndarray:
+    """(K,) the tool's angular speed ``|J_w dq|`` at ``rows`` of ``ev`` moving by ``dq``."""
+    return np.linalg.norm(np.einsum('krj,kj->kr', ev.jac[rows, 3:], dq), axis=1)
+
+
+def _edges(ctx: Context, prev: np.ndarray, prev_cost: np.ndarray, prev_ev: Evaluation,
+           q: np.ndarray, ev: Evaluation, ga: Goal, gb: Goal, reach: np.ndarray,
+           s: PathSettings) -> np.ndarray:
     """(P, Q) cost of reaching each candidate ``q`` from each ``prev`` (inf: not allowed).
 
     Edges with a joint step above ``max_joint_step`` are out. The others are checked on the
     segment ``ga`` -> ``gb`` lazily: only those that would be a candidate's cheapest way in,
     until every candidate's cheapest edge passes (the same choice as checking them all).
-    Edges :func:`_certified` by a bound (``reach``: :func:`_reach`) pass without FK.
+    Edges :func:`_certified` by a bound (``reach``: :func:`_reach`; the ends' Jacobians from
+    ``prev_ev`` and ``ev``) pass without FK.
     """
-    travel = np.linalg.norm(q[None] - prev[:, None], axis=2)
-    step = np.abs(q[None] - prev[:, None]).max(axis=2)
+    diff = q[None] - prev[:, None]
+    travel = np.sqrt(np.einsum('pqn,pqn->pq', diff, diff))
+    step = np.abs(diff).max(axis=2)
     total = np.where(step <= s.max_joint_step, prev_cost[:, None] + travel, np.inf)
     checked = np.zeros(total.shape, dtype=bool)
     cols = np.arange(len(q))
@@ -184,7 +211,12 @@ def _edges(ctx: Context, prev: np.ndarray, prev_cost: np.ndarray, q: np.ndarray,
             return total
         a, b = best[pending], cols[pending]
         checked[a, b] = True
-        proven = _certified(ctx, prev[a], q[b], gb, turn, reach, s)
+        if gb.rotation is None:
+            w_a = w_b = None
+        else:
+            dq = diff[a, b]
+            w_a, w_b = _angular_speed(prev_ev, a, dq), _angular_speed(ev, b, dq)
+        proven = _certified(ctx, prev[a], q[b], gb, turn, reach, s, w_a, w_b)
         a, b = a[~proven], b[~proven]
         if not len(a):
             continue
@@ -209,22 +241,24 @@ def solve_path(ctx: Context, goals: Sequence[Goal], q_seed: Optional[np.ndarray]
             timed_out = True
             break
         if i == 0:
-            q = _starts(ctx, goal, q_seed, obstacles, s.starts, deadline)
+            q, ev = _starts(ctx, goal, q_seed, obstacles, s.starts, deadline)
             c0 = np.zeros(len(q)) if q_seed is None else \
                 s.seed_weight * np.linalg.norm(q - q_seed, axis=1)
             if len(q) == 0:
                 break
             cand.append(q), back.append(np.full(len(q), -1)), cost.append(c0)
-            ev = Evaluation.empty(len(q), ctx.robot.dof)
             reached = 1
             continue
         live = np.isfinite(cost[-1])
-        prev, prev_idx = cand[-1][live], np.flatnonzero(live)
-        q, ev = _continue(ctx, prev, ev.rows(live), goal, deadline)
+        prev, prev_idx = cand[-1], np.arange(len(live))
+        prev_ev = ev
+        if not live.all():
+            prev, prev_idx, prev_ev = prev[live], prev_idx[live], ev.rows(live)
+        q, ev = _continue(ctx, prev, prev_ev, goal, deadline)
         if len(q) < 2:  # tracks lost: new starts here, joined by the edges that allow it
-            fresh = _starts(ctx, goal, None, obstacles, s.starts, deadline)
+            fresh, fresh_ev = _starts(ctx, goal, None, obstacles, s.starts, deadline)
             q = np.concatenate([q, fresh])
-            ev = Evaluation.concat(ev, Evaluation.empty(len(fresh), ctx.robot.dof))
+            ev = Evaluation.concat(ev, fresh_ev)
         if len(q) == 0:
             break
         unique = distinct_mask(q, 1e-3)
@@ -234,7 +268,8 @@ def solve_path(ctx: Context, goals: Sequence[Goal], q_seed: Optional[np.ndarray]
             q, ev = q[clear], ev.rows(clear)
             if len(q) == 0:
                 break
-        total = _edges(ctx, prev, cost[-1][prev_idx], q, goals[i - 1], goal, reach, s)
+        total = _edges(ctx, prev, cost[-1][prev_idx], prev_ev, q, ev, goals[i - 1], goal,
+                       reach, s)
         best = np.argmin(total, axis=0)
         c = total[best, np.arange(len(q))]
         if not np.isfinite(c).any():
@@ -259,6 +294,8 @@ def _paths(ctx: Context, goals, cand, back, cost, obstacles, s: PathSettings) ->
     if not cand:
         return []
     ends = np.argsort(cost[-1], kind='stable')
+    positions = np.array([g.position for g in goals])
+    rotations = None if goals[0].rotation is None else np.array([g.rotation for g in goals])
     out, starts = [], []
     for e in ends:
         if not np.isfinite(cost[-1][e]) or len(out) >= s.num_paths:
@@ -272,9 +309,9 @@ def _paths(ctx: Context, goals, cand, back, cost, obstacles, s: PathSettings) ->
             continue  # the same start as a better path: not a distinct alternative
         starts.append(q[0])
         p, r = chain_forward(ctx.robot.chain, q)
-        perr = np.linalg.norm(p - np.array([g.position for g in goals[:len(q)]]), axis=1)
-        oerr = np.array([0.0 if g.rotation is None else rotation_angle(g.rotation, ri[None])[0]
-                         for g, ri in zip(goals, r)])
+        perr = np.linalg.norm(p - positions[:len(q)], axis=1)
+        oerr = np.zeros(len(q)) if rotations is None else np.arccos(np.clip(
+            (np.einsum('kij,kij->k', rotations[:len(q)], r) - 1) / 2, -1.0, 1.0))
         steps = np.abs(np.diff(q, axis=0))
         clear = ctx.checker.clearance(q, obstacles) if obstacles else np.full(len(q), np.inf)
         out.append(JointPath(q, perr, oerr, float(steps.max()) if len(steps) else 0.0,

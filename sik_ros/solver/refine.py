@@ -26,46 +26,45 @@ class Refined:
         perr: their position errors (M,) [m].
         oerr: their orientation errors (M,) [rad] (zeros for position goals).
         cut_short: the deadline stopped refinement before every candidate had finished.
-        evaluation: with ``keep_evaluation``, an :class:`Evaluation` of the rows whose last
-            Jacobian was taken where they ended (the others' ``fresh`` is False).
     """
 
     q: np.ndarray
     perr: np.ndarray
     oerr: np.ndarray
     cut_short: bool = False
-    evaluation: Optional['Evaluation'] = None
 
 
 @dataclass(frozen=True)
 class Evaluation:
-    """Tip poses and Jacobians of configurations, to carry into the next :func:`refine`.
+    """Tip poses and Jacobians of configurations, to carry into the next :func:`follow`.
 
     Attributes:
         p: tip positions (M, 3) [m]; r: rotations (M, 3, 3); jac: Jacobians (M, 6, n).
-        fresh: (M,) whether a row's entries belong to its configuration.
+        djac: (M, 6, n) how each row's Jacobian changed over its last step (from the previous
+            waypoint; zeros for new rows): the next step, alike along a path, is taken on the
+            Jacobian extrapolated to its midpoint.
     """
 
     p: np.ndarray
     r: np.ndarray
     jac: np.ndarray
-    fresh: np.ndarray
+    djac: np.ndarray
 
     def rows(self, keep: np.ndarray) -> 'Evaluation':
         """The evaluation of the rows ``keep`` (an index or mask)."""
-        return Evaluation(self.p[keep], self.r[keep], self.jac[keep], self.fresh[keep])
+        return Evaluation(self.p[keep], self.r[keep], self.jac[keep], self.djac[keep])
 
     @staticmethod
-    def empty(n: int, dof: int) -> 'Evaluation':
-        """An evaluation of ``n`` configurations with nothing computed yet."""
-        return Evaluation(np.zeros((n, 3)), np.zeros((n, 3, 3)), np.zeros((n, 6, dof)),
-                          np.zeros(n, dtype=bool))
+    def of(ctx: Context, q: np.ndarray) -> 'Evaluation':
+        """The evaluation of new configurations ``q`` (M, n) (no last step)."""
+        p, r, jac = ctx.robot.jacobian_loop(q, ctx.data)
+        return Evaluation(p, r, jac, np.zeros_like(jac))
 
     @staticmethod
     def concat(*parts: 'Evaluation') -> 'Evaluation':
         """The rows of several evaluations, in order."""
         return Evaluation(*(np.concatenate([getattr(e, name) for e in parts])
-                            for name in ('p', 'r', 'jac', 'fresh')))
+                            for name in ('p', 'r', 'jac', 'djac')))
 
 
 def errors(ctx: Context, q: np.ndarray, goal: Goal) -> Tuple[np.ndarray, np.ndarray]:
@@ -84,10 +83,24 @@ def dls_step(j: np.ndarray, err: np.ndarray, lam2: float, eye: np.ndarray) -> np
     return (j.transpose(0, 2, 1) @ np.linalg.solve(jjt, err[..., None]))[..., 0]
 
 
+def limited_step(ctx: Context, q: np.ndarray, j: np.ndarray, err: np.ndarray, lam2: float,
+                 eye: np.ndarray) -> np.ndarray:
+    """``q`` (M, n) after one damped least squares step on ``err``, within the joint limits.
+
+    Joints at a limit that the descent direction ``J^T e`` pushes further out leave the step
+    (active set); a step is scaled down to ``config.max_step`` on its largest joint.
+    """
+    lower, upper = ctx.robot.lower, ctx.robot.upper
+    g = np.einsum('nrj,nr->nj', j, err)
+    blocked = ((q <= lower + 1e-9) & (g < 0)) | ((q >= upper - 1e-9) & (g > 0))
+    dq = dls_step(j * ~blocked[:, None, :], err, lam2, eye)
+    scale = np.maximum(1.0, np.abs(dq).max(axis=1) / ctx.config.max_step)
+    return np.clip(q + dq / scale[:, None], lower, upper)
+
+
 def refine(ctx: Context, q: np.ndarray, goal: Goal, deadline: Optional[float] = None,
            iterations: Optional[int] = None, prune: bool = False,
-           enough: Optional[int] = None, start: Optional[Evaluation] = None,
-           keep_evaluation: bool = False) -> Refined:
+           enough: Optional[int] = None) -> Refined:
     """Batched damped least squares from ``q`` (M, n) towards ``goal``, within the limits.
 
     With ``prune``, at the iterations in ``config.prune_at`` a candidate closer than
@@ -105,16 +118,12 @@ def refine(ctx: Context, q: np.ndarray, goal: Goal, deadline: Optional[float] = 
         iterations: most iterations (default: ``config.refine_iterations``).
         prune: merge candidates heading for the same solution.
         enough: stop once this many distinct candidates are exact.
-        start: an evaluation of ``q`` whose fresh rows the first iteration uses instead of
-            computing them again (a path's tracks carry theirs from waypoint to waypoint).
-        keep_evaluation: return the last evaluation of every row (``Refined.evaluation``).
     """
     cfg = ctx.config
     pos, rot = goal.position, goal.rotation
     q = q.copy()
     n = len(q)
     rows = 3 if rot is None else 6
-    lower, upper = ctx.robot.lower, ctx.robot.upper
     lam2 = cfg.damping ** 2
     eye = np.eye(rows)
     active = np.ones(n, dtype=bool)
@@ -127,10 +136,6 @@ def refine(ctx: Context, q: np.ndarray, goal: Goal, deadline: Optional[float] = 
     exact = np.zeros(n, dtype=bool)
     cut_short = False
     roll_free = ctx.ignores_last(goal.kind)
-    carry = keep_evaluation or start is not None
-    if carry:
-        last = Evaluation.empty(n, ctx.robot.dof) if start is None else \
-            Evaluation.concat(start)  # a copy: the caller's evaluation stays as it was
     for it in range(iterations or cfg.refine_iterations):
         if prune and it in cfg.prune_at:
             alive = np.flatnonzero(~given_up)
@@ -143,15 +148,7 @@ def refine(ctx: Context, q: np.ndarray, goal: Goal, deadline: Optional[float] = 
         if deadline is not None and time.perf_counter() > deadline:
             cut_short = True
             break
-        if carry:
-            todo = idx[~last.fresh[idx]]
-            if len(todo):
-                last.p[todo], last.r[todo], last.jac[todo] = \
-                    ctx.robot.jacobian_loop(q[todo], ctx.data)
-                last.fresh[todo] = True
-            p, r, jac = last.p[idx], last.r[idx], last.jac[idx]
-        else:
-            p, r, jac = ctx.robot.jacobian_loop(q[idx], ctx.data)
+        p, r, jac = ctx.robot.jacobian_loop(q[idx], ctx.data)
         err = pos - p
         perr = np.sqrt((err * err).sum(1))
         done = perr < cfg.position_tolerance * 0.5
@@ -193,18 +190,61 @@ def refine(ctx: Context, q: np.ndarray, goal: Goal, deadline: Optional[float] = 
             if not go.any():
                 continue
             idx, jac, err = idx[go], jac[go], err[go]
-        j, e, qa = jac[:, :rows], err, q[idx]
-        # joints at a limit that the descent direction J^T e pushes further out leave the
-        # problem (active set)
-        g = np.einsum('nrj,nr->nj', j, e)
-        blocked = ((qa <= lower + 1e-9) & (g < 0)) | ((qa >= upper - 1e-9) & (g > 0))
-        dq = dls_step(j * ~blocked[:, None, :], e, lam2, eye)
-        scale = np.maximum(1.0, np.abs(dq).max(axis=1) / cfg.max_step)
-        q[idx] = np.clip(qa + dq / scale[:, None], lower, upper)
+        q[idx] = limited_step(ctx, q[idx], jac[:, :rows], err, lam2, eye)
         stale[idx] = True
-        if carry:
-            last.fresh[idx] = False
     moved = np.flatnonzero(stale)
     if len(moved):
         perr_all[moved], oerr_all[moved] = errors(ctx, q[moved], goal)
-    return Refined(q, perr_all, oerr_all, cut_short, last if keep_evaluation else None)
+    return Refined(q, perr_all, oerr_all, cut_short)
+
+
+def follow(ctx: Context, q: np.ndarray, start: Evaluation, goal: Goal, iterations: int,
+           deadline: Optional[float] = None) -> Tuple[np.ndarray, Evaluation]:
+    """Configurations near ``goal`` refined onto it, carrying their evaluations: a lean refine.
+
+    For a path's tracks, each a small step from the next waypoint: no merging, stalling or
+    giving up to watch for. Each iteration takes the rows' errors from their evaluation; the
+    rows within the tolerances stop, the others take a :func:`limited_step` and are evaluated
+    again (one Pinocchio call per row, whose Jacobian the next waypoint's first step uses).
+    The first step is taken on the Jacobian extrapolated to the step's midpoint
+    (``jac + djac / 2``): along a path the residual left is then of third order, within the
+    tolerances after one step nearly always (one evaluation per waypoint), where a plain
+    Newton step leaves a second-order one.
+
+    Args:
+        ctx: the solver's parts.
+        q: configurations (M, n) [rad].
+        start: their evaluation.
+        goal: the target.
+        iterations: most steps per row; rows not exact after them are dropped.
+        deadline: a ``time.perf_counter()`` value after which no step starts.
+
+    Returns:
+        the exact rows (K, n), in their order, and their evaluation.
+    """
+    cfg = ctx.config
+    pos, rot = goal.position, goal.rotation
+    rows = 3 if rot is None else 6
+    lam2, eye = cfg.damping ** 2, np.eye(rows)
+    tol2, otol2 = cfg.position_tolerance ** 2, cfg.orientation_tolerance ** 2
+    q, p, r, jac = q.copy(), start.p.copy(), start.r.copy(), start.jac.copy()
+    exact = np.zeros(len(q), dtype=bool)
+    idx = np.arange(len(q))
+    for it in range(iterations + 1):
+        err = pos - p[idx]
+        ok = (err * err).sum(1) <= tol2
+        if rot is not None:
+            rot_err = rotation_log(rot @ r[idx].transpose(0, 2, 1))
+            ok &= (rot_err * rot_err).sum(1) <= otol2
+            err = np.concatenate([err, rot_err], axis=1)
+        exact[idx[ok]] = True
+        idx, err = idx[~ok], err[~ok]
+        if not len(idx) or it == iterations or (
+                deadline is not None and time.perf_counter() > deadline):
+            break
+        j = jac[idx, :rows]
+        if it == 0:
+            j = j + 0.5 * start.djac[idx, :rows]
+        q[idx] = limited_step(ctx, q[idx], j, err, lam2, eye)
+        p[idx], r[idx], jac[idx] = ctx.robot.jacobian_loop(q[idx], ctx.data)
+    return q[exact], Evaluation(p[exact], r[exact], jac[exact], jac[exact] - start.jac[exact])
