@@ -98,3 +98,26 @@ def test_bad_config_is_refused(kw):
     """Unknown kinds or goals and latent sizes outside 1..7 are refused."""
     with pytest.raises(InvalidArgument):
         ModelConfig(**kw)
+
+
+@pytest.mark.parametrize('kind', ['sik', 'psik'])
+def test_the_solver_runs_the_networks_in_numpy_as_torch_does(kind):
+    """The solver's NumPy twins of the encoder and decoder give torch's outputs (float32).
+
+    A model with another kind of layer is run by torch itself (no twin).
+    """
+    from sik_ros.solver.codec import NumpyMLP
+    torch.manual_seed(0)
+    cfg = tiny(kind, 'pose')
+    model = build_model(cfg).eval()
+    g, x = torch.randn(9, cfg.goal_dim), torch.randn(9, 7)
+    with torch.no_grad():
+        mu, _ = model.encode(g, x)
+        out = model.decode(g, mu)
+    enc, dec = NumpyMLP.of(model.encoder), NumpyMLP.of(model.decoder)
+    h = enc(torch.cat([g, x], 1).numpy())[:, :cfg.latent_dim]
+    np.testing.assert_allclose(h, mu.numpy(), rtol=1e-5, atol=1e-5)
+    np.testing.assert_allclose(dec(np.concatenate([g.numpy(), h], 1)), out.numpy(),
+                               rtol=1e-5, atol=1e-5)
+    odd = torch.nn.Sequential(torch.nn.Linear(3, 4), torch.nn.ReLU(), torch.nn.Linear(4, 2))
+    assert NumpyMLP.of(odd) is None

@@ -1,10 +1,79 @@
-"""The networks at a goal: posture indices decoded to joints, joints encoded to indices."""
+"""The networks at a goal: posture indices decoded to joints, joints encoded to indices.
+
+A solve decodes and encodes a few rows at a time, where a torch call costs more in overhead
+than in arithmetic; the SIK networks (linear layers and ELUs) are therefore run as NumPy
+float32 matrix products on their own weights (:class:`NumpyMLP`, same float32 arithmetic),
+and other models through torch.
+"""
+
+from typing import List, Optional, Tuple
+import weakref
 
 import numpy as np
 import torch
 
-from sik_ros.models import make_goal
+from sik_ros.models import make_goal, SIK
 from sik_ros.solver.context import Context, Goal
+
+
+class NumpyMLP:
+    """A torch ``Sequential`` of ``Linear`` and ``ELU`` layers, evaluated with NumPy."""
+
+    def __init__(self, layers: List[Tuple[np.ndarray, np.ndarray]]):
+        self.layers = layers
+
+    @staticmethod
+    def of(seq: torch.nn.Module) -> Optional['NumpyMLP']:
+        """The NumPy twin of ``seq``, or None when it holds other layers."""
+        mods = list(seq.children()) if isinstance(seq, torch.nn.Sequential) else []
+        linear = mods[0::2]
+        if not mods or not all(isinstance(m, torch.nn.Linear) for m in linear) or not all(
+                isinstance(m, torch.nn.ELU) and m.alpha == 1.0 for m in mods[1::2]) \
+                or len(mods) % 2 == 0:
+            return None
+        return NumpyMLP([(m.weight.detach().numpy().T.astype(np.float32),
+                          m.bias.detach().numpy().astype(np.float32)) for m in linear])
+
+    def __call__(self, x: np.ndarray) -> np.ndarray:
+        """The outputs (M, out) of float32 inputs (M, in)."""
+        last = len(self.layers) - 1
+        for i, (w, b) in enumerate(self.layers):
+            x = x @ w
+            x += b
+            if i < last:
+                x = np.where(x > 0, x, np.expm1(np.minimum(x, 0)))
+        return x
+
+
+_TWINS: 'weakref.WeakKeyDictionary' = weakref.WeakKeyDictionary()
+
+
+def _twins(model: torch.nn.Module):
+    """(encoder, decoder) NumPy twins of an SIK model, or None (made once per model)."""
+    if model not in _TWINS:
+        twins = None
+        if isinstance(model, SIK):
+            enc, dec = NumpyMLP.of(model.encoder), NumpyMLP.of(model.decoder)
+            if enc is not None and dec is not None:
+                twins = (enc, dec)
+        _TWINS[model] = twins
+    return _TWINS[model]
+
+
+def _goal_rows(ctx: Context, goal: Goal, rows: int) -> np.ndarray:
+    """The goal in the network's normalised units, float32 (rows, goal_dim)."""
+    norm = ctx.models[goal.kind].norm
+    g = make_goal(goal.kind, goal.position[None],
+                  None if goal.rotation is None else goal.rotation[None])[0].astype(np.float64)
+    g[:3] = (g[:3] - np.asarray(norm.position_center)) / norm.position_scale
+    return np.repeat(g.astype(np.float32)[None], rows, 0)
+
+
+def _limits(ctx: Context, goal: Goal) -> Tuple[np.ndarray, np.ndarray]:
+    norm = ctx.models[goal.kind].norm
+    lo = np.asarray(norm.lower, dtype=np.float32)
+    hi = np.asarray(norm.upper, dtype=np.float32)
+    return (lo + hi) / 2, (hi - lo) / 2
 
 
 def goal_net(ctx: Context, goal: Goal, rows: int) -> torch.Tensor:
@@ -14,20 +83,32 @@ def goal_net(ctx: Context, goal: Goal, rows: int) -> torch.Tensor:
     return ctx.models[goal.kind].norm.goal_to_net(torch.from_numpy(g.astype(np.float32)))
 
 
-@torch.no_grad()
 def decode(ctx: Context, goal: Goal, z: np.ndarray) -> np.ndarray:
     """Joint solutions (M, n) [rad] decoded from posture indices (M, latent), clipped."""
     gm = ctx.models[goal.kind]
-    x = gm.model.decode(goal_net(ctx, goal, len(z)),
-                        torch.from_numpy(np.asarray(z, dtype=np.float32)))
-    q = gm.norm.q_from_net(x).double().numpy()
+    twins = _twins(gm.model)
+    z = np.asarray(z, dtype=np.float32).reshape(len(z), -1)
+    if twins is None:
+        with torch.no_grad():
+            x = gm.model.decode(goal_net(ctx, goal, len(z)), torch.from_numpy(z))
+            q = gm.norm.q_from_net(x).double().numpy()
+    else:
+        centre, half = _limits(ctx, goal)
+        x = twins[1](np.concatenate([_goal_rows(ctx, goal, len(z)), z], axis=1))
+        q = (x * half + centre).astype(np.float64)
     return np.clip(q, ctx.robot.lower, ctx.robot.upper)
 
 
-@torch.no_grad()
 def encode(ctx: Context, goal: Goal, q: np.ndarray) -> np.ndarray:
     """Posture indices (M, latent) of configurations (M, n) for a goal."""
     gm = ctx.models[goal.kind]
-    z, _ = gm.model.encode(goal_net(ctx, goal, len(q)),
-                           gm.norm.q_to_net(torch.from_numpy(q.astype(np.float32))))
-    return z.numpy().astype(np.float64)
+    twins = _twins(gm.model)
+    if twins is None:
+        with torch.no_grad():
+            z, _ = gm.model.encode(goal_net(ctx, goal, len(q)),
+                                   gm.norm.q_to_net(torch.from_numpy(q.astype(np.float32))))
+        return z.numpy().astype(np.float64)
+    centre, half = _limits(ctx, goal)
+    x = (q.astype(np.float32) - centre) / half
+    h = twins[0](np.concatenate([_goal_rows(ctx, goal, len(q)), x], axis=1))
+    return h[:, :gm.model.cfg.latent_dim].astype(np.float64)

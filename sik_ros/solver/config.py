@@ -42,10 +42,10 @@ class SolverConfig:
         prune_at: refinement iterations at which candidates heading for the same solution
             are merged (the one with the lower error goes on).
         prune_radius: joint distance under which two candidates are merged there [rad].
-        stall_window, stall_ratio: a candidate still ten tolerances away whose error is above
+        stall_window, stall_ratio: a candidate not yet exact whose error is above
             ``stall_ratio`` times its error ``stall_window`` iterations before is dropped
             (0 disables it), from iteration ``stall_after`` on; ``give_up_after`` still bounds
-            the rest.
+            those still ten tolerances away.
         early_stop_margin: with the default ranking (no seed, obstacles or objective),
             refinement stops once ``num_solutions`` plus this many distinct exact solutions are
             found, instead of refining every candidate to its end; -1 disables it.

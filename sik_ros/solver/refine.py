@@ -172,8 +172,9 @@ def refine(ctx: Context, q: np.ndarray, goal: Goal, deadline: Optional[float] = 
                     distinct_mask(q[found], cfg.distinct_threshold, roll_free).sum() >= enough):
                 break
         if window and it >= max(window, cfg.stall_after):
-            # far from the goal and hardly closer than ``window`` iterations ago: stalled
-            stalled = stuck & (score[idx] > cfg.stall_ratio * history[it % window, idx])
+            # hardly closer than ``window`` iterations ago: stalled (near a solution the steps
+            # converge fast; a row that does not is held by a joint limit or a singularity)
+            stalled = ~done & (score[idx] > cfg.stall_ratio * history[it % window, idx])
         else:
             stalled = None
         if window:
