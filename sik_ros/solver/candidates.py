@@ -41,6 +41,8 @@ def table_candidates(ctx: Context, goal: Goal, q_seed: Optional[np.ndarray],
     if not refine:
         count = max(count, cfg.raw_candidates)
     table = ctx.models[goal.kind].table
+    if count <= 0:
+        return np.empty((0, table.indices.shape[1])), np.empty(0, dtype=int)
     rows = table.rows_near(goal.position, cfg.k_cells)
     pool = table.indices[rows]
     if pool.shape[1] == 1:

@@ -87,7 +87,9 @@ def decode(ctx: Context, goal: Goal, z: np.ndarray) -> np.ndarray:
     """Joint solutions (M, n) [rad] decoded from posture indices (M, latent), clipped."""
     gm = ctx.models[goal.kind]
     twins = _twins(gm.model)
-    z = np.asarray(z, dtype=np.float32).reshape(len(z), -1)
+    z = np.asarray(z, dtype=np.float32)
+    if len(z) == 0:
+        return np.empty((0, ctx.robot.dof))
     if twins is None:
         with torch.no_grad():
             x = gm.model.decode(goal_net(ctx, goal, len(z)), torch.from_numpy(z))
