@@ -54,8 +54,9 @@ class SolverConfig:
             (0 disables it), from iteration ``stall_after`` on; ``give_up_after`` still bounds
             those still ten tolerances away.
         early_stop_margin: with the default ranking (no seed, obstacles or objective),
-            refinement stops once ``num_solutions`` plus this many distinct exact solutions are
-            found, instead of refining every candidate to its end; -1 disables it.
+            refinement stops once ``num_solutions`` plus this many (at most
+            ``num_solutions - 1``) distinct exact solutions are found, instead of refining
+            every candidate to its end; -1 disables it.
         cached_postures: refine from the table's decoded postures (each index decoded at its
             cell's centre when the table was built, ``sik-index --postures``) instead of
             decoding the candidates at the goal at every call; raw answers

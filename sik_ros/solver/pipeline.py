@@ -65,6 +65,15 @@ def initial_postures(ctx: Context, goal: Goal, num: int, q_seed: Optional[np.nda
     return Candidates(q, z, unknown, np.zeros(len(q)), np.zeros(len(q), dtype=bool))
 
 
+def spare(cfg: SolverConfig, num: int) -> int:
+    """Distinct exact solutions found beyond the ``num`` asked for before the search stops.
+
+    ``early_stop_margin``, at most ``num - 1``: a single solution is the first exact one
+    found (as TRAC-IK's first answer), two are the better two of three.
+    """
+    return min(cfg.early_stop_margin, num - 1)
+
+
 def past(deadline: Optional[float]) -> bool:
     """Whether a ``time.perf_counter()`` deadline has passed."""
     return deadline is not None and time.perf_counter() > deadline
@@ -94,7 +103,7 @@ def solve(ctx: Context, goal: Goal, num: int, q_seed: Optional[np.ndarray],
         # ranked by the default objective, the first distinct exact solutions found are as
         # good as any: stop refining once there are enough
         enough = None if (q_seed is not None or obstacles or objective is not None
-                          or cfg.early_stop_margin < 0) else num + cfg.early_stop_margin
+                          or cfg.early_stop_margin < 0) else num + spare(cfg, num)
         isolated = goal.kind == POSE and not far and ctx.robot.dof <= 6
         if isolated and cfg.branch_restarts > 0:
             # isolated solutions: no self-motion to walk along; random starts find branches
@@ -117,7 +126,7 @@ def solve(ctx: Context, goal: Goal, num: int, q_seed: Optional[np.ndarray],
             c, cut = restart(ctx, c, goal, deadline)
             timed_out = timed_out or cut
         if goal.kind == POSE and not far and ctx.robot.dof > 6 and cfg.walk_rounds > 0:
-            c = walk(ctx, c, goal, deadline, num + max(cfg.early_stop_margin, 0))
+            c = walk(ctx, c, goal, deadline, num + max(spare(cfg, num), 0))
     else:
         c = assess(c.q, c.z, *errors(ctx, c.q, goal), goal.kind, cfg)
     if c.exact.any():  # with exact solutions, only exact ones are returned
