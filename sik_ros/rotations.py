@@ -20,14 +20,16 @@ def rotation_to_quaternion(rot: np.ndarray) -> np.ndarray:
     return np.where(quat[:, 3:4] < 0, -quat, quat)
 
 
+_SKEW = (np.array([2, 0, 1]), np.array([1, 2, 0]))
+
+
 def rotation_log(rot: np.ndarray) -> np.ndarray:
     """Rotation vectors (N, 3) [rad] of rotation matrices (N, 3, 3) (the SO(3) logarithm)."""
-    v = 0.5 * np.stack([rot[:, 2, 1] - rot[:, 1, 2], rot[:, 0, 2] - rot[:, 2, 0],
-                        rot[:, 1, 0] - rot[:, 0, 1]], axis=1)
-    sin = np.sqrt((v * v).sum(1))
-    cos = np.clip((rot[:, 0, 0] + rot[:, 1, 1] + rot[:, 2, 2] - 1) / 2, -1.0, 1.0)
+    v = 0.5 * (rot[:, _SKEW[0], _SKEW[1]] - rot[:, _SKEW[1], _SKEW[0]])
+    sin = np.sqrt(np.einsum('ni,ni->n', v, v))
+    cos = np.clip((np.einsum('nii->n', rot) - 1) / 2, -1.0, 1.0)
     angle = np.arctan2(sin, cos)
-    out = v * np.where(sin > 1e-9, angle / np.maximum(sin, 1e-12), 1.0)[:, None]
+    out = v * np.divide(angle, sin, out=np.ones_like(sin), where=sin > 1e-9)[:, None]
     near_pi = (sin < 1e-6) & (cos < 0)
     if near_pi.any():  # the skew part vanishes at pi: take the axis from R + I
         out[near_pi] = Rotation.from_matrix(rot[near_pi]).as_rotvec()

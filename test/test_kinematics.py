@@ -86,3 +86,15 @@ def test_pinocchio_loop_matches_batched(panda):
     np.testing.assert_allclose(j2, j1, atol=1e-12)
     np.testing.assert_allclose(p3, p1, atol=1e-12)
     np.testing.assert_allclose(r3, r1, atol=1e-12)
+
+
+def test_rotation_log_matches_scipy_everywhere():
+    """The SO(3) logarithm against SciPy's rotation vectors: random, near pi and near zero."""
+    from scipy.spatial.transform import Rotation
+    from sik_ros.rotations import rotation_log
+    rots = Rotation.random(500, random_state=3)
+    np.testing.assert_allclose(rotation_log(rots.as_matrix()), rots.as_rotvec(), atol=1e-9)
+    edge = np.array([[np.pi, 0, 0], [0, np.pi - 1e-8, 0], [1e-12, 0, 0], [0.0, 0, 0]])
+    out = rotation_log(Rotation.from_rotvec(edge).as_matrix())
+    # at pi the axis' sign is either
+    np.testing.assert_allclose(np.abs(out), np.abs(edge), atol=1e-7)

@@ -21,7 +21,7 @@ from typing import List, Optional, Sequence, Tuple
 
 import numpy as np
 
-from sik_ros.chain import chain_forward, SerialChain
+from sik_ros.chain import SerialChain
 from sik_ros.collision import Obstacle
 from sik_ros.rotations import rotation_angle
 from sik_ros.solver import pipeline  # noqa: I100 (a sibling module, not the package)
@@ -117,7 +117,8 @@ def _on_segment(ctx: Context, qa: np.ndarray, qb: np.ndarray, ga: Goal, gb: Goal
     t = np.repeat(np.asarray(EDGE_CHECKS), len(qa))
     q = (1 - t)[:, None] * np.tile(qa, (len(EDGE_CHECKS), 1)) + \
         t[:, None] * np.tile(qb, (len(EDGE_CHECKS), 1))
-    p, r = chain_forward(ctx.robot.chain, q)
+    # a few configurations: one Pinocchio call each beats the vectorised FK's set-up
+    p, r = ctx.robot.fk_loop(q, ctx.data) if len(q) <= 256 else ctx.robot.fk_rot(q)
     u = np.clip(((p - pa) @ seg) / length2, 0.0, 1.0)
     ok = np.linalg.norm(p - (pa + u[:, None] * seg), axis=1) <= s.path_tolerance
     if gb.rotation is not None:
@@ -187,7 +188,7 @@ def _angular_speed(ev: Evaluation, rows: np.ndarray, dq: np.ndarray) -> np.ndarr
 
 
 def _edges(ctx: Context, prev: np.ndarray, prev_cost: np.ndarray, prev_ev: Evaluation,
-           q: np.ndarray, ev: Evaluation, ga: Goal, gb: Goal, reach: np.ndarray,
+           q: np.ndarray, ev: Evaluation, ga: Goal, gb: Goal, turn: float, reach: np.ndarray,
            s: PathSettings) -> np.ndarray:
     """(P, Q) cost of reaching each candidate ``q`` from each ``prev`` (inf: not allowed).
 
@@ -195,7 +196,8 @@ def _edges(ctx: Context, prev: np.ndarray, prev_cost: np.ndarray, prev_ev: Evalu
     segment ``ga`` -> ``gb`` lazily: only those that would be a candidate's cheapest way in,
     until every candidate's cheapest edge passes (the same choice as checking them all).
     Edges :func:`_certified` by a bound (``reach``: :func:`_reach`; the ends' Jacobians from
-    ``prev_ev`` and ``ev``) pass without FK.
+    ``prev_ev`` and ``ev``; ``turn``: the angle between the waypoints' orientations) pass
+    without FK.
     """
     diff = q[None] - prev[:, None]
     travel = np.sqrt(np.einsum('pqn,pqn->pq', diff, diff))
@@ -203,7 +205,6 @@ def _edges(ctx: Context, prev: np.ndarray, prev_cost: np.ndarray, prev_ev: Evalu
     total = np.where(step <= s.max_joint_step, prev_cost[:, None] + travel, np.inf)
     checked = np.zeros(total.shape, dtype=bool)
     cols = np.arange(len(q))
-    turn = 0.0 if gb.rotation is None else rotation_angle(ga.rotation, gb.rotation[None])[0]
     while True:
         best = np.argmin(total, axis=0)
         pending = np.isfinite(total[best, cols]) & ~checked[best, cols]
@@ -217,11 +218,19 @@ def _edges(ctx: Context, prev: np.ndarray, prev_cost: np.ndarray, prev_ev: Evalu
             dq = diff[a, b]
             w_a, w_b = _angular_speed(prev_ev, a, dq), _angular_speed(ev, b, dq)
         proven = _certified(ctx, prev[a], q[b], gb, turn, reach, s, w_a, w_b)
+        if proven.all():
+            return total  # no cost changed: the cheapest edges stay those just proven
         a, b = a[~proven], b[~proven]
-        if not len(a):
-            continue
         fine = _on_segment(ctx, prev[a], q[b], ga, gb, s)
         total[a[~fine], b[~fine]] = np.inf
+
+
+def _turns(goals: Sequence[Goal]) -> np.ndarray:
+    """(N - 1,) the angles [rad] between consecutive waypoints' orientations (0: positions)."""
+    if len(goals) < 2 or goals[0].rotation is None:
+        return np.zeros(max(len(goals) - 1, 0))
+    r = np.array([g.rotation for g in goals])
+    return np.arccos(np.clip((np.einsum('kij,kij->k', r[:-1], r[1:]) - 1) / 2, -1.0, 1.0))
 
 
 def solve_path(ctx: Context, goals: Sequence[Goal], q_seed: Optional[np.ndarray],
@@ -236,6 +245,7 @@ def solve_path(ctx: Context, goals: Sequence[Goal], q_seed: Optional[np.ndarray]
     reached = 0
     timed_out = False
     reach = _reach(ctx.robot.chain)
+    turns = _turns(goals)
     for i, goal in enumerate(goals):
         if deadline is not None and time.perf_counter() > deadline:
             timed_out = True
@@ -269,7 +279,7 @@ def solve_path(ctx: Context, goals: Sequence[Goal], q_seed: Optional[np.ndarray]
             if len(q) == 0:
                 break
         total = _edges(ctx, prev, cost[-1][prev_idx], prev_ev, q, ev, goals[i - 1], goal,
-                       reach, s)
+                       turns[i - 1], reach, s)
         best = np.argmin(total, axis=0)
         c = total[best, np.arange(len(q))]
         if not np.isfinite(c).any():
@@ -308,7 +318,7 @@ def _paths(ctx: Context, goals, cand, back, cost, obstacles, s: PathSettings) ->
         if any(np.abs(q[0] - other).max() < 1e-6 for other in starts):
             continue  # the same start as a better path: not a distinct alternative
         starts.append(q[0])
-        p, r = chain_forward(ctx.robot.chain, q)
+        p, r = ctx.robot.fk_rot(q)
         perr = np.linalg.norm(p - positions[:len(q)], axis=1)
         oerr = np.zeros(len(q)) if rotations is None else np.arccos(np.clip(
             (np.einsum('kij,kij->k', rotations[:len(q)], r) - 1) / 2, -1.0, 1.0))

@@ -91,9 +91,12 @@ def limited_step(ctx: Context, q: np.ndarray, j: np.ndarray, err: np.ndarray, la
     (active set); a step is scaled down to ``config.max_step`` on its largest joint.
     """
     lower, upper = ctx.robot.lower, ctx.robot.upper
-    g = np.einsum('nrj,nr->nj', j, err)
-    blocked = ((q <= lower + 1e-9) & (g < 0)) | ((q >= upper - 1e-9) & (g > 0))
-    dq = dls_step(j * ~blocked[:, None, :], err, lam2, eye)
+    at_lower, at_upper = q <= lower + 1e-9, q >= upper - 1e-9
+    if at_lower.any() or at_upper.any():
+        g = np.einsum('nrj,nr->nj', j, err)
+        blocked = (at_lower & (g < 0)) | (at_upper & (g > 0))
+        j = j * ~blocked[:, None, :]
+    dq = dls_step(j, err, lam2, eye)
     scale = np.maximum(1.0, np.abs(dq).max(axis=1) / ctx.config.max_step)
     return np.clip(q + dq / scale[:, None], lower, upper)
 
@@ -225,27 +228,39 @@ def follow(ctx: Context, q: np.ndarray, start: Evaluation, goal: Goal, iteration
     """
     cfg = ctx.config
     pos, rot = goal.position, goal.rotation
-    rows = 3 if rot is None else 6
-    lam2, eye = cfg.damping ** 2, np.eye(rows)
+    dims = 3 if rot is None else 6
+    lam2, eye = cfg.damping ** 2, np.eye(dims)
     tol2, otol2 = cfg.position_tolerance ** 2, cfg.orientation_tolerance ** 2
-    q, p, r, jac = q.copy(), start.p.copy(), start.r.copy(), start.jac.copy()
-    exact = np.zeros(len(q), dtype=bool)
-    idx = np.arange(len(q))
+    # the rows still going (``act``) and theirs; finished rows go to ``parts``
+    act, aq, ap, ar, aj, dj = np.arange(len(q)), q, start.p, start.r, start.jac, start.djac
+    parts = []
     for it in range(iterations + 1):
-        err = pos - p[idx]
-        ok = (err * err).sum(1) <= tol2
+        err = pos - ap
+        ok = np.einsum('ij,ij->i', err, err) <= tol2
         if rot is not None:
-            rot_err = rotation_log(rot @ r[idx].transpose(0, 2, 1))
-            ok &= (rot_err * rot_err).sum(1) <= otol2
+            rot_err = rotation_log(rot @ ar.transpose(0, 2, 1))
+            ok &= np.einsum('ij,ij->i', rot_err, rot_err) <= otol2
             err = np.concatenate([err, rot_err], axis=1)
-        exact[idx[ok]] = True
-        idx, err = idx[~ok], err[~ok]
-        if not len(idx) or it == iterations or (
-                deadline is not None and time.perf_counter() > deadline):
+        if ok.all():
+            parts.append((act, aq, ap, ar, aj))
             break
-        j = jac[idx, :rows]
-        if it == 0:
-            j = j + 0.5 * start.djac[idx, :rows]
-        q[idx] = limited_step(ctx, q[idx], j, err, lam2, eye)
-        p[idx], r[idx], jac[idx] = ctx.robot.jacobian_loop(q[idx], ctx.data)
-    return q[exact], Evaluation(p[exact], r[exact], jac[exact], jac[exact] - start.jac[exact])
+        if ok.any():
+            parts.append((act[ok], aq[ok], ap[ok], ar[ok], aj[ok]))
+            go = ~ok
+            act, aq, ap, ar, aj, dj, err = act[go], aq[go], ap[go], ar[go], aj[go], dj[go], err[go]
+        if it == iterations or (deadline is not None and time.perf_counter() > deadline):
+            break
+        j = aj[:, :dims] + 0.5 * dj[:, :dims] if it == 0 else aj[:, :dims]
+        aq = limited_step(ctx, aq, j, err, lam2, eye)
+        ap, ar, aj = ctx.robot.jacobian_loop(aq, ctx.data)
+    if len(parts) == 1:
+        rows, qf, pf, rf, jf = parts[0]
+    elif parts:
+        order = np.concatenate([part[0] for part in parts])
+        sort = np.argsort(order, kind='stable')
+        rows, qf, pf, rf, jf = (np.concatenate([part[k] for part in parts])[sort]
+                                for k in range(5))
+    else:
+        rows = np.empty(0, dtype=int)
+        qf, pf, rf, jf = q[:0], start.p[:0], start.r[:0], start.jac[:0]
+    return qf, Evaluation(pf, rf, jf, jf - start.jac[rows])
