@@ -73,7 +73,8 @@ class SolverConfig:
             with them).
         branch_restarts: pose goals of arms with six joints or fewer (isolated solutions, no
             self-motion): starts drawn uniformly in joint space and refined, for the branches
-            the candidates missed (0 disables it).
+            the candidates missed (0 disables it). 48: on the UR5 and Kinova bundles, 5.9 and
+            6.3 branches (mean of 100 targets) against 5.3 and 6.1 with 32, for 1.4-1.7 ms more.
     """
 
     position_tolerance: float = 1e-4
@@ -105,7 +106,7 @@ class SolverConfig:
     walk_iterations: int = 4
     max_obstacles: int = 256
     max_waypoints: int = 2000
-    branch_restarts: int = 32
+    branch_restarts: int = 48
 
     def __post_init__(self):
         """Reject values the solver cannot work with.
