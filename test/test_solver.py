@@ -355,3 +355,24 @@ def test_a_single_pose_solution_wherever_sixteen_find_one(panda):
             assert one.solutions[0].converged
             pos, _ = bundled.fk(one.solutions[0].q)
             assert np.linalg.norm(pos - p) <= bundled.config.position_tolerance
+
+
+def test_a_seeded_pose_goal_decodes_the_seeds_own_posture_index(targets):
+    """The paper's "keep the posture": a seed's index (pose model) is decoded at a pose goal.
+
+    The bundled solver decodes no other pose-table index by default (``pose_candidates`` 0),
+    but the seed's own is always a candidate, and unseeded calls look nothing up.
+    """
+    from scipy.spatial.transform import Rotation
+    ik = SelectiveIK.load('panda')
+    q, pos, quat = targets
+    rot = Rotation.from_quat(quat[4]).as_matrix()
+    oriented = ik.config.oriented_candidates  # what a 16-solution pose call takes
+    z, rows = ik.candidates('pose', pos[4], rot, q[5], num_solutions=16, others=oriented)
+    assert rows.tolist() == [-1]
+    np.testing.assert_allclose(z, ik.encode('pose', pos[4], rot, q[5][None]))
+    z, rows = ik.candidates('pose', pos[4], rot, None, num_solutions=16, others=oriented)
+    assert len(z) == 0 and len(rows) == 0
+    # a request for more solutions than the oriented postures give decodes the table's too
+    z, rows = ik.candidates('pose', pos[4], rot, None, num_solutions=64, others=oriented)
+    assert len(z) >= 1.25 * 64 - ik.config.oriented_candidates

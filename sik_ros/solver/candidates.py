@@ -41,8 +41,10 @@ def table_candidates(ctx: Context, goal: Goal, q_seed: Optional[np.ndarray],
     if not refine:
         count = max(count, cfg.raw_candidates)
     table = ctx.models[goal.kind].table
-    if count <= 0:
-        return np.empty((0, table.indices.shape[1])), np.empty(0, dtype=int)
+    if count <= 0:  # none from the table: only the seed's own index (its posture kept)
+        if q_seed is None:
+            return np.empty((0, table.indices.shape[1])), np.empty(0, dtype=int)
+        return encode(ctx, goal, q_seed[None]), np.array([-1])
     rows = table.rows_near(goal.position, cfg.k_cells)
     pool = table.indices[rows]
     if pool.shape[1] == 1:
