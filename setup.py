@@ -31,6 +31,7 @@ setup(
         'example-robot-data-loaders',
         'torch',
         'tqdm',
+        'threadpoolctl',
         'matplotlib',
         'PyYAML',
     ],

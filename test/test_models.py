@@ -110,7 +110,7 @@ def test_the_solver_runs_the_networks_in_numpy_as_torch_does(kind):
     torch.manual_seed(0)
     cfg = tiny(kind, 'pose')
     model = build_model(cfg).eval()
-    g, x = torch.randn(9, cfg.goal_dim), torch.randn(9, 7)
+    g, x = torch.randn(9, cfg.goal_dim), torch.randn(9, cfg.dof)
     with torch.no_grad():
         mu, _ = model.encode(g, x)
         out = model.decode(g, mu)

@@ -199,7 +199,7 @@ def test_tracks_carry_their_evaluations_and_step_once(ik):
         refine.limited_step = counting
         for i in range(1, len(positions)):
             goal = Goal(positions[i], rot[i])
-            q, ev = refine.follow(ctx, q, ev, goal, 10)
+            _, q, ev = refine.follow(ctx, q, ev, goal, 10)
             p, r, jac = ik.robot.jacobian_loop(q)
             assert np.allclose(ev.p, p) and np.allclose(ev.r, r) and np.allclose(ev.jac, jac)
             perr = np.linalg.norm(p - goal.position, axis=1)
@@ -209,3 +209,27 @@ def test_tracks_carry_their_evaluations_and_step_once(ik):
     assert len(q) >= 4  # the tracks were kept
     # a plain Newton step (the Jacobian where a row is) takes two steps per row here
     assert sum(steps) <= 1.3 * len(q) * (len(positions) - 1)
+
+
+def test_waypoints_between_ladder_ones_are_solved_in_batches(ik, monkeypatch):
+    """Between ladder waypoints the tracks go through several waypoints in one batch.
+
+    The path is as exact, within its steps and about as short as waypoint by waypoint.
+    """
+    import sik_ros.solver.path as path_mod
+    positions, quats = line(ik, 0.3, 41, (0.2, 1.0, -0.3))
+    batches, chunk = [], path_mod._chunk
+
+    def counting(*args):
+        out = chunk(*args)
+        batches.append(out is not None)
+        return out
+    monkeypatch.setattr(path_mod, '_chunk', counting)
+    fast = ik.solve_path(positions, quats, seed=Q0)
+    assert sum(batches) >= 3  # 40 waypoints after the first: 5 ladder ones, 5 batches
+    assert fast.success
+    check(ik, fast.paths[0], positions, quats, 0.3)
+    monkeypatch.setattr(path_mod, 'LADDER', 1)  # every waypoint on the ladder
+    slow = ik.solve_path(positions, quats, seed=Q0)
+    assert slow.success
+    assert fast.paths[0].travel <= 1.05 * slow.paths[0].travel

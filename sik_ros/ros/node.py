@@ -29,7 +29,6 @@ from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, qos_profile_sensor_data, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Header, String
-import torch
 from visualization_msgs.msg import MarkerArray
 
 from sik_interfaces.msg import IKSolution, IKSolutionArray
@@ -40,7 +39,7 @@ from sik_ros.ros import conversions as conv
 from sik_ros.ros.params import declarations, NodeParams, validate
 from sik_ros.ros.path_service import handle_path
 from sik_ros.solver import IKResult, SelectiveIK
-from sik_ros.solver_pool import SolverCrashed, SolverPool, SolverTimeout
+from sik_ros.solver_pool import single_threaded, SolverCrashed, SolverPool, SolverTimeout
 
 NODE_NAME = 'sik_node'
 #: Goals ``~/goal`` keeps while the solvers are busy (KEEP_LAST): a burst of more loses the
@@ -78,7 +77,7 @@ class SikNode(Node):
             StartupError: bad parameter values, or a missing, corrupt or mismatched bundle.
         """
         super().__init__(NODE_NAME, **kwargs)
-        torch.set_num_threads(1)
+        single_threaded()
         self.workers = workers
         self._declare_parameters()
         self._params = self._read_parameters()

@@ -2,8 +2,8 @@
 
 A solve decodes and encodes a few rows at a time, where a torch call costs more in overhead
 than in arithmetic; the SIK networks (linear layers and ELUs) are therefore run as NumPy
-float32 matrix products on their own weights (:class:`NumpyMLP`, same float32 arithmetic),
-and other models through torch.
+float32 matrix products on their own weights (:class:`NumpyMLP`; the same outputs as torch's
+to float32 rounding), and other models through torch.
 """
 
 from typing import List, Optional, Tuple

@@ -13,6 +13,12 @@ programming over the ladder (a beam of the ``tracks`` cheapest candidates per wa
 the cheapest paths; the best few, from distinct starts, are returned. When no candidate of a
 waypoint can be reached, the longest feasible prefix is returned with its ``fraction``, as MoveIt's
 ``computeCartesianPath`` does.
+
+The whole ladder (tracks switching, merging, refilled by new starts) joins every
+:data:`LADDER`-th waypoint to the one before; between two of them every track continues
+itself, and those waypoints are solved in one batch (:func:`_chunk`): the tracks' steps
+predicted from their Jacobians, then refined and checked all at once. A batch that would leave
+fewer than two tracks at a waypoint is dropped, and those waypoints go on one at a time.
 """
 
 from dataclasses import dataclass, field
@@ -23,17 +29,22 @@ import numpy as np
 
 from sik_ros.chain import SerialChain
 from sik_ros.collision import Obstacle
-from sik_ros.rotations import rotation_angle
+from sik_ros.rotations import rotation_angle, rotation_log
 from sik_ros.solver import pipeline  # noqa: I100 (a sibling module, not the package)
 from sik_ros.solver.context import Context, Goal
 from sik_ros.solver.ranking import distinct_mask
-from sik_ros.solver.refine import Evaluation, follow
+from sik_ros.solver.refine import dls_step, Evaluation, follow
 
 #: Interpolation points checked on every edge (fractions of the edge).
 EDGE_CHECKS = (0.25, 0.5, 0.75)
 
 #: Most refinement steps of a track onto its next waypoint (a few suffice from a step away).
 TRACK_ITERATIONS = 10
+
+#: Every LADDER-th waypoint is joined to the previous one by the whole ladder (tracks may switch,
+#: merge, be refilled by new starts); the waypoints between are solved in one batch, each track
+#: continuing itself (:func:`_chunk`).
+LADDER = 8
 
 
 @dataclass
@@ -100,7 +111,8 @@ def _continue(ctx: Context, q: np.ndarray, ev: Evaluation, goal: Goal,
     again). A track not exact after :data:`TRACK_ITERATIONS` steps is lost (a joint
     limit or a singularity in the way); the others and new starts go on.
     """
-    return follow(ctx, q, ev, goal, TRACK_ITERATIONS, deadline)
+    _, q, ev = follow(ctx, q, ev, goal, TRACK_ITERATIONS, deadline)
+    return q, ev
 
 
 def _on_segment(ctx: Context, qa: np.ndarray, qb: np.ndarray, ga: Goal, gb: Goal,
@@ -225,6 +237,85 @@ def _edges(ctx: Context, prev: np.ndarray, prev_cost: np.ndarray, prev_ev: Evalu
         total[a[~fine], b[~fine]] = np.inf
 
 
+Chunk = Tuple[List[np.ndarray], List[np.ndarray], Evaluation]
+
+
+def _chunk(ctx: Context, q: np.ndarray, ev: Evaluation, cost0: np.ndarray, ga: Goal,
+           goals: Sequence[Goal], turns: np.ndarray, reach: np.ndarray, obstacles,
+           s: PathSettings, deadline) -> Optional[Chunk]:
+    """The tracks ``q`` (T, n) through the next ``goals`` (m waypoints) at once, each its own.
+
+    Along a path a track's next steps are nearly its last one, so all ``m`` are predicted
+    together: step ``k`` solves the waypoints' move on the track's Jacobian extrapolated to
+    that step's midpoint (``jac + (k + 1/2) djac``), in one batched solve; every predicted
+    configuration is then refined onto its own waypoint (:func:`follow`, all rows in one
+    batch: one Pinocchio evaluation per configuration, a second for the few not yet exact).
+    The edges (each track to itself, from ``ga`` on) are checked as at a single waypoint:
+    joint step, the segment bound or FK, clearance. A track failing at a waypoint is lost from
+    there (cost inf).
+
+    Returns:
+        per waypoint the configurations (T, n) and costs (T,) (``cost0`` plus the travel), and
+        the evaluation at the last one; or None when a waypoint would keep fewer than two
+        tracks (the caller then goes one waypoint at a time, with new starts if need be).
+    """
+    cfg, robot = ctx.config, ctx.robot
+    t, n = q.shape
+    m = len(goals)
+    pos = np.array([g.position for g in goals])                               # (m, 3)
+    rot = None if goals[0].rotation is None else np.array([g.rotation for g in goals])
+    dims = 3 if rot is None else 6
+    move = np.empty((m, t, dims))  # each step's target move: from the track, then waypoint-wise
+    move[0, :, :3] = pos[0] - ev.p
+    move[1:, :, :3] = (pos[1:] - pos[:-1])[:, None]
+    if rot is not None:
+        move[0, :, 3:] = rotation_log(rot[0] @ ev.r.transpose(0, 2, 1))
+        move[1:, :, 3:] = rotation_log(rot[1:] @ rot[:-1].transpose(0, 2, 1))[:, None]
+    mid = (np.arange(m) + 0.5)[:, None, None, None]
+    jac = (ev.jac[None, :, :dims] + mid * ev.djac[None, :, :dims]).reshape(m * t, dims, n)
+    dq = dls_step(jac, move.reshape(m * t, dims), cfg.damping ** 2, np.eye(dims))
+    guess = np.clip(q + np.cumsum(dq.reshape(m, t, n), axis=0), robot.lower, robot.upper)
+    flat = guess.reshape(m * t, n)
+    p, r, j = robot.jacobian_loop(flat, ctx.data)
+    target = Goal(np.repeat(pos, t, axis=0), None if rot is None else np.repeat(rot, t, axis=0))
+    rows, fq, fev = follow(ctx, flat, Evaluation(p, r, j, np.zeros_like(j)), target,
+                           TRACK_ITERATIONS, deadline)
+    ok = np.zeros(m * t, dtype=bool)
+    ok[rows] = True
+    flat[rows], j[rows], p[rows], r[rows] = fq, fev.jac, fev.p, fev.r
+    qs = flat.reshape(m, t, n)
+    jacs = j.reshape(m, t, 6, n)
+    before = np.concatenate([q[None], qs[:-1]])                                # (m, t, n)
+    jac_before = np.concatenate([ev.jac[None], jacs[:-1]])
+    diff = qs - before
+    ok = ok.reshape(m, t) & (np.abs(diff).max(axis=2) <= s.max_joint_step)
+    # the edges on the segments: the bound, then FK for the rest (waypoint by waypoint)
+    d, a_jac, b_jac = diff.reshape(-1, n), jac_before.reshape(-1, 6, n), j
+    w_a = w_b = None
+    if rot is not None:
+        w_a = np.linalg.norm(np.einsum('krj,kj->kr', a_jac[:, 3:], d), axis=1)
+        w_b = np.linalg.norm(np.einsum('krj,kj->kr', b_jac[:, 3:], d), axis=1)
+    proven = _certified(ctx, before.reshape(-1, n), flat, goals[0], np.repeat(turns, t),
+                        reach, s, w_a, w_b).reshape(m, t)
+    for k in np.flatnonzero((ok & ~proven).any(axis=1)):
+        cols = np.flatnonzero(ok[k] & ~proven[k])
+        ok[k, cols] = _on_segment(ctx, before[k, cols], qs[k, cols], goals[k - 1] if k else ga,
+                                  goals[k], s)
+    if obstacles:
+        live = np.flatnonzero(ok.reshape(-1))
+        clear = np.zeros(m * t, dtype=bool)
+        clear[live] = ctx.checker.clearance(flat[live], obstacles, deadline) > 0
+        ok &= clear.reshape(m, t)
+    ok = np.logical_and.accumulate(ok, axis=0)
+    if (ok.sum(axis=1) < 2).any():
+        return None
+    costs = cost0 + np.cumsum(np.linalg.norm(diff, axis=2), axis=0)
+    costs = np.where(ok, costs, np.inf)
+    last = slice((m - 1) * t, m * t)
+    out_ev = Evaluation(p[last], r[last], j[last], j[last] - jac_before[-1])
+    return list(qs), list(costs), out_ev
+
+
 def _turns(goals: Sequence[Goal]) -> np.ndarray:
     """(N - 1,) the angles [rad] between consecutive waypoints' orientations (0: positions)."""
     if len(goals) < 2 or goals[0].rotation is None:
@@ -246,7 +337,9 @@ def solve_path(ctx: Context, goals: Sequence[Goal], q_seed: Optional[np.ndarray]
     timed_out = False
     reach = _reach(ctx.robot.chain)
     turns = _turns(goals)
-    for i, goal in enumerate(goals):
+    i = one_by_one = 0
+    while i < n:
+        goal = goals[i]
         if deadline is not None and time.perf_counter() > deadline:
             timed_out = True
             break
@@ -257,13 +350,26 @@ def solve_path(ctx: Context, goals: Sequence[Goal], q_seed: Optional[np.ndarray]
             if len(q) == 0:
                 break
             cand.append(q), back.append(np.full(len(q), -1)), cost.append(c0)
-            reached = 1
+            reached = i = 1
             continue
         live = np.isfinite(cost[-1])
         prev, prev_idx = cand[-1], np.arange(len(live))
         prev_ev = ev
         if not live.all():
             prev, prev_idx, prev_ev = prev[live], prev_idx[live], ev.rows(live)
+        if (i - 1) % LADDER and i >= one_by_one:  # the waypoints up to the next ladder one
+            m = min(LADDER - (i - 1) % LADDER, n - i)
+            out = _chunk(ctx, prev, prev_ev, cost[-1][prev_idx], goals[i - 1],
+                         goals[i:i + m], turns[i - 1:i - 1 + m], reach, obstacles, s, deadline)
+            if out is None:
+                one_by_one = i + m  # no second try before the next ladder waypoint
+            else:
+                for k, (qk, ck) in enumerate(zip(*out[:2])):
+                    cand.append(qk), cost.append(ck)
+                    back.append(prev_idx if k == 0 else np.arange(len(qk)))
+                ev = out[2]
+                reached = i = i + m
+                continue
         q, ev = _continue(ctx, prev, prev_ev, goal, deadline)
         if len(q) < 2:  # tracks lost: new starts here, joined by the edges that allow it
             fresh, fresh_ev = _starts(ctx, goal, None, obstacles, s.starts, deadline)
@@ -287,7 +393,7 @@ def solve_path(ctx: Context, goals: Sequence[Goal], q_seed: Optional[np.ndarray]
         keep = np.argsort(c, kind='stable')[:s.tracks]  # a beam: the cheapest tracks go on
         cand.append(q[keep]), back.append(prev_idx[best][keep]), cost.append(c[keep])
         ev = ev.rows(keep)
-        reached = i + 1
+        reached = i = i + 1
     paths = _paths(ctx, goals, cand, back, cost, obstacles, s)
     success = reached == n and bool(paths)
     fraction = reached / n if paths else 0.0

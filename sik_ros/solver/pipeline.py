@@ -69,7 +69,8 @@ def spare(cfg: SolverConfig, num: int) -> int:
     """Distinct exact solutions found beyond the ``num`` asked for before the search stops.
 
     ``early_stop_margin``, at most ``num - 1``: a single solution is the first exact one
-    found (as TRAC-IK's first answer), two are the better two of three.
+    found (as TRAC-IK's first answer); with the default margin of 2, two are the better two
+    of three. Only for the default ranking (no seed, obstacles or objective).
     """
     return min(cfg.early_stop_margin, num - 1)
 
@@ -126,7 +127,9 @@ def solve(ctx: Context, goal: Goal, num: int, q_seed: Optional[np.ndarray],
             c, cut = restart(ctx, c, goal, deadline)
             timed_out = timed_out or cut
         if goal.kind == POSE and not far and ctx.robot.dof > 6 and cfg.walk_rounds > 0:
-            c = walk(ctx, c, goal, deadline, num + max(spare(cfg, num), 0))
+            # the first exact ones are as good as any only with the default ranking
+            margin = spare(cfg, num) if enough is not None else cfg.early_stop_margin
+            c = walk(ctx, c, goal, deadline, num + max(margin, 0))
     else:
         c = assess(c.q, c.z, *errors(ctx, c.q, goal), goal.kind, cfg)
     if c.exact.any():  # with exact solutions, only exact ones are returned

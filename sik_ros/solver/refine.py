@@ -40,9 +40,9 @@ class Evaluation:
 
     Attributes:
         p: tip positions (M, 3) [m]; r: rotations (M, 3, 3); jac: Jacobians (M, 6, n).
-        djac: (M, 6, n) how each row's Jacobian changed over its last step (from the previous
-            waypoint; zeros for new rows): the next step, alike along a path, is taken on the
-            Jacobian extrapolated to its midpoint.
+        djac: (M, 6, n) how each row's Jacobian changed from the previous waypoint to this
+            one (zeros for new rows; kept as it was for a row that did not move): the next
+            step, alike along a path, is taken on the Jacobian extrapolated to its midpoint.
     """
 
     p: np.ndarray
@@ -186,6 +186,8 @@ def refine(ctx: Context, q: np.ndarray, goal: Goal, deadline: Optional[float] = 
             # far from the goal this late: a local minimum or a joint limit, not worth more
             if it < cfg.give_up_after:
                 stuck = stalled
+            elif stalled is not None:
+                stuck = stuck | stalled
             given_up[idx[stuck & ~done]] = True
             done |= stuck
         if done.any():
@@ -203,7 +205,7 @@ def refine(ctx: Context, q: np.ndarray, goal: Goal, deadline: Optional[float] = 
 
 
 def follow(ctx: Context, q: np.ndarray, start: Evaluation, goal: Goal, iterations: int,
-           deadline: Optional[float] = None) -> Tuple[np.ndarray, Evaluation]:
+           deadline: Optional[float] = None) -> Tuple[np.ndarray, np.ndarray, Evaluation]:
     """Configurations near ``goal`` refined onto it, carrying their evaluations: a lean refine.
 
     For a path's tracks, each a small step from the next waypoint: no merging, stalling or
@@ -219,20 +221,21 @@ def follow(ctx: Context, q: np.ndarray, start: Evaluation, goal: Goal, iteration
         ctx: the solver's parts.
         q: configurations (M, n) [rad].
         start: their evaluation.
-        goal: the target.
+        goal: the target: one, or one per row (``position`` (M, 3), ``rotation`` (M, 3, 3)).
         iterations: most steps per row; rows not exact after them are dropped.
         deadline: a ``time.perf_counter()`` value after which no step starts.
 
     Returns:
-        the exact rows (K, n), in their order, and their evaluation.
+        the indices of the exact rows (K,), in order, the rows (K, n) and their evaluation.
     """
     cfg = ctx.config
-    pos, rot = goal.position, goal.rotation
-    dims = 3 if rot is None else 6
+    dims = 3 if goal.rotation is None else 6
     lam2, eye = cfg.damping ** 2, np.eye(dims)
     tol2, otol2 = cfg.position_tolerance ** 2, cfg.orientation_tolerance ** 2
     # the rows still going (``act``) and theirs; finished rows go to ``parts``
     act, aq, ap, ar, aj, dj = np.arange(len(q)), q, start.p, start.r, start.jac, start.djac
+    pos, rot = goal.position, goal.rotation
+    per_row = pos.ndim == 2
     parts = []
     for it in range(iterations + 1):
         err = pos - ap
@@ -242,25 +245,31 @@ def follow(ctx: Context, q: np.ndarray, start: Evaluation, goal: Goal, iteration
             ok &= np.einsum('ij,ij->i', rot_err, rot_err) <= otol2
             err = np.concatenate([err, rot_err], axis=1)
         if ok.all():
-            parts.append((act, aq, ap, ar, aj))
+            parts.append((act, aq, ap, ar, aj, it > 0))
             break
         if ok.any():
-            parts.append((act[ok], aq[ok], ap[ok], ar[ok], aj[ok]))
+            parts.append((act[ok], aq[ok], ap[ok], ar[ok], aj[ok], it > 0))
             go = ~ok
             act, aq, ap, ar, aj, dj, err = act[go], aq[go], ap[go], ar[go], aj[go], dj[go], err[go]
+            if per_row:
+                pos, rot = pos[go], None if rot is None else rot[go]
         if it == iterations or (deadline is not None and time.perf_counter() > deadline):
             break
         j = aj[:, :dims] + 0.5 * dj[:, :dims] if it == 0 else aj[:, :dims]
         aq = limited_step(ctx, aq, j, err, lam2, eye)
         ap, ar, aj = ctx.robot.jacobian_loop(aq, ctx.data)
+    if not parts:
+        rows = np.empty(0, dtype=int)
+        return rows, q[:0], start.rows(rows)
     if len(parts) == 1:
-        rows, qf, pf, rf, jf = parts[0]
-    elif parts:
+        rows, qf, pf, rf, jf, _ = parts[0]
+    else:
         order = np.concatenate([part[0] for part in parts])
         sort = np.argsort(order, kind='stable')
         rows, qf, pf, rf, jf = (np.concatenate([part[k] for part in parts])[sort]
                                 for k in range(5))
-    else:
-        rows = np.empty(0, dtype=int)
-        qf, pf, rf, jf = q[:0], start.p[:0], start.r[:0], start.jac[:0]
-    return qf, Evaluation(pf, rf, jf, jf - start.jac[rows])
+    djac = jf - start.jac[rows]
+    if not parts[0][5]:  # rows exact where they were keep their last change
+        first = np.isin(rows, parts[0][0])
+        djac[first] = start.djac[rows[first]]
+    return rows, qf, Evaluation(pf, rf, jf, djac)
