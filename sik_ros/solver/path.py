@@ -44,7 +44,7 @@ TRACK_ITERATIONS = 10
 #: Every LADDER-th waypoint is joined to the previous one by the whole ladder (tracks may switch,
 #: merge, be refilled by new starts); the waypoints between are solved in one batch, each track
 #: continuing itself (:func:`_chunk`).
-LADDER = 8
+LADDER = 16
 
 
 @dataclass
