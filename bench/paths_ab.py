@@ -1,0 +1,101 @@
+"""Paired A/B of solve_path between checkouts: each answers the same paths in turn, A B A B.
+
+Every checkout runs in its own worker process (its ``sik_ros`` first on the path); path by
+path the workers take turns, the order flipping every path, so the machine's drift falls on
+both alike. Paths come from ``bench/paths.py``'s generator (lines and arcs, every other one
+with the tool orientation held), each solved from a random current state. Prints, per goal
+kind and checkout, whole-path success, the median time per path, the median of the per-path
+time ratios to the first checkout, and the median travel and largest step of the best path.
+
+    python bench/paths_ab.py --paths 80 old=/path/to/other/checkout new=.
+"""
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import time
+
+os.environ.setdefault('OMP_NUM_THREADS', '1')
+
+import numpy as np  # noqa: E402
+
+
+def worker(root: str, seed: int, count: int) -> None:
+    """Answer path numbers read from stdin with one JSON line each (run in a subprocess)."""
+    sys.path.insert(0, root)
+    sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+    import torch
+    from paths import Continuation, make_path
+    from sik_ros import SelectiveIK
+    torch.set_num_threads(1)
+    ik = SelectiveIK.load('panda')
+    robot = ik.robot
+    cont = Continuation(robot)
+    rng = np.random.default_rng(seed)
+    cases = []
+    for k in range(count):
+        pos, _, quats, _, _ = make_path(rng, robot, cont, ik.checker)
+        cases.append((pos, quats if k % 2 == 0 else None,
+                      rng.uniform(robot.lower, robot.upper)))
+    ik.solve_path(cases[0][0], cases[0][1], seed=cases[0][2])  # warm-up
+    print('ready', flush=True)
+    for line in sys.stdin:
+        pos, quats, q = cases[int(line)]
+        t0 = time.perf_counter()
+        res = ik.solve_path(pos, quats, seed=q, timeout=10.0)
+        best = res.paths[0] if res.paths else None
+        print(json.dumps({'pose': quats is not None, 'ok': bool(res.success),
+                          't': (time.perf_counter() - t0) * 1e3,
+                          'travel': best.travel if best else float('nan'),
+                          'step': best.max_step if best else float('nan')}), flush=True)
+
+
+def main() -> None:
+    """Start one worker per checkout, hand out the paths in turn and print the table."""
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument('checkouts', nargs='+', help='NAME=DIR, the first is the reference')
+    parser.add_argument('--paths', type=int, default=80)
+    parser.add_argument('--seed', type=int, default=7)
+    parser.add_argument('--worker', nargs=3, help=argparse.SUPPRESS)
+    args = parser.parse_args()
+    if args.worker:
+        worker(args.worker[0], int(args.worker[1]), int(args.worker[2]))
+        return
+    procs = []
+    for spec in args.checkouts:
+        name, _, root = spec.partition('=')
+        p = subprocess.Popen([sys.executable, __file__, 'x', '--worker',
+                              os.path.abspath(root), str(args.seed), str(args.paths)],
+                             stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+        if p.stdout.readline().strip() != 'ready':
+            sys.exit(f'worker {name} did not start')
+        procs.append((name, p))
+    answers = {name: [] for name, _ in procs}
+    for k in range(args.paths):
+        for name, p in (procs if k % 2 == 0 else procs[::-1]):
+            p.stdin.write(f'{k}\n')
+            p.stdin.flush()
+            answers[name].append(json.loads(p.stdout.readline()))
+    for _, p in procs:
+        p.stdin.close()
+        p.wait()
+    ref = answers[procs[0][0]]
+    print(f'# bench/paths_ab.py: {args.paths} Panda paths (seed {args.seed}), A B A B')
+    print('| checkout | paths | success | time per path (median) | ratio to '
+          f'{procs[0][0]} (median) | travel (median) | max step (median) |')
+    print('|---|---|---|---|---|---|---|')
+    for name, _ in procs:
+        for pose in (True, False):
+            rows = [(a, b) for a, b in zip(answers[name], ref) if a['pose'] == pose]
+            print(f'| {name} | {"pose" if pose else "position"} '
+                  f'| {100 * np.mean([a["ok"] for a, _ in rows]):.1f} % '
+                  f'| {np.median([a["t"] for a, _ in rows]):.1f} ms '
+                  f'| {np.median([a["t"] / b["t"] for a, b in rows]):.3f} '
+                  f'| {np.nanmedian([a["travel"] for a, _ in rows]):.3f} rad '
+                  f'| {np.nanmedian([a["step"] for a, _ in rows]):.3f} rad |')
+
+
+if __name__ == '__main__':
+    main()
