@@ -37,6 +37,9 @@ def rotation_log(rot: np.ndarray) -> np.ndarray:
 
 
 def rotation_angle(target: np.ndarray, rot: np.ndarray) -> np.ndarray:
-    """Angles [rad] between a rotation (3, 3) and rotations (N, 3, 3): |log(target^T rot)|."""
-    cos = (np.einsum('ij,nij->n', target, rot) - 1) / 2
+    """Angles [rad] between rotations, |log(target^T rot)|: (3, 3) or (N, 3, 3) against (N, 3, 3).
+
+    A single ``target`` is compared with every row of ``rot``; N targets row by row.
+    """
+    cos = (np.einsum('ij,nij->n' if target.ndim == 2 else 'nij,nij->n', target, rot) - 1) / 2
     return np.arccos(np.clip(cos, -1.0, 1.0))

@@ -194,9 +194,9 @@ def _certified(ctx: Context, qa: np.ndarray, qb: np.ndarray, gb: Goal, turn: flo
     return ok
 
 
-def _angular_speed(ev: Evaluation, rows: np.ndarray, dq: np.ndarray) -> np.ndarray:
-    """(K,) the tool's angular speed ``|J_w dq|`` at ``rows`` of ``ev`` moving by ``dq``."""
-    return np.linalg.norm(np.einsum('krj,kj->kr', ev.jac[rows, 3:], dq), axis=1)
+def _angular_speed(jac: np.ndarray, dq: np.ndarray) -> np.ndarray:
+    """(K,) the tool's angular speed ``|J_w dq|`` for Jacobians (K, 6, n) moving by ``dq``."""
+    return np.linalg.norm(np.einsum('krj,kj->kr', jac[:, 3:], dq), axis=1)
 
 
 def _edges(ctx: Context, prev: np.ndarray, prev_cost: np.ndarray, prev_ev: Evaluation,
@@ -228,7 +228,7 @@ def _edges(ctx: Context, prev: np.ndarray, prev_cost: np.ndarray, prev_ev: Evalu
             w_a = w_b = None
         else:
             dq = diff[a, b]
-            w_a, w_b = _angular_speed(prev_ev, a, dq), _angular_speed(ev, b, dq)
+            w_a, w_b = _angular_speed(prev_ev.jac[a], dq), _angular_speed(ev.jac[b], dq)
         proven = _certified(ctx, prev[a], q[b], gb, turn, reach, s, w_a, w_b)
         if proven.all():
             return total  # no cost changed: the cheapest edges stay those just proven
@@ -290,11 +290,10 @@ def _chunk(ctx: Context, q: np.ndarray, ev: Evaluation, cost0: np.ndarray, ga: G
     diff = qs - before
     ok = ok.reshape(m, t) & (np.abs(diff).max(axis=2) <= s.max_joint_step)
     # the edges on the segments: the bound, then FK for the rest (waypoint by waypoint)
-    d, a_jac, b_jac = diff.reshape(-1, n), jac_before.reshape(-1, 6, n), j
+    d = diff.reshape(-1, n)
     w_a = w_b = None
     if rot is not None:
-        w_a = np.linalg.norm(np.einsum('krj,kj->kr', a_jac[:, 3:], d), axis=1)
-        w_b = np.linalg.norm(np.einsum('krj,kj->kr', b_jac[:, 3:], d), axis=1)
+        w_a, w_b = _angular_speed(jac_before.reshape(-1, 6, n), d), _angular_speed(j, d)
     proven = _certified(ctx, before.reshape(-1, n), flat, goals[0], np.repeat(turns, t),
                         reach, s, w_a, w_b).reshape(m, t)
     for k in np.flatnonzero((ok & ~proven).any(axis=1)):
@@ -321,7 +320,7 @@ def _turns(goals: Sequence[Goal]) -> np.ndarray:
     if len(goals) < 2 or goals[0].rotation is None:
         return np.zeros(max(len(goals) - 1, 0))
     r = np.array([g.rotation for g in goals])
-    return np.arccos(np.clip((np.einsum('kij,kij->k', r[:-1], r[1:]) - 1) / 2, -1.0, 1.0))
+    return rotation_angle(r[:-1], r[1:])
 
 
 def solve_path(ctx: Context, goals: Sequence[Goal], q_seed: Optional[np.ndarray],
@@ -426,8 +425,7 @@ def _paths(ctx: Context, goals, cand, back, cost, obstacles, s: PathSettings) ->
         starts.append(q[0])
         p, r = ctx.robot.fk_rot(q)
         perr = np.linalg.norm(p - positions[:len(q)], axis=1)
-        oerr = np.zeros(len(q)) if rotations is None else np.arccos(np.clip(
-            (np.einsum('kij,kij->k', rotations[:len(q)], r) - 1) / 2, -1.0, 1.0))
+        oerr = np.zeros(len(q)) if rotations is None else rotation_angle(rotations[:len(q)], r)
         steps = np.abs(np.diff(q, axis=0))
         clear = ctx.checker.clearance(q, obstacles) if obstacles else np.full(len(q), np.inf)
         out.append(JointPath(q, perr, oerr, float(steps.max()) if len(steps) else 0.0,
