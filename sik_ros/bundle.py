@@ -1,7 +1,8 @@
 """Bundles: a directory with one model and one index table per goal kind, and ``bundle.json``.
 
 ``bundle.json`` names the robot (its manifest: name or URDF, frames, joints) and, per goal kind
-(``position``, ``pose``), the model file and its table. :func:`build_bundle` makes one from
+(``position``, ``pose``), the model file and its table; the pose model of an arm with six joints
+or fewer also has a seed table (:mod:`sik_ros.seed_table`). :func:`build_bundle` makes one from
 trained models and a dataset (``sik-index --bundle`` and the tests use it); :func:`load_bundle`
 reads one back, checking every file against the manifest.
 """
@@ -22,6 +23,7 @@ from sik_ros.index_table import IndexTable, PostureTable, TableConfig
 from sik_ros.indexing import build_table
 from sik_ros.kinematics import Robot
 from sik_ros.robots import robot_from_manifest
+from sik_ros.seed_table import default_rows, SeedTable
 
 #: The bundles shipped inside the package, one directory per robot name.
 BUNDLES = Path(__file__).resolve().parent / 'bundles'
@@ -39,12 +41,15 @@ class GoalModel:
         norm: its :class:`~sik_ros.models.Normalizer`.
         table: the posture indices to decode (an :class:`IndexTable` or another
             :class:`PostureTable`).
+        seeds: dataset configurations by tip pose, where isolated pose solutions start
+            (arms of six joints or fewer), or None.
     """
 
     model: torch.nn.Module
     cfg: object
     norm: object
     table: PostureTable
+    seeds: Optional[SeedTable] = None
 
 
 def resolve_bundle(bundle: Union[str, Path]) -> Path:
@@ -83,9 +88,10 @@ def read_bundle_manifest(path: Path) -> Dict:
         raise CorruptArtifact(f'{file}: "models" must map goal kinds to their files')
     for goal, files in models.items():
         if goal not in GOALS or not isinstance(files, dict) or not all(
-                isinstance(files.get(k), str) for k in ('model', 'table')):
+                isinstance(files.get(k), str) for k in ('model', 'table')) or not isinstance(
+                files.get('seeds', ''), str):
             raise CorruptArtifact(f'{file}: models[{goal!r}] must be a goal kind {GOALS} with '
-                                  f'"model" and "table" file names')
+                                  f'"model" and "table" (and optionally "seeds") file names')
     return manifest
 
 
@@ -109,18 +115,20 @@ def load_bundle(bundle: Union[str, Path]) -> Tuple[Path, Robot, Dict[str, GoalMo
             raise ArtifactMismatch(f'bundle {path}: model for {goal} goals', goal,
                                    f'{cfg.kind}/{cfg.goal}')
         table = IndexTable.load(path / files['table'], robot.manifest(), model_signature(ckpt))
-        models[goal] = GoalModel(model, cfg, norm, table)
+        seeds = SeedTable.load(path / files['seeds'], robot) if 'seeds' in files else None
+        models[goal] = GoalModel(model, cfg, norm, table, seeds)
     return path, robot, models
 
 
 def bundle_files(goal: str) -> Dict[str, str]:
-    """The file names of a goal kind's model and table inside a bundle."""
-    return {'model': f'sik_{goal}.pt', 'table': f'sik_{goal}_table.npz'}
+    """The file names of a goal kind's model, table and seed table inside a bundle."""
+    return {'model': f'sik_{goal}.pt', 'table': f'sik_{goal}_table.npz',
+            'seeds': f'sik_{goal}_seeds.npz'}
 
 
 def add_to_bundle(bundle: Path, robot_manifest: Dict, goal: str, model_file: Path,
-                  table_file: Path) -> Path:
-    """Copy a model and its table into a bundle directory and list them in ``bundle.json``.
+                  table_file: Path, seeds_file: Optional[Path] = None) -> Path:
+    """Copy a model and its table (and seed table) into a bundle, listed in ``bundle.json``.
 
     Files are copied under temporary names and renamed; the manifest is rewritten atomically
     last, so a reader never sees a manifest naming a half-written file.
@@ -135,19 +143,23 @@ def add_to_bundle(bundle: Path, robot_manifest: Dict, goal: str, model_file: Pat
         manifest = {'kind': 'sik_bundle', 'format_version': FORMAT_VERSION,
                     'robot': robot_manifest, 'models': {}}
     names = bundle_files(goal)
-    for key, src in (('model', model_file), ('table', table_file)):
+    files = {'model': model_file, 'table': table_file}
+    if seeds_file is not None:
+        files['seeds'] = seeds_file
+    for key, src in files.items():
         dst = bundle / names[key]
         if Path(src).resolve() != dst.resolve():
             with atomic_write(dst) as tmp:
                 shutil.copyfile(src, tmp)
-    manifest['models'][goal] = names
+    manifest['models'][goal] = {key: names[key] for key in files}
     write_json_atomic(bundle / 'bundle.json', manifest)
     return bundle
 
 
 def build_bundle(out: Path, robot: Robot, models: Mapping[str, Path], dataset: Dataset,
                  cfg: TableConfig = TableConfig(), orientations: bool = True,
-                 progress: Optional[Callable[[int], None]] = None) -> Path:
+                 progress: Optional[Callable[[int], None]] = None,
+                 seed_rows: Optional[int] = -1) -> Path:
     """A bundle from trained models: each one's table built over ``dataset``, then bundled.
 
     Args:
@@ -158,17 +170,25 @@ def build_bundle(out: Path, robot: Robot, models: Mapping[str, Path], dataset: D
         cfg: the tables' cells.
         orientations: keep each index's tip orientation in the tables.
         progress: called with the rows encoded, chunk by chunk.
+        seed_rows: configurations of the pose model's seed table (-1: the default for the
+            arm, :func:`~sik_ros.seed_table.default_rows`; None or 0: none).
 
     Returns:
         ``out``.
     """
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
+    if seed_rows is not None and seed_rows < 0:
+        seed_rows = default_rows(robot)
     for goal, model_file in models.items():
         table = build_table(load_checkpoint(model_file), robot, dataset, cfg, orientations,
                             progress=progress)
         if table.manifest['goal'] != goal:
             raise ArtifactMismatch(f'{model_file}: goal', goal, table.manifest['goal'])
         table_file = table.save(out / bundle_files(goal)['table'])
-        add_to_bundle(out, robot.manifest(), goal, Path(model_file), table_file)
+        seeds_file = None
+        if goal == 'pose' and seed_rows:
+            seeds_file = SeedTable.build(robot, dataset, seed_rows).save(
+                out / bundle_files(goal)['seeds'])
+        add_to_bundle(out, robot.manifest(), goal, Path(model_file), table_file, seeds_file)
     return out

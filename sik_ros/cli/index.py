@@ -14,6 +14,7 @@ from sik_ros.errors import ArtifactExists, InvalidArgument
 from sik_ros.index_table import TableConfig
 from sik_ros.indexing import build_table
 from sik_ros.robots import robot_from_manifest
+from sik_ros.seed_table import default_rows, SeedTable
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -35,6 +36,10 @@ def build_parser() -> argparse.ArgumentParser:
                    'solver refines from them without decoding (default: on for position-goal '
                    'models; pose-goal models cannot)')
     p.add_argument('--bundle', help='also add model and table to this bundle directory')
+    p.add_argument('--seeds', type=int, default=-1,
+                   help='with --bundle and a pose-goal model: configurations of the seed table '
+                   'that isolated pose solutions start from (default: 500,000 for arms of six '
+                   'joints or fewer, none for others; 0: none)')
     p.add_argument('--force', action='store_true', help='replace an existing --out')
     p.add_argument('--quiet', action='store_true', help='no progress bar')
     return p
@@ -64,8 +69,15 @@ def main(argv: Optional[List[str]] = None) -> int:
         print(f'{table.manifest["cells"]} cells, {table.manifest["entries"]} indices '
               f'({out.stat().st_size / 1e6:.2f} MB) in {time.perf_counter() - t0:.1f} s')
         if args.bundle:
+            rows = default_rows(robot) if args.seeds < 0 else args.seeds
+            seeds = None
+            if table.manifest['goal'] == 'pose' and rows:
+                st = SeedTable.build(robot, ds, rows)
+                seeds = st.save(out.with_name(f'{out.stem}_seeds.npz'))
+                print(f'seed table: {len(st):,} configurations ({seeds.stat().st_size / 1e6:.2f} '
+                      f'MB)')
             add_to_bundle(Path(args.bundle), robot.manifest(), table.manifest['goal'],
-                          Path(args.model), out)
+                          Path(args.model), out, seeds)
             print(f'added to bundle {args.bundle}')
         return 0
     return run_cli('sik-index', body)

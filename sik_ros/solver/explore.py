@@ -13,6 +13,7 @@ import zlib
 import numpy as np
 from scipy.spatial.distance import cdist
 
+from sik_ros.seed_table import SeedTable
 from sik_ros.solver.batch import Candidates
 from sik_ros.solver.context import Context, Goal
 from sik_ros.solver.ranking import assess, distinct_mask, pose_score
@@ -58,6 +59,20 @@ def branch_starts(ctx: Context, goal: Goal, count: int, latent: int) -> Candidat
     robot = ctx.robot
     rng = np.random.default_rng(zlib.crc32(goal.position.tobytes()) + 1)
     q = rng.uniform(robot.lower, robot.upper, (max(count, 0), robot.dof))
+    inf = np.full(len(q), np.inf)
+    return Candidates(q, unindexed(q, latent), inf, inf, np.zeros(len(q), dtype=bool))
+
+
+def seed_starts(ctx: Context, goal: Goal, seeds: SeedTable, count: int,
+                latent: int) -> Candidates:
+    """``count`` dataset configurations whose tips were near the goal pose, far apart.
+
+    Isolated solutions each need a start of their own; the bundle's seed table
+    (:mod:`sik_ros.seed_table`) has configurations near the goal on every branch the data
+    covers, a few refinement steps from their solutions, where uniform random starts
+    (:func:`branch_starts`) land in the larger branches' basins again and again.
+    """
+    q = seeds.starts(goal.position, goal.rotation, count)
     inf = np.full(len(q), np.inf)
     return Candidates(q, unindexed(q, latent), inf, inf, np.zeros(len(q), dtype=bool))
 
