@@ -6,8 +6,10 @@ configurations, seeded) per goal kind: success, distinct exact solutions per cal
 p10) and time per call; in the same run the peer is called from random seeds until it has as
 many distinct solutions as ours (or ``--max-attempts``): damped least squares on Pinocchio for
 position goals, TRAC-IK for pose goals. For 6-joint arms at pose goals it also counts branches
-(distinct solutions with angles wrapped to one turn), ours against TRAC-IK's from
-``--max-attempts`` random seeds.
+(distinct solutions with angles wrapped to one turn), ours (of the 16 returned) against
+TRAC-IK's from ``--max-attempts`` random seeds: all of them, and those free of self-collision
+(our ranking puts a self-colliding posture behind every free one, 2 pi equivalents included, so
+16 solutions may leave it out; TRAC-IK does not check collisions).
 
     python bench/arms.py --arms panda,ur5,xarm7,kinova,so100 --bundles /work/builds
     python bench/arms.py --arms ur5 --targets 50 --no-build   # a smoke run
@@ -89,7 +91,8 @@ def bench_arm(arm, args):
            'self_check': check}
     dls, tracik = DLS(robot), TracIK(robot)
     for goal in ('position', 'pose'):
-        ok, n, t, ratio, reached, ours_b, peer_b = [], [], [], [], [], [], []
+        ok, n, t, ratio, reached = [], [], [], [], []
+        ours_b, peer_b, ours_f, peer_f = [], [], [], []  # branches: all, self-collision-free
         prng = np.random.default_rng(args.seed + 1)
         for p, quat in poses:
             res = ik.solve(p, quat if goal == 'pose' else None, num_solutions=16)
@@ -107,9 +110,13 @@ def bench_arm(arm, args):
                 reached.append(distinct(ik, found, goal) >= n[-1])
             if goal == 'pose' and robot.dof == 6:
                 ours_b.append(branches(exact))
-                found = [s for s in (once(prng.uniform(robot.lower, robot.upper))
-                                     for _ in range(args.max_attempts)) if s[0]]
-                peer_b.append(branches([s[1] for s in found]))
+                ours_f.append(branches([s.q for s in res.solutions
+                                        if s.converged and not s.self_collision]))
+                found = [s[1] for s in (once(prng.uniform(robot.lower, robot.upper))
+                                        for _ in range(args.max_attempts)) if s[0]]
+                peer_b.append(branches(found))
+                peer_f.append(branches([f for f in found
+                                        if not ik.checker.self_collision(f[None])[0]]))
         fig = {'success': float(np.mean(ok)), 'distinct_median': float(np.median(n)),
                'distinct_p10': float(np.percentile(n, 10)),
                'time_median_ms': 1e3 * float(np.median(t)),
@@ -117,7 +124,13 @@ def bench_arm(arm, args):
                'peer_reached': float(np.mean(reached)) if reached else float('nan')}
         if ours_b:
             fig.update(branches_median=float(np.median(ours_b)),
-                       peer_branches_median=float(np.median(peer_b)))
+                       peer_branches_median=float(np.median(peer_b)),
+                       branches_mean=float(np.mean(ours_b)),
+                       peer_branches_mean=float(np.mean(peer_b)),
+                       free_branches_mean=float(np.mean(ours_f)),
+                       peer_free_branches_mean=float(np.mean(peer_f)),
+                       free_branches_at_least_peer=float(np.mean(
+                           np.array(ours_f) >= np.array(peer_f))))
         row[goal] = fig
     return row
 
@@ -149,7 +162,11 @@ def main() -> None:
         for goal in ('position', 'pose'):
             f = row[goal]
             peer = 'DLS' if goal == 'position' else 'TRAC-IK'
-            br = (f'{f["branches_median"]:.0f} / {f["peer_branches_median"]:.0f}'
+            br = (f'{f["branches_median"]:.0f} / {f["peer_branches_median"]:.0f} (mean '
+                  f'{f["branches_mean"]:.2f} / {f["peer_branches_mean"]:.2f}; free of '
+                  f'self-collision {f["free_branches_mean"]:.2f} / '
+                  f'{f["peer_free_branches_mean"]:.2f}, ours >= peer on '
+                  f'{100 * f["free_branches_at_least_peer"]:.0f} %)'
                   if 'branches_median' in f else '')
             build_s = '' if row['build_s'] is None else f'{row["build_s"]:.0f}'
             print(f'| {arm} | {row["dof"]} | {build_s} | {row["bundle_mb"]:.1f} | {goal} | '

@@ -38,7 +38,7 @@ DEFAULT_ROWS = 500_000
 #: radian of tip rotation) [m].
 QUATERNION_SCALE = 0.3
 #: Nearest configurations by tip pose that the far-apart starts are chosen among.
-NEIGHBOURS = 200
+NEIGHBOURS = 100
 #: Joint codes: 16 bits over each joint's range.
 _LEVELS = 65535
 

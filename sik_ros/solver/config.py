@@ -76,10 +76,14 @@ class SolverConfig:
             the candidates missed (0 disables it). 48: on the UR5 and Kinova bundles, 5.9 and
             6.3 branches (mean of 100 targets) against 5.3 and 6.1 with 32, for 1.4-1.7 ms more.
             Used only by bundles without a seed table (see ``seed_starts``).
-        seed_starts: pose goals of arms with six joints or fewer whose bundle has a seed
-            table (:mod:`sik_ros.seed_table`): this many starts from it, the dataset
-            configurations nearest the goal pose chosen far apart in joint space, in place of
-            the ``branch_restarts`` random ones (0: the random ones).
+        seed_starts: pose goals whose bundle has a seed table (:mod:`sik_ros.seed_table`;
+            sik-build makes one for arms of six joints or fewer): the dataset configurations
+            nearest the goal pose, chosen far apart in joint space, are the starts in place of
+            the oriented and table postures: this many for arms of six joints or fewer (in
+            place of the ``branch_restarts`` random ones too), as many as the oriented postures
+            for redundant arms. 0: no seed table starts.
+        seed_neighbours: the configurations nearest the goal pose (by tip position [m] and
+            0.3 m per unit of quaternion distance) that those are chosen among.
     """
 
     position_tolerance: float = 1e-4
@@ -113,6 +117,7 @@ class SolverConfig:
     max_waypoints: int = 2000
     branch_restarts: int = 48
     seed_starts: int = 24
+    seed_neighbours: int = 100
 
     def __post_init__(self):
         """Reject values the solver cannot work with.
@@ -134,7 +139,8 @@ class SolverConfig:
                           ('refine_iterations', 1), ('adjust_budget', 0), ('give_up_after', 1),
                           ('stall_window', 0), ('stall_after', 0), ('early_stop_margin', -1),
                           ('walk_rounds', 0), ('walk_iterations', 1), ('max_obstacles', 0),
-                          ('max_waypoints', 1), ('branch_restarts', 0), ('seed_starts', 0)):
+                          ('max_waypoints', 1), ('branch_restarts', 0), ('seed_starts', 0),
+                          ('seed_neighbours', 1)):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, int) or value < low:
                 raise InvalidArgument(f'SolverConfig.{name} must be an integer >= {low}; got '

@@ -70,14 +70,19 @@ def best_distinct(c: Candidates, threshold: float, ignore_last: bool) -> Candida
     return c.take(distinct_mask(c.q, threshold, ignore_last))
 
 
+def posture_keys(q: np.ndarray, periodic: np.ndarray) -> np.ndarray:
+    """(M, n) int64: equal rows for configurations that are exact 2 pi shifts of each other."""
+    wrapped = q.copy()
+    wrapped[:, periodic] = np.mod(q[:, periodic] + np.pi, 2 * np.pi)
+    return np.round(wrapped * 1e6).astype(np.int64)
+
+
 def equivalents(q: np.ndarray, periodic: np.ndarray, cost: np.ndarray) -> np.ndarray:
     """(M,) bool: rows that are 2 pi equivalents of a row of lower ``cost`` (same posture)."""
     if not periodic.any() or len(q) < 2:
         return np.zeros(len(q), dtype=bool)
-    wrapped = q.copy()
-    wrapped[:, periodic] = np.mod(q[:, periodic] + np.pi, 2 * np.pi)
     order = np.argsort(cost, kind='stable')
-    keys = np.round(wrapped[order] * 1e6).astype(np.int64)  # exact 2 pi shifts of one row
+    keys = posture_keys(q[order], periodic)
     _, first = np.unique(keys, axis=0, return_index=True)
     out = np.ones(len(q), dtype=bool)
     out[order[first]] = False  # the cheapest row of each posture
@@ -129,10 +134,17 @@ def rank(ctx: Context, c: Candidates, q_seed: Optional[np.ndarray],
     selfc = np.zeros(len(c), dtype=bool)
     limit = len(c) if limit is None else limit
     free = 0
+    # 2 pi equivalents place the arm alike: one check per posture
+    keys = [k.tobytes() for k in posture_keys(c.q, ctx.robot.periodic)] \
+        if ctx.robot.periodic.any() else None
+    checked = {}
     for i in np.argsort(score, kind='stable'):
         if free >= limit or (deadline is not None and time.perf_counter() > deadline):
             break
-        selfc[i] = ctx.checker.self_collision(c.q[i:i + 1])[0]
+        key = i if keys is None else keys[i]
+        if key not in checked:
+            checked[key] = ctx.checker.self_collision(c.q[i:i + 1])[0]
+        selfc[i] = checked[key]
         free += not selfc[i]
     score = base + COLLIDING_TIER * (hit | selfc)
     order = np.argsort(score, kind='stable')[:limit]

@@ -1,0 +1,105 @@
+"""Paired A/B of SelectiveIK.solve between checkouts: each answers the same targets in turn.
+
+Every checkout runs in its own worker process (its ``sik_ros`` first on the path) on the same
+bundle; target by target the workers take turns, the order flipping every target, so the
+machine's drift falls on both alike. Targets are FK of configurations drawn uniformly in joint
+space (seeded). Prints per checkout: success, distinct exact solutions (mean), branches (mean:
+distinct with angles wrapped to one turn), the median time per call and the median of the
+per-target time ratios to the first checkout.
+
+    python bench/solve_ab.py old=/path/to/checkout new=. --bundle DIR --goal pose
+"""
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import time
+
+os.environ.setdefault('OMP_NUM_THREADS', '1')
+
+import numpy as np  # noqa: E402
+
+
+def worker(root: str, bundle: str, goal: str, num: int, seeded: bool, seed: int,
+           count: int) -> None:
+    """Answer target numbers read from stdin with one JSON line each (run in a subprocess)."""
+    sys.path.insert(0, root)
+    sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+    import torch
+    from arms import branches
+    from sik_ros import SelectiveIK
+    torch.set_num_threads(1)
+    ik = SelectiveIK.load(bundle)
+    robot = ik.robot
+    rng = np.random.default_rng(seed)
+    q = rng.uniform(robot.lower, robot.upper, (count, robot.dof))
+    seeds = rng.uniform(robot.lower, robot.upper, (count, robot.dof))
+    targets = [robot.fk(qi) for qi in q]
+    ik.solve(*targets[0], num_solutions=num)  # warm-up
+    print('ready', flush=True)
+    for line in sys.stdin:
+        k = int(line)
+        p, quat = targets[k]
+        t0 = time.perf_counter()
+        res = ik.solve(p, quat if goal == 'pose' else None, num_solutions=num,
+                       seed=seeds[k] if seeded else None)
+        t = time.perf_counter() - t0
+        exact = np.array([s.q for s in res.solutions if s.converged]).reshape(-1, robot.dof)
+        print(json.dumps({'ok': bool(res.success), 't': t * 1e3,
+                          'n': int(ik.distinct_mask(exact, goal).sum()) if len(exact) else 0,
+                          'b': branches(exact)}), flush=True)
+
+
+def main() -> None:
+    """Start one worker per checkout, hand out the targets in turn and print the table."""
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument('checkouts', nargs='+', help='NAME=DIR, the first is the reference')
+    parser.add_argument('--bundle', default='panda')
+    parser.add_argument('--goal', choices=('position', 'pose'), default='pose')
+    parser.add_argument('--num', type=int, default=16, help='solutions asked for')
+    parser.add_argument('--seeded', action='store_true', help='a random current state each')
+    parser.add_argument('--targets', type=int, default=100)
+    parser.add_argument('--seed', type=int, default=2024)
+    parser.add_argument('--worker', nargs=7, help=argparse.SUPPRESS)
+    args = parser.parse_args()
+    if args.worker:
+        root, bundle, goal, num, seeded, seed, count = args.worker
+        worker(root, bundle, goal, int(num), seeded == '1', int(seed), int(count))
+        return
+    procs = []
+    for spec in args.checkouts:
+        name, _, root = spec.partition('=')
+        p = subprocess.Popen([sys.executable, __file__, 'x', '--worker', os.path.abspath(root),
+                              args.bundle, args.goal, str(args.num), str(int(args.seeded)),
+                              str(args.seed), str(args.targets)],
+                             stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+        if p.stdout.readline().strip() != 'ready':
+            sys.exit(f'worker {name} did not start')
+        procs.append((name, p))
+    answers = {name: [] for name, _ in procs}
+    for k in range(args.targets):
+        for name, p in (procs if k % 2 == 0 else procs[::-1]):
+            p.stdin.write(f'{k}\n')
+            p.stdin.flush()
+            answers[name].append(json.loads(p.stdout.readline()))
+    for _, p in procs:
+        p.stdin.close()
+        p.wait()
+    ref = answers[procs[0][0]]
+    print(f'# bench/solve_ab.py: {args.targets} {args.goal} targets of {args.bundle} (seed '
+          f'{args.seed}), {args.num} solutions{", seeded" if args.seeded else ""}, A B A B')
+    print(f'| checkout | success | distinct (mean) | branches (mean) | time per call (median) '
+          f'| ratio to {procs[0][0]} (median) |')
+    print('|---|---|---|---|---|---|')
+    for name, _ in procs:
+        rows = answers[name]
+        print(f'| {name} | {100 * np.mean([a["ok"] for a in rows]):.1f} % '
+              f'| {np.mean([a["n"] for a in rows]):.2f} | {np.mean([a["b"] for a in rows]):.2f} '
+              f'| {np.median([a["t"] for a in rows]):.2f} ms '
+              f'| {np.median([a["t"] / b["t"] for a, b in zip(rows, ref)]):.3f} |')
+
+
+if __name__ == '__main__':
+    main()
