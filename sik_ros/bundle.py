@@ -170,15 +170,17 @@ def build_bundle(out: Path, robot: Robot, models: Mapping[str, Path], dataset: D
         cfg: the tables' cells.
         orientations: keep each index's tip orientation in the tables.
         progress: called with the rows encoded, chunk by chunk.
-        seed_rows: configurations of the pose model's seed table (-1: the default for the
-            arm, :func:`~sik_ros.seed_table.default_rows`; None or 0: none).
+        seed_rows: configurations of the pose model's seed table, for an arm of six joints or
+            fewer (-1: :func:`~sik_ros.seed_table.default_rows`; None or 0: none).
 
     Returns:
         ``out``.
     """
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    if seed_rows is not None and seed_rows < 0:
+    if default_rows(robot) is None:
+        seed_rows = None  # a redundant arm's pose solutions walk its self-motion instead
+    elif seed_rows is not None and seed_rows < 0:
         seed_rows = default_rows(robot)
     for goal, model_file in models.items():
         table = build_table(load_checkpoint(model_file), robot, dataset, cfg, orientations,

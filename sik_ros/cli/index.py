@@ -37,9 +37,9 @@ def build_parser() -> argparse.ArgumentParser:
                    'models; pose-goal models cannot)')
     p.add_argument('--bundle', help='also add model and table to this bundle directory')
     p.add_argument('--seeds', type=int, default=-1,
-                   help='with --bundle and a pose-goal model: configurations of the seed table '
-                   'that isolated pose solutions start from (default: 500,000 for arms of six '
-                   'joints or fewer, none for others; 0: none)')
+                   help='with --bundle and a pose-goal model of an arm of six joints or '
+                   'fewer: configurations of the seed table its pose solutions start from '
+                   '(default: 500,000; 0: none)')
     p.add_argument('--force', action='store_true', help='replace an existing --out')
     p.add_argument('--quiet', action='store_true', help='no progress bar')
     return p
@@ -69,7 +69,8 @@ def main(argv: Optional[List[str]] = None) -> int:
         print(f'{table.manifest["cells"]} cells, {table.manifest["entries"]} indices '
               f'({out.stat().st_size / 1e6:.2f} MB) in {time.perf_counter() - t0:.1f} s')
         if args.bundle:
-            rows = default_rows(robot) if args.seeds < 0 else args.seeds
+            rows = default_rows(robot)
+            rows = rows if rows is None or args.seeds < 0 else args.seeds
             seeds = None
             if table.manifest['goal'] == 'pose' and rows:
                 st = SeedTable.build(robot, ds, rows)

@@ -130,7 +130,7 @@ def _on_segment(ctx: Context, qa: np.ndarray, qb: np.ndarray, ga: Goal, gb: Goal
     q = (1 - t)[:, None] * np.tile(qa, (len(EDGE_CHECKS), 1)) + \
         t[:, None] * np.tile(qb, (len(EDGE_CHECKS), 1))
     # a few configurations: one Pinocchio call each beats the vectorised FK's set-up
-    p, r = ctx.robot.fk_loop(q, ctx.data) if len(q) <= 256 else ctx.robot.fk_rot(q)
+    p, r = ctx.robot.tip_poses(q, ctx.data)
     u = np.clip(((p - pa) @ seg) / length2, 0.0, 1.0)
     ok = np.linalg.norm(p - (pa + u[:, None] * seg), axis=1) <= s.path_tolerance
     if gb.rotation is not None:
@@ -423,7 +423,7 @@ def _paths(ctx: Context, goals, cand, back, cost, obstacles, s: PathSettings) ->
         if any(np.abs(q[0] - other).max() < 1e-6 for other in starts):
             continue  # the same start as a better path: not a distinct alternative
         starts.append(q[0])
-        p, r = ctx.robot.fk_rot(q)
+        p, r = ctx.robot.tip_poses(q, ctx.data)
         perr = np.linalg.norm(p - positions[:len(q)], axis=1)
         oerr = np.zeros(len(q)) if rotations is None else rotation_angle(rotations[:len(q)], r)
         steps = np.abs(np.diff(q, axis=0))

@@ -48,10 +48,10 @@ def initial_postures(ctx: Context, goal: Goal, num: int, q_seed: Optional[np.nda
 
     Order: the seed itself, the seed's own posture (its index decoded), then the oriented ones
     (pose goals), then the table's. The seed and the oriented postures have no index of the
-    goal's model yet: NaN, encoded once ranked. With ``seeded`` (pose goals whose starts come
-    from the bundle's seed table) only the seed and its own posture: measured on a UR5 bundle,
-    the oriented and table postures found no branch the seed table's starts missed, and cost
-    15 % of a call.
+    goal's model yet: NaN, encoded once ranked. With ``seeded`` (isolated pose solutions whose
+    starts come from the seed table) only the seed and its own posture: measured on a UR5
+    bundle, the oriented and table postures found no branch the seed table's starts missed,
+    and cost 15 % of a call.
     """
     extra = oriented_postures(ctx, goal, oriented_count(ctx.config, num)) \
         if goal.kind == POSE and refined and not seeded else np.empty((0, ctx.robot.dof))
@@ -104,8 +104,7 @@ def solve(ctx: Context, goal: Goal, num: int, q_seed: Optional[np.ndarray],
     # branch needs a start of its own, from the seed table near the goal pose when the bundle
     # has one, else drawn at random
     isolated = goal.kind == POSE and not far and ctx.robot.dof <= 6 and refined
-    seeds = ctx.models[goal.kind].seeds \
-        if goal.kind == POSE and not far and refined and cfg.seed_starts > 0 else None
+    seeds = ctx.models[goal.kind].seeds if isolated and cfg.seed_starts > 0 else None
     c = initial_postures(ctx, goal, num, q_seed, refined, seeded=seeds is not None)
     timed_out = False
     if refined:
@@ -116,10 +115,9 @@ def solve(ctx: Context, goal: Goal, num: int, q_seed: Optional[np.ndarray],
         enough = None if (q_seed is not None or obstacles or objective is not None
                           or cfg.early_stop_margin < 0) else num + spare(cfg, num)
         if seeds is not None:
-            # a redundant arm takes as many as it would take oriented postures, then walks
-            count = cfg.seed_starts if isolated else oriented_count(cfg, num)
-            c = Candidates.concat(c, seed_starts(ctx, goal, seeds, count, c.z.shape[1]))
-            enough = None if isolated else enough
+            c = Candidates.concat(c, seed_starts(ctx, goal, seeds, cfg.seed_starts,
+                                                 c.z.shape[1]))
+            enough = None
         elif isolated and cfg.branch_restarts > 0:
             c = Candidates.concat(c, branch_starts(ctx, goal, cfg.branch_restarts,
                                                    c.z.shape[1]))

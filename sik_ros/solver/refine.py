@@ -70,7 +70,7 @@ class Evaluation:
 def errors(ctx: Context, q: np.ndarray, goal: Goal) -> Tuple[np.ndarray, np.ndarray]:
     """Position errors [m] and orientation errors [rad] (zeros for position goals), (M,)."""
     robot = ctx.robot
-    p, r = robot.fk_loop(q, ctx.data) if len(q) <= 256 else robot.fk_rot(q)
+    p, r = robot.tip_poses(q, ctx.data)
     perr = np.linalg.norm(p - goal.position, axis=1)
     if goal.rotation is None:
         return perr, np.zeros(len(q))
