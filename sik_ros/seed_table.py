@@ -29,7 +29,6 @@ from sik_ros.dataset import Dataset
 from sik_ros.errors import CorruptArtifact, InvalidArgument
 from sik_ros.index_table import farthest_point_subset
 from sik_ros.kinematics import Robot
-from sik_ros.rotations import rotation_to_quaternion
 
 #: Configurations a seed table keeps by default (6 MB for 6 joints; 250,000 reach nearly as many
 #: branches on the UR5: 6.8 against 6.9 of 60 goals).
@@ -65,20 +64,21 @@ class SeedTable:
         """Number of configurations."""
         return len(self.q)
 
-    def starts(self, position: np.ndarray, rotation: np.ndarray, count: int,
+    def starts(self, position: np.ndarray, quaternion: np.ndarray, count: int,
                neighbours: int = NEIGHBOURS) -> np.ndarray:
         """``count`` configurations (count, n) [rad] whose tips were near a pose, far apart.
 
         Args:
             position: goal position (3,) [m] in the base frame.
-            rotation: goal orientation (3, 3).
+            quaternion: goal orientation, a unit quaternion x y z w (either sign).
             count: configurations wanted (fewer when the table is smaller).
             neighbours: nearest configurations (by tip pose) the far-apart ones come from.
         """
         k = min(neighbours, len(self.q))
         if count < 1 or k < 1:
             return np.empty((0, self.q.shape[1]))
-        quat = rotation_to_quaternion(np.asarray(rotation, dtype=float)[None])[0]
+        quat = np.asarray(quaternion, dtype=float)
+        quat = -quat if quat[3] < 0 else quat  # as the table's
         position = np.asarray(position, dtype=float)
         dist, rows = self.tree.query(np.concatenate([position, QUATERNION_SCALE * quat]), k=k)
         dist, rows = np.atleast_1d(dist), np.atleast_1d(rows)

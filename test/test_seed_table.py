@@ -35,8 +35,8 @@ def test_a_seed_table_keeps_dataset_rows_and_round_trips(ur5, ur5_data, table, t
 def test_starts_are_the_nearest_rows_by_tip_pose_and_far_apart(ur5, table):
     """A goal at a row's own tip pose starts from that row; the other starts are far apart."""
     q0 = table.q[123]
-    p, r = ur5.fk_rot(q0[None])
-    starts = table.starts(p[0], r[0], 12)
+    p, quat = ur5.fk(q0)
+    starts = table.starts(p, quat, 12)
     assert starts.shape == (12, 6)
     np.testing.assert_allclose(starts[0], q0)  # the nearest first
     angles = np.concatenate([np.cos(starts), np.sin(starts)], axis=1)
@@ -51,15 +51,13 @@ def test_starts_are_the_nearest_rows_by_tip_pose_and_far_apart(ur5, table):
 
 def test_a_goal_whose_quaternion_has_w_near_zero_finds_rows_of_either_sign(ur5, table):
     """A rotation and its negated quaternion are one: a row across w = 0 from the goal is found."""
-    from scipy.spatial.transform import Rotation
     p_all, quat_all = ur5.fk_batch(table.q)  # w >= 0
     rows = np.flatnonzero(quat_all[:, 3] < 0.03)[:10]
     assert len(rows) >= 5
     for i in rows:
         x, y, z, w = quat_all[i]
         # the goal turned 4 w [rad] from the row, its quaternion's w on the other side of 0
-        goal = Rotation.from_quat([x, y, z, -w]).as_matrix()
-        starts = table.starts(p_all[i], goal, 4)
+        starts = table.starts(p_all[i], np.array([x, y, z, -w]), 4)
         np.testing.assert_allclose(starts[0], table.q[i])
 
 

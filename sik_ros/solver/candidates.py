@@ -11,7 +11,6 @@ import math
 from typing import Optional, Tuple
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from sik_ros.index_table import farthest_point_subset
 from sik_ros.solver.codec import decode, encode
@@ -90,8 +89,8 @@ def oriented_postures(ctx: Context, goal: Goal, count: int) -> np.ndarray:
     gm = ctx.models.get(POSITION)
     if gm is None or gm.table.orientations is None or count < 1:
         return np.empty((0, ctx.robot.dof))
-    quat = Rotation.from_matrix(goal.rotation).as_quat()
-    rows = gm.table.oriented_rows(goal.position, quat, count, ctx.config.oriented_cells)
+    rows = gm.table.oriented_rows(goal.position, goal.quaternion, count,
+                                  ctx.config.oriented_cells)
     q = starting_postures(ctx, Goal(goal.position), gm.table.indices[rows], rows)
     return align_last_joint(ctx, q, goal.rotation)
 

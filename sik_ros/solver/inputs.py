@@ -23,11 +23,11 @@ def check_goal(position, orientation, goals: Sequence[str]) -> Goal:
             the bundle has no model for (``goals``).
     """
     pos = vector(position, 3, 'position', InvalidGoal, limit=MAX_DISTANCE)
-    rot = None
+    rot = quat = None
     if orientation is not None:
         quat = quaternion(orientation, 'orientation', InvalidGoal)
         rot = Rotation.from_quat(quat).as_matrix()
-    goal = Goal(pos, rot)
+    goal = Goal(pos, rot, quat)
     if goal.kind not in goals:
         raise InvalidGoal(f'this bundle has no model for {goal.kind} goals (it has '
                           f'{sorted(goals)})')
