@@ -86,18 +86,20 @@ class PathSettings:
     """How a path is planned (see :meth:`SelectiveIK.solve_path`).
 
     ``starts``: distinct solutions asked for at the first waypoint (and where every track is
-    lost); ``tracks``: the beam, the cheapest candidates kept per waypoint. As many starts as
-    tracks: paired on 80 and 160 paths, 12 starts instead of 16 took 0.95-0.97x the time for
-    pose paths and 0.92-0.94x for position paths, with the same success and travel within 1 %
-    (8 starts lengthened the short paths' travel by 10 %, seventh session).
+    lost); ``tracks``: the beam, the cheapest candidates kept per waypoint. Measured (paired,
+    Panda): 12 starts instead of 16 with 12 tracks, 0.95-0.97x the time (pose paths) and
+    0.92-0.94x (position paths) on 240 paths; then 10 and 10, another 0.93-0.96x and
+    0.87-0.90x on 440 paths, with the same success and travel within 2 %; 8 and 8 were faster
+    still but made the short pose paths longer than the seeded TRAC-IK's
+    (``docs/benchmarks.md``).
     """
 
     num_paths: int = 4
     max_joint_step: float = 0.3
     path_tolerance: float = 0.005
     orientation_path_tolerance: float = 0.05
-    starts: int = 12
-    tracks: int = 12
+    starts: int = 10
+    tracks: int = 10
     seed_weight: float = 1.0
 
 
