@@ -1,6 +1,7 @@
 """Paired A/B of solve_path between checkouts: each answers the same paths in turn, A B A B.
 
-Every checkout runs in its own worker process (its ``sik_ros`` first on the path); path by
+Every checkout runs in its own worker process (its ``sik_ros`` first on the path) on the same
+bundle (``--bundle``, default the bundled Panda); path by
 path the workers take turns, the order flipping every path, so the machine's drift falls on
 both alike. Paths come from ``bench/paths.py``'s generator (lines and arcs, every other one
 with the tool orientation held), each solved from a random current state. Prints, per goal
@@ -22,7 +23,7 @@ os.environ.setdefault('OMP_NUM_THREADS', '1')
 import numpy as np  # noqa: E402
 
 
-def worker(root: str, seed: int, count: int) -> None:
+def worker(root: str, seed: int, count: int, bundle: str = 'panda') -> None:
     """Answer path numbers read from stdin with one JSON line each (run in a subprocess)."""
     sys.path.insert(0, root)
     sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
@@ -30,7 +31,7 @@ def worker(root: str, seed: int, count: int) -> None:
     from paths import Continuation, make_path
     from sik_ros import SelectiveIK
     torch.set_num_threads(1)
-    ik = SelectiveIK.load('panda')
+    ik = SelectiveIK.load(bundle)
     robot = ik.robot
     cont = Continuation(robot)
     rng = np.random.default_rng(seed)
@@ -58,16 +59,18 @@ def main() -> None:
     parser.add_argument('checkouts', nargs='+', help='NAME=DIR, the first is the reference')
     parser.add_argument('--paths', type=int, default=80)
     parser.add_argument('--seed', type=int, default=7)
-    parser.add_argument('--worker', nargs=3, help=argparse.SUPPRESS)
+    parser.add_argument('--bundle', default='panda', help='bundle name or directory')
+    parser.add_argument('--worker', nargs=4, help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.worker:
-        worker(args.worker[0], int(args.worker[1]), int(args.worker[2]))
+        worker(args.worker[0], int(args.worker[1]), int(args.worker[2]), args.worker[3])
         return
     procs = []
     for spec in args.checkouts:
         name, _, root = spec.partition('=')
         p = subprocess.Popen([sys.executable, __file__, 'x', '--worker',
-                              os.path.abspath(root), str(args.seed), str(args.paths)],
+                              os.path.abspath(root), str(args.seed), str(args.paths),
+                              args.bundle],
                              stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
         if p.stdout.readline().strip() != 'ready':
             sys.exit(f'worker {name} did not start')
@@ -82,7 +85,7 @@ def main() -> None:
         p.stdin.close()
         p.wait()
     ref = answers[procs[0][0]]
-    print(f'# bench/paths_ab.py: {args.paths} Panda paths (seed {args.seed}), A B A B')
+    print(f'# bench/paths_ab.py: {args.paths} paths of {args.bundle} (seed {args.seed}), A B A B')
     print('| checkout | paths | success | time per path (median) | ratio to '
           f'{procs[0][0]} (median) | travel (median) | max step (median) |')
     print('|---|---|---|---|---|---|---|')
