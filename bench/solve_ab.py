@@ -37,7 +37,8 @@ def worker(root: str, bundle: str, goal: str, num: int, seeded: bool, seed: int,
     q = rng.uniform(robot.lower, robot.upper, (count, robot.dof))
     seeds = rng.uniform(robot.lower, robot.upper, (count, robot.dof))
     targets = [robot.fk(qi) for qi in q]
-    ik.solve(*targets[0], num_solutions=num)  # warm-up
+    ik.solve(targets[0][0], targets[0][1] if goal == 'pose' else None,
+             num_solutions=num)  # warm-up
     print('ready', flush=True)
     for line in sys.stdin:
         k = int(line)

@@ -13,6 +13,8 @@ import shutil
 import tempfile
 from typing import Iterator, Mapping
 
+import numpy as np
+
 from sik_ros.errors import ArtifactExists, ArtifactMismatch, CorruptArtifact
 
 #: Version of the on-disk formats written by this code.
@@ -113,6 +115,22 @@ def atomic_directory(out: Path, force: bool = False) -> Iterator[Path]:
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise
+
+
+def range_codes(values: np.ndarray, lower: np.ndarray, upper: np.ndarray,
+                dtype: type = np.uint8) -> np.ndarray:
+    """Values quantised over ``lower``..``upper`` per column to unsigned integer codes.
+
+    The codes' whole range spans the interval: 8 bits steps of 1/255 of it, 16 bits 1/65535.
+    """
+    levels = np.iinfo(dtype).max
+    codes = np.round((np.asarray(values) - lower) / (upper - lower) * levels)
+    return np.clip(codes, 0, levels).astype(dtype)
+
+
+def range_values(codes: np.ndarray, lower: np.ndarray, upper: np.ndarray) -> np.ndarray:
+    """The values (float64) that :func:`range_codes` stood for."""
+    return lower + codes.astype(np.float32) / np.iinfo(codes.dtype).max * (upper - lower)
 
 
 def check_robot_manifest(what: str, expected: Mapping, found: Mapping) -> None:

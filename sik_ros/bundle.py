@@ -88,8 +88,8 @@ def read_bundle_manifest(path: Path) -> Dict:
         raise CorruptArtifact(f'{file}: "models" must map goal kinds to their files')
     for goal, files in models.items():
         if goal not in GOALS or not isinstance(files, dict) or not all(
-                isinstance(files.get(k), str) for k in ('model', 'table')) or not isinstance(
-                files.get('seeds', ''), str):
+                isinstance(files.get(k), str) and files.get(k)
+                for k in ('model', 'table') + (('seeds',) if 'seeds' in files else ())):
             raise CorruptArtifact(f'{file}: models[{goal!r}] must be a goal kind {GOALS} with '
                                   f'"model" and "table" (and optionally "seeds") file names')
     return manifest
@@ -130,6 +130,9 @@ def add_to_bundle(bundle: Path, robot_manifest: Dict, goal: str, model_file: Pat
                   table_file: Path, seeds_file: Optional[Path] = None) -> Path:
     """Copy a model and its table (and seed table) into a bundle, listed in ``bundle.json``.
 
+    A seed table the goal already had stays listed when none is given: it depends on the robot
+    and the data only, not on the model.
+
     Files are copied under temporary names and renamed; the manifest is rewritten atomically
     last, so a reader never sees a manifest naming a half-written file.
     """
@@ -146,6 +149,8 @@ def add_to_bundle(bundle: Path, robot_manifest: Dict, goal: str, model_file: Pat
     files = {'model': model_file, 'table': table_file}
     if seeds_file is not None:
         files['seeds'] = seeds_file
+    elif 'seeds' in manifest['models'].get(goal, {}):
+        files['seeds'] = bundle / manifest['models'][goal]['seeds']
     for key, src in files.items():
         dst = bundle / names[key]
         if Path(src).resolve() != dst.resolve():

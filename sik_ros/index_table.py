@@ -27,7 +27,8 @@ import numpy as np
 from scipy.spatial import cKDTree
 from scipy.spatial.distance import cdist
 
-from sik_ros.artifacts import atomic_write, check_robot_manifest, FORMAT_VERSION
+from sik_ros.artifacts import (atomic_write, check_robot_manifest, FORMAT_VERSION, range_codes,
+                               range_values)
 from sik_ros.errors import ArtifactMismatch, CorruptArtifact, InvalidArgument
 
 TABLE_KEYS = ('centers', 'offsets', 'indices', 'manifest')
@@ -284,8 +285,7 @@ class IndexTable:
             extra['orientations'] = np.round(self.orientations * 127).astype(np.int8)
         if self.postures is not None:  # 8 bits over each joint's range: < 0.015 rad
             lower, upper = (np.array(self.manifest['postures'][k]) for k in ('lower', 'upper'))
-            codes = np.round((self.postures - lower) / (upper - lower) * 255)
-            extra['postures'] = np.clip(codes, 0, 255).astype(np.uint8)
+            extra['postures'] = range_codes(self.postures, lower, upper, np.uint8)
         with atomic_write(path) as tmp:
             np.savez_compressed(tmp, centers=self.centers.astype(np.float32),
                                 offsets=self.offsets, indices=self.indices.astype(np.float16),
@@ -351,4 +351,4 @@ class IndexTable:
             ok = False
         if not ok:
             raise CorruptArtifact(f'index table {path}: postures disagree with its manifest')
-        return (lower + codes.astype(np.float32) / 255 * (upper - lower)).astype(np.float32)
+        return range_values(codes, lower, upper).astype(np.float32)

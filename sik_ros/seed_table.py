@@ -24,9 +24,10 @@ import zipfile
 import numpy as np
 from scipy.spatial import cKDTree
 
-from sik_ros.artifacts import atomic_write, check_robot_manifest, FORMAT_VERSION
+from sik_ros.artifacts import (atomic_write, check_robot_manifest, FORMAT_VERSION, range_codes,
+                               range_values)
 from sik_ros.dataset import Dataset
-from sik_ros.errors import CorruptArtifact, InvalidArgument
+from sik_ros.errors import ArtifactMismatch, CorruptArtifact, InvalidArgument
 from sik_ros.index_table import farthest_point_subset
 from sik_ros.kinematics import Robot
 
@@ -38,8 +39,6 @@ DEFAULT_ROWS = 500_000
 QUATERNION_SCALE = 0.3
 #: Nearest configurations by tip pose that the far-apart starts are chosen among.
 NEIGHBOURS = 100
-#: Joint codes: 16 bits over each joint's range.
-_LEVELS = 65535
 
 
 class SeedTable:
@@ -90,8 +89,8 @@ class SeedTable:
         if found.any():
             dist = np.concatenate([dist, np.atleast_1d(d2)[found]])
             rows = np.concatenate([rows, np.atleast_1d(r2)[found]])
-            rows = rows[np.argsort(dist, kind='stable')][:k]  # nearest first
-            rows = rows[np.sort(np.unique(rows, return_index=True)[1])]
+            rows = rows[np.argsort(dist, kind='stable')]                 # nearest first
+            rows = rows[np.sort(np.unique(rows, return_index=True)[1])][:k]  # each row once
         pick = farthest_point_subset(self._angles[rows], min(count, len(rows)))
         return self.q[rows[pick]].copy()
 
@@ -103,27 +102,33 @@ class SeedTable:
         """A table of ``rows`` configurations drawn from a dataset (all when it is smaller).
 
         Raises:
-            InvalidArgument: ``rows`` below 1.
+            InvalidArgument: ``rows`` below 1, or an empty dataset.
         """
         if isinstance(rows, bool) or not isinstance(rows, (int, np.integer)) or rows < 1:
             raise InvalidArgument(f'seed table rows must be an integer >= 1; got {rows!r}')
         total = len(dataset)
+        if total < 1:
+            raise InvalidArgument('a seed table needs a dataset with rows')
         pick = np.arange(total) if rows >= total else np.sort(
             np.random.default_rng(seed).choice(total, size=rows, replace=False))
         q = np.clip(np.asarray(dataset.q[pick]), robot.lower, robot.upper)
         manifest = {'kind': 'sik_seed_table', 'format_version': FORMAT_VERSION,
                     'robot': robot.manifest(), 'rows': int(len(q)), 'seed': int(seed),
-                    'dataset': {'count': total, 'params': dataset.manifest.get('params')},
-                    'lower': robot.lower.tolist(), 'upper': robot.upper.tolist()}
-        return cls(robot, _decode(_encode(q, robot.lower, robot.upper), robot.lower,
-                                  robot.upper), manifest)
+                    'dataset': {'count': total, 'params': dataset.manifest.get('params')}}
+        # as stored: a built table is the table loaded later
+        return cls(robot, range_values(range_codes(q, robot.lower, robot.upper, np.uint16),
+                                       robot.lower, robot.upper), manifest)
 
     def save(self, path: Path) -> Path:
-        """Write the table atomically as ``.npz``: 16-bit joint codes and the manifest."""
+        """Write the table atomically as ``.npz``: 16-bit joint codes and the manifest.
+
+        The codes span each joint's limits: steps below 2e-4 rad for a 4 pi range.
+        """
         path = Path(path)
-        lower, upper = (np.asarray(self.manifest[k], dtype=float) for k in ('lower', 'upper'))
+        rm = self.manifest['robot']
         with atomic_write(path) as tmp:
-            np.savez(tmp, codes=_encode(self.q, lower, upper),
+            np.savez(tmp, codes=range_codes(self.q, np.asarray(rm['lower']),
+                                            np.asarray(rm['upper']), np.uint16),
                      manifest=np.array(json.dumps(self.manifest, sort_keys=True)))
         return path
 
@@ -145,31 +150,20 @@ class SeedTable:
             raise
         except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile) as exc:
             raise CorruptArtifact(f'cannot read seed table {path}: {exc}') from exc
-        if not isinstance(manifest, dict) or manifest.get('kind') != 'sik_seed_table':
+        if not isinstance(manifest, dict) or manifest.get('kind') != 'sik_seed_table' \
+                or not isinstance(manifest.get('robot'), dict):
             raise CorruptArtifact(f'{path} is not a sik_ros seed table')
-        check_robot_manifest(f'seed table {path}', robot.manifest(), manifest.get('robot', {}))
-        try:
-            lower = np.asarray(manifest['lower'], dtype=float)
-            upper = np.asarray(manifest['upper'], dtype=float)
-            ok = (codes.dtype == np.uint16 and codes.shape == (manifest['rows'], robot.dof)
-                  and lower.shape == upper.shape == (robot.dof,) and np.all(upper > lower)
-                  and len(codes) > 0)
-        except (TypeError, KeyError, ValueError):
-            ok = False
-        if not ok:
+        rm = manifest['robot']
+        check_robot_manifest(f'seed table {path}', robot.manifest(), rm)
+        for key in ('lower', 'upper'):  # the codes' ranges: the robot's own limits
+            if not np.array_equal(np.asarray(rm.get(key), dtype=object),
+                                  np.asarray(getattr(robot, key).tolist(), dtype=object)):
+                raise ArtifactMismatch(f'seed table {path}: joint {key} limits',
+                                       getattr(robot, key).tolist(), rm.get(key))
+        if codes.dtype != np.uint16 or codes.shape != (manifest.get('rows'), robot.dof) \
+                or len(codes) == 0:
             raise CorruptArtifact(f'seed table {path}: codes disagree with its manifest')
-        return cls(robot, _decode(codes, lower, upper), manifest)
-
-
-def _encode(q: np.ndarray, lower: np.ndarray, upper: np.ndarray) -> np.ndarray:
-    """16-bit codes of configurations over the joint ranges (steps below 2e-4 rad for 4 pi)."""
-    codes = np.round((np.asarray(q) - lower) / (upper - lower) * _LEVELS)
-    return np.clip(codes, 0, _LEVELS).astype(np.uint16)
-
-
-def _decode(codes: np.ndarray, lower: np.ndarray, upper: np.ndarray) -> np.ndarray:
-    """Configurations [rad] from their 16-bit codes."""
-    return lower + codes.astype(np.float64) / _LEVELS * (upper - lower)
+        return cls(robot, range_values(codes, robot.lower, robot.upper), manifest)
 
 
 def default_rows(robot: Robot) -> Optional[int]:

@@ -1,11 +1,15 @@
 """Seed tables: dataset configurations by tip pose, the starts of isolated pose solutions."""
 
+import json
+import shutil
+
 import numpy as np
 import pytest
 
+from sik_ros.bundle import add_to_bundle, load_bundle
 from sik_ros.dataset import collect
 from sik_ros.errors import ArtifactMismatch, CorruptArtifact, InvalidArgument
-from sik_ros.seed_table import default_rows, SeedTable
+from sik_ros.seed_table import default_rows, NEIGHBOURS, QUATERNION_SCALE, SeedTable
 
 
 @pytest.fixture(scope='module')
@@ -42,11 +46,26 @@ def test_starts_are_the_nearest_rows_by_tip_pose_and_far_apart(ur5, table):
     angles = np.concatenate([np.cos(starts), np.sin(starts)], axis=1)
     gaps = np.linalg.norm(angles[:, None] - angles[None], axis=2) + 9 * np.eye(12)
     assert gaps.min() > 0.3
-    # tips near the goal: among the 200 nearest of 3,000 rows by pose
-    tips, _ = ur5.fk_rot(starts)
-    all_tips, _ = ur5.fk_rot(table.q)
-    assert np.median(np.linalg.norm(tips - p, axis=1)) < np.median(
-        np.linalg.norm(all_tips - p, axis=1))
+    # every start is among the 100 nearest rows by tip pose (position, 0.3 x quaternion,
+    # either sign of it)
+
+    def distance(q):
+        pos, qt = ur5.fk_batch(q)
+        return np.min([np.linalg.norm(np.concatenate([pos - p, QUATERNION_SCALE * (qt - s * quat)],
+                                                     axis=1), axis=1) for s in (1, -1)], axis=0)
+    radius = np.sort(distance(table.q))[NEIGHBOURS - 1]
+    assert distance(starts).max() <= radius + 1e-9
+
+
+def test_a_small_table_gives_every_row_it_has(ur5, ur5_data):
+    """Fewer rows than neighbours: every row is a start once, whatever the goal's quaternion."""
+    small = SeedTable.build(ur5, ur5_data, rows=7, seed=2)
+    rng = np.random.default_rng(3)
+    for q in rng.uniform(ur5.lower, ur5.upper, (10, 6)):
+        p, quat = ur5.fk(q)
+        starts = small.starts(p, quat, 12)
+        assert len(starts) == 7
+        assert len(np.unique(starts, axis=0)) == 7
 
 
 def test_a_goal_whose_quaternion_has_w_near_zero_finds_rows_of_either_sign(ur5, table):
@@ -77,6 +96,50 @@ def test_a_damaged_or_foreign_seed_table_is_refused(ur5, panda, table, tmp_path)
         SeedTable.load(path, panda)
     with pytest.raises(InvalidArgument):
         SeedTable.build(ur5, None, rows=0)
+    # a manifest whose robot is not a robot manifest, or whose limits are not the robot's
+    codes = np.zeros((3000, 6), np.uint16)
+    for robot in ('x', dict(json.loads(manifest)['robot'], lower=[-100.0] * 6)):
+        bad_manifest = dict(json.loads(manifest), robot=robot)
+        np.savez(tmp_path / 'odd.npz', codes=codes, manifest=json.dumps(bad_manifest))
+        with pytest.raises((CorruptArtifact, ArtifactMismatch)):
+            SeedTable.load(tmp_path / 'odd.npz', ur5)
+
+
+def test_a_bundle_lists_its_seed_table_and_keeps_it_when_a_goal_is_indexed_again(
+        ur5_bundle, tmp_path):
+    """bundle.json names the seed table; re-adding the pose model keeps it; a bad name fails."""
+    out, _ = ur5_bundle
+    bundle = tmp_path / 'copy'
+    shutil.copytree(out, bundle)
+    manifest = json.loads((bundle / 'bundle.json').read_text())
+    files = manifest['models']['pose']
+    add_to_bundle(bundle, manifest['robot'], 'pose', bundle / files['model'],
+                  bundle / files['table'])
+    assert json.loads((bundle / 'bundle.json').read_text())['models']['pose'] == files
+    assert load_bundle(bundle)[2]['pose'].seeds is not None
+    for name in ('', 7):
+        broken = json.loads((bundle / 'bundle.json').read_text())
+        broken['models']['pose']['seeds'] = name
+        (bundle / 'bundle.json').write_text(json.dumps(broken))
+        with pytest.raises(CorruptArtifact):
+            load_bundle(bundle)
+
+
+def test_isolated_pose_solutions_from_the_seed_table_or_random_starts(ur5_bundle, ur5):
+    """With the seed table or without it (``seed_starts`` 0), FK-verified distinct solutions."""
+    from sik_ros import SelectiveIK
+    ik = SelectiveIK.load(ur5_bundle[0])
+    assert ik.models['pose'].seeds is not None
+    rng = np.random.default_rng(12)
+    for solver in (ik, ik.with_config(seed_starts=0)):
+        for q in rng.uniform(ur5.lower, ur5.upper, (3, 6)):
+            p, quat = ur5.fk(q)
+            res = solver.solve(p, quat, num_solutions=8)
+            assert res.success
+            qs = np.array([s.q for s in res.solutions if s.converged])
+            reached, _ = ur5.fk_rot(qs)
+            assert np.linalg.norm(reached - p, axis=1).max() <= 1e-4
+            assert ik.distinct_mask(qs, 'pose').all()
 
 
 def test_only_arms_of_six_joints_or_fewer_get_one_by_default(ur5, panda):

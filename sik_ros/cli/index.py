@@ -6,7 +6,7 @@ from typing import List, Optional
 
 from tqdm import tqdm
 
-from sik_ros.bundle import add_to_bundle
+from sik_ros.bundle import add_to_bundle, bundle_files
 from sik_ros.checkpoints import load_checkpoint
 from sik_ros.cli import argv_or_default, Parser, run_cli
 from sik_ros.dataset import Dataset
@@ -14,7 +14,7 @@ from sik_ros.errors import ArtifactExists, InvalidArgument
 from sik_ros.index_table import TableConfig
 from sik_ros.indexing import build_table
 from sik_ros.robots import robot_from_manifest
-from sik_ros.seed_table import default_rows, SeedTable
+from sik_ros.seed_table import DEFAULT_ROWS, default_rows, SeedTable
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -36,10 +36,11 @@ def build_parser() -> argparse.ArgumentParser:
                    'solver refines from them without decoding (default: on for position-goal '
                    'models; pose-goal models cannot)')
     p.add_argument('--bundle', help='also add model and table to this bundle directory')
-    p.add_argument('--seeds', type=int, default=-1,
+    p.add_argument('--seeds', type=int,
                    help='with --bundle and a pose-goal model of an arm of six joints or '
-                   'fewer: configurations of the seed table its pose solutions start from '
-                   '(default: 500,000; 0: none)')
+                   'fewer: configurations of the seed table written into the bundle, where its '
+                   f'pose solutions start (default: {DEFAULT_ROWS:,}; 0: none new, a seed '
+                   'table the bundle has stays); ignored otherwise')
     p.add_argument('--force', action='store_true', help='replace an existing --out')
     p.add_argument('--quiet', action='store_true', help='no progress bar')
     return p
@@ -56,6 +57,8 @@ def main(argv: Optional[List[str]] = None) -> int:
             raise ArtifactExists(f'{out} already exists (use --force to replace it)')
         if out.suffix != '.npz':
             raise InvalidArgument(f'--out must end in .npz; got {out}')
+        if args.seeds is not None and args.seeds < 0:
+            raise InvalidArgument(f'--seeds must be >= 0; got {args.seeds}')
         cfg = TableConfig(args.cell, args.dedup, args.max_per_cell)
         ckpt = load_checkpoint(args.model)
         robot = robot_from_manifest(ckpt['robot'], f'model {args.model}')
@@ -70,11 +73,12 @@ def main(argv: Optional[List[str]] = None) -> int:
               f'({out.stat().st_size / 1e6:.2f} MB) in {time.perf_counter() - t0:.1f} s')
         if args.bundle:
             rows = default_rows(robot)
-            rows = rows if rows is None or args.seeds < 0 else args.seeds
+            rows = rows if rows is None or args.seeds is None else args.seeds
             seeds = None
             if table.manifest['goal'] == 'pose' and rows:
                 st = SeedTable.build(robot, ds, rows)
-                seeds = st.save(out.with_name(f'{out.stem}_seeds.npz'))
+                Path(args.bundle).mkdir(parents=True, exist_ok=True)
+                seeds = st.save(Path(args.bundle) / bundle_files('pose')['seeds'])
                 print(f'seed table: {len(st):,} configurations ({seeds.stat().st_size / 1e6:.2f} '
                       f'MB)')
             add_to_bundle(Path(args.bundle), robot.manifest(), table.manifest['goal'],

@@ -41,9 +41,7 @@ def table_candidates(ctx: Context, goal: Goal, q_seed: Optional[np.ndarray],
         count = max(count, cfg.raw_candidates)
     table = ctx.models[goal.kind].table
     if count <= 0:  # none from the table: only the seed's own index (its posture kept)
-        if q_seed is None:
-            return np.empty((0, table.indices.shape[1])), np.empty(0, dtype=int)
-        return encode(ctx, goal, q_seed[None]), np.array([-1])
+        return own_index(ctx, goal, q_seed)
     rows = table.rows_near(goal.position, cfg.k_cells)
     pool = table.indices[rows]
     if pool.shape[1] == 1:
@@ -57,6 +55,15 @@ def table_candidates(ctx: Context, goal: Goal, q_seed: Optional[np.ndarray],
         rows = np.concatenate([[-1], rows])
     pick = farthest_point_subset(pool, count)
     return pool[pick], rows[pick]
+
+
+def own_index(ctx: Context, goal: Goal, q_seed: Optional[np.ndarray]
+              ) -> Tuple[np.ndarray, np.ndarray]:
+    """The seed's own posture index (1, latent) and row -1 (none without a seed)."""
+    if q_seed is None:
+        latent = ctx.models[goal.kind].table.indices.shape[1]
+        return np.empty((0, latent)), np.empty(0, dtype=int)
+    return encode(ctx, goal, q_seed[None]), np.array([-1])
 
 
 def starting_postures(ctx: Context, goal: Goal, z: np.ndarray, rows: np.ndarray) -> np.ndarray:

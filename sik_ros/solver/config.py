@@ -75,7 +75,7 @@ class SolverConfig:
             self-motion): starts drawn uniformly in joint space and refined, for the branches
             the candidates missed (0 disables it). 48: on the UR5 and Kinova bundles, 5.9 and
             6.3 branches (mean of 100 targets) against 5.3 and 6.1 with 32, for 1.4-1.7 ms more.
-            Used only by bundles without a seed table (see ``seed_starts``).
+            Used where the seed table is not: bundles without one, or ``seed_starts`` 0.
         seed_starts: pose goals of arms with six joints or fewer whose bundle has a seed
             table (:mod:`sik_ros.seed_table`): this many starts from it, the dataset
             configurations nearest the goal pose chosen far apart in joint space, in place of

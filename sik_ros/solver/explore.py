@@ -1,9 +1,12 @@
-"""More solutions when the first refinement is not enough: restarts and the self-motion walk.
+"""More solutions than the table's postures give: branch starts, restarts, the self-motion walk.
 
+:func:`seed_starts` (from the bundle's seed table) or :func:`branch_starts` (uniform random)
+give the isolated pose solutions of arms with six joints or fewer a start per branch.
 :func:`restart` starts again from perturbed and random configurations when no candidate
 converged. :func:`walk` moves found pose solutions along the null space of their Jacobian (the
 self-motion manifold of a redundant arm at a 6-d pose) and refines them back onto the goal, for
-distinct exact solutions the table did not give.
+distinct exact solutions the table did not give. :func:`periodic_equivalents` adds the 2 pi
+turns of periodic joints.
 """
 
 import functools

@@ -21,7 +21,8 @@ from sik_ros.collision import Obstacle
 from sik_ros.objectives import Objective
 from sik_ros.solver.adjust import adjust_index
 from sik_ros.solver.batch import Candidates
-from sik_ros.solver.candidates import oriented_postures, starting_postures, table_candidates
+from sik_ros.solver.candidates import (oriented_postures, own_index, starting_postures,
+                                       table_candidates)
 from sik_ros.solver.codec import decode, encode
 from sik_ros.solver.config import SolverConfig
 from sik_ros.solver.context import Context, Goal, POSE
@@ -55,7 +56,8 @@ def initial_postures(ctx: Context, goal: Goal, num: int, q_seed: Optional[np.nda
     """
     extra = oriented_postures(ctx, goal, oriented_count(ctx.config, num)) \
         if goal.kind == POSE and refined and not seeded else np.empty((0, ctx.robot.dof))
-    z, rows = table_candidates(ctx, goal, q_seed, 0 if seeded else num, refined, len(extra))
+    z, rows = own_index(ctx, goal, q_seed) if seeded else \
+        table_candidates(ctx, goal, q_seed, num, refined, len(extra))
     q = starting_postures(ctx, goal, z, rows) if refined else decode(ctx, goal, z)
     if len(extra):
         head = 1 if q_seed is not None else 0
