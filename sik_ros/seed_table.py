@@ -56,8 +56,6 @@ class SeedTable:
         # fk_batch's quaternions have w >= 0 (each rotation has two)
         self.tree = cKDTree(np.concatenate([p, QUATERNION_SCALE * quat], axis=1),
                             balanced_tree=False, compact_nodes=False)
-        # joint-space features for far-apart choices: an angle and its 2 pi equivalents alike
-        self._angles = np.concatenate([np.cos(self.q), np.sin(self.q)], axis=1)
 
     def __len__(self) -> int:
         """Number of configurations."""
@@ -91,8 +89,11 @@ class SeedTable:
             rows = np.concatenate([rows, np.atleast_1d(r2)[found]])
             rows = rows[np.argsort(dist, kind='stable')]                 # nearest first
             rows = rows[np.sort(np.unique(rows, return_index=True)[1])][:k]  # each row once
-        pick = farthest_point_subset(self._angles[rows], min(count, len(rows)))
-        return self.q[rows[pick]].copy()
+        # far apart in joint space, an angle and its 2 pi equivalents alike
+        q = self.q[rows]
+        pick = farthest_point_subset(np.concatenate([np.cos(q), np.sin(q)], axis=1),
+                                     min(count, len(rows)))
+        return q[pick]
 
     # -- building and files -----------------------------------------------------------------
 
