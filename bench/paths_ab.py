@@ -14,13 +14,14 @@ time ratios to the first checkout, and the median travel and largest step of the
 import argparse
 import json
 import os
-import subprocess
 import sys
 import time
 
 os.environ.setdefault('OMP_NUM_THREADS', '1')
 
 import numpy as np  # noqa: E402
+
+from ab import answers_in_turn  # noqa: E402,I100 (bench/ab.py, beside this script)
 
 
 def worker(root: str, seed: int, count: int, bundle: str = 'panda') -> None:
@@ -65,31 +66,15 @@ def main() -> None:
     if args.worker:
         worker(args.worker[0], int(args.worker[1]), int(args.worker[2]), args.worker[3])
         return
-    procs = []
-    for spec in args.checkouts:
-        name, _, root = spec.partition('=')
-        p = subprocess.Popen([sys.executable, __file__, 'x', '--worker',
-                              os.path.abspath(root), str(args.seed), str(args.paths),
-                              args.bundle],
-                             stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
-        if p.stdout.readline().strip() != 'ready':
-            sys.exit(f'worker {name} did not start')
-        procs.append((name, p))
-    answers = {name: [] for name, _ in procs}
-    for k in range(args.paths):
-        for name, p in (procs if k % 2 == 0 else procs[::-1]):
-            p.stdin.write(f'{k}\n')
-            p.stdin.flush()
-            answers[name].append(json.loads(p.stdout.readline()))
-    for _, p in procs:
-        p.stdin.close()
-        p.wait()
-    ref = answers[procs[0][0]]
+    answers = answers_in_turn(__file__, args.checkouts,
+                              [str(args.seed), str(args.paths), args.bundle], args.paths)
+    first = next(iter(answers))
+    ref = answers[first]
     print(f'# bench/paths_ab.py: {args.paths} paths of {args.bundle} (seed {args.seed}), A B A B')
     print('| checkout | paths | success | time per path (median) | ratio to '
-          f'{procs[0][0]} (median) | travel (median) | max step (median) |')
+          f'{first} (median) | travel (median) | max step (median) |')
     print('|---|---|---|---|---|---|---|')
-    for name, _ in procs:
+    for name in answers:
         for pose in (True, False):
             rows = [(a, b) for a, b in zip(answers[name], ref) if a['pose'] == pose]
             print(f'| {name} | {"pose" if pose else "position"} '

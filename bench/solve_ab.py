@@ -13,13 +13,14 @@ per-target time ratios to the first checkout.
 import argparse
 import json
 import os
-import subprocess
 import sys
 import time
 
 os.environ.setdefault('OMP_NUM_THREADS', '1')
 
 import numpy as np  # noqa: E402
+
+from ab import answers_in_turn  # noqa: E402,I100 (bench/ab.py, beside this script)
 
 
 def worker(root: str, bundle: str, goal: str, num: int, seeded: bool, seed: int,
@@ -69,32 +70,17 @@ def main() -> None:
         root, bundle, goal, num, seeded, seed, count = args.worker
         worker(root, bundle, goal, int(num), seeded == '1', int(seed), int(count))
         return
-    procs = []
-    for spec in args.checkouts:
-        name, _, root = spec.partition('=')
-        p = subprocess.Popen([sys.executable, __file__, 'x', '--worker', os.path.abspath(root),
-                              args.bundle, args.goal, str(args.num), str(int(args.seeded)),
-                              str(args.seed), str(args.targets)],
-                             stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
-        if p.stdout.readline().strip() != 'ready':
-            sys.exit(f'worker {name} did not start')
-        procs.append((name, p))
-    answers = {name: [] for name, _ in procs}
-    for k in range(args.targets):
-        for name, p in (procs if k % 2 == 0 else procs[::-1]):
-            p.stdin.write(f'{k}\n')
-            p.stdin.flush()
-            answers[name].append(json.loads(p.stdout.readline()))
-    for _, p in procs:
-        p.stdin.close()
-        p.wait()
-    ref = answers[procs[0][0]]
+    answers = answers_in_turn(__file__, args.checkouts,
+                              [args.bundle, args.goal, str(args.num), str(int(args.seeded)),
+                               str(args.seed), str(args.targets)], args.targets)
+    first = next(iter(answers))
+    ref = answers[first]
     print(f'# bench/solve_ab.py: {args.targets} {args.goal} targets of {args.bundle} (seed '
           f'{args.seed}), {args.num} solutions{", seeded" if args.seeded else ""}, A B A B')
     print(f'| checkout | success | distinct (mean) | branches (mean) | time per call (median) '
-          f'| ratio to {procs[0][0]} (median) |')
+          f'| ratio to {first} (median) |')
     print('|---|---|---|---|---|---|')
-    for name, _ in procs:
+    for name in answers:
         rows = answers[name]
         print(f'| {name} | {100 * np.mean([a["ok"] for a in rows]):.1f} % '
               f'| {np.mean([a["n"] for a in rows]):.2f} | {np.mean([a["b"] for a in rows]):.2f} '

@@ -77,14 +77,16 @@ def posture_keys(q: np.ndarray, periodic: np.ndarray) -> np.ndarray:
     return np.round(wrapped * 1e6).astype(np.int64)
 
 
-def equivalents(q: np.ndarray, periodic: np.ndarray, cost: np.ndarray) -> np.ndarray:
-    """(M,) bool: rows that are 2 pi equivalents of a row of lower ``cost`` (same posture)."""
-    if not periodic.any() or len(q) < 2:
-        return np.zeros(len(q), dtype=bool)
+def equivalents(keys: np.ndarray, cost: np.ndarray) -> np.ndarray:
+    """(M,) bool: rows that are 2 pi equivalents of a row of lower ``cost`` (same posture).
+
+    ``keys``: the rows' :func:`posture_keys`.
+    """
+    if len(keys) < 2:
+        return np.zeros(len(keys), dtype=bool)
     order = np.argsort(cost, kind='stable')
-    keys = posture_keys(q[order], periodic)
-    _, first = np.unique(keys, axis=0, return_index=True)
-    out = np.ones(len(q), dtype=bool)
+    _, first = np.unique(keys[order], axis=0, return_index=True)
+    out = np.ones(len(keys), dtype=bool)
     out[order[first]] = False  # the cheapest row of each posture
     return out
 
@@ -128,20 +130,21 @@ def rank(ctx: Context, c: Candidates, q_seed: Optional[np.ndarray],
     cost = np.asarray(objective(c.q), dtype=float)
     inexact_cost = np.where(c.exact, 0.0, pose_score(c.perr, c.oerr) * INEXACT_COST)
     base = inexact_cost + np.where(c.exact, cost, 0.0) + INEXACT_TIER * ~c.exact
-    # every distinct posture before a second 2 pi equivalent of one (the best of each first)
-    base = base + EQUIVALENT_TIER * equivalents(c.q, ctx.robot.periodic, base)
+    keys = posture_keys(c.q, ctx.robot.periodic) if ctx.robot.periodic.any() else None
+    if keys is not None:
+        # every distinct posture before a second 2 pi equivalent of one (the best of each first)
+        base = base + EQUIVALENT_TIER * equivalents(keys, base)
     score = base + COLLIDING_TIER * hit
     selfc = np.zeros(len(c), dtype=bool)
     limit = len(c) if limit is None else limit
     free = 0
     # 2 pi equivalents place the arm alike: one check per posture
-    keys = [k.tobytes() for k in posture_keys(c.q, ctx.robot.periodic)] \
-        if ctx.robot.periodic.any() else None
+    names = None if keys is None else [k.tobytes() for k in keys]
     checked = {}
     for i in np.argsort(score, kind='stable'):
         if free >= limit or (deadline is not None and time.perf_counter() > deadline):
             break
-        key = i if keys is None else keys[i]
+        key = i if names is None else names[i]
         if key not in checked:
             checked[key] = ctx.checker.self_collision(c.q[i:i + 1])[0]
         selfc[i] = checked[key]
