@@ -229,7 +229,20 @@ def test_waypoints_between_ladder_ones_are_solved_in_batches(ik, monkeypatch):
     assert sum(batches) >= 2  # 40 waypoints after the first: 3 ladder ones, 3 batches
     assert fast.success
     check(ik, fast.paths[0], positions, quats, 0.3)
-    monkeypatch.setattr(path_mod, 'LADDER', 1)  # every waypoint on the ladder
+    monkeypatch.setitem(path_mod.POSE_BEAM, 'ladder', 1)  # every waypoint on the ladder
     slow = ik.solve_path(positions, quats, seed=Q0)
     assert slow.success
     assert fast.paths[0].travel <= 1.05 * slow.paths[0].travel
+
+
+def test_position_paths_take_a_narrower_beam_but_as_many_paths_as_asked(ik):
+    """Position paths start fewer tracks than pose paths, never fewer than the paths asked for."""
+    from sik_ros.solver.path import PathSettings
+    assert PathSettings.for_paths(False).tracks < PathSettings.for_paths(True).tracks
+    wide = PathSettings.for_paths(False, num_paths=7)
+    assert wide.starts >= 7 and wide.tracks >= 7
+    pos, _ = line(ik, 0.2, 20)
+    res = ik.solve_path(pos, seed=Q0, num_paths=7)
+    assert res.success and len(res.paths) > PathSettings.for_paths(False).starts
+    for path in res.paths:
+        check(ik, path, pos, None, 0.3)

@@ -376,3 +376,18 @@ def test_a_seeded_pose_goal_decodes_the_seeds_own_posture_index(targets):
     # a request for more solutions than the oriented postures give decodes the table's too
     z, rows = ik.candidates('pose', pos[4], rot, None, num_solutions=64, others=oriented)
     assert len(z) >= 1.25 * 64 - ik.config.oriented_candidates
+
+
+def test_a_goal_whose_first_solutions_all_collide_gets_a_free_one(panda, ik):
+    """Near the base the first exact solutions may all touch the arm: restarts find free ones.
+
+    A waypoint of a feasible path (``bench/paths.py``'s generator) from a random current
+    state: before the restarts, all 16 solutions were exact and self-colliding.
+    """
+    pos = np.array([-0.0629, 0.0905, 0.4266])
+    seed = np.array([1.281, -0.567, -2.602, -2.859, 2.083, 2.394, -2.018])
+    res = ik.solve(pos, num_solutions=4, seed=seed)
+    free = [s for s in res.solutions if s.converged and not s.in_collision]
+    assert free
+    assert not ik.checker.self_collision(np.array([s.q for s in free])).any()
+    check_solutions(panda, ik, res, pos)

@@ -223,7 +223,8 @@ class SelectiveIK:
         goals = check_path(positions, orientations, self.goals, self.config.max_waypoints)
         q_seed = None if seed is None else check_seed(self.robot, seed)
         obstacles = check_obstacles(obstacles, self.config.max_obstacles)
-        settings = PathSettings(
+        settings = PathSettings.for_paths(
+            orientations is not None,
             num_paths=check_num_solutions(num_paths, self.config.max_solutions_cap),
             max_joint_step=positive(max_joint_step, 'max_joint_step'),
             path_tolerance=positive(path_tolerance, 'path_tolerance'))

@@ -15,10 +15,13 @@ waypoint can be reached, the longest feasible prefix is returned with its ``frac
 ``computeCartesianPath`` does.
 
 The whole ladder (tracks switching, merging, refilled by new starts) joins every
-:data:`LADDER`-th waypoint to the one before; between two of them every track continues
-itself, and those waypoints are solved in one batch (:func:`_chunk`): the tracks' steps
-predicted from their Jacobians, then refined and checked all at once. A batch that would leave
-fewer than two tracks at a waypoint is dropped, and those waypoints go on one at a time.
+``ladder``-th waypoint (:class:`PathSettings`) to the one before; between two of them every
+track continues itself, and those waypoints are solved in one batch (:func:`_chunk`): the
+tracks' steps predicted from their Jacobians, then refined and checked all at once. A batch
+that would leave fewer than two tracks at a waypoint is dropped, and those waypoints go on one
+at a time. The starts of position paths are the first distinct exact solutions the solver
+finds (the seed and its own posture among its candidates). The paths' errors come from the tip
+poses computed when their configurations were refined.
 """
 
 from dataclasses import dataclass, field
@@ -41,10 +44,19 @@ EDGE_CHECKS = (0.25, 0.5, 0.75)
 #: Most refinement steps of a track onto its next waypoint (a few suffice from a step away).
 TRACK_ITERATIONS = 10
 
-#: Every LADDER-th waypoint is joined to the previous one by the whole ladder (tracks may switch,
-#: merge, be refilled by new starts); the waypoints between are solved in one batch, each track
-#: continuing itself (:func:`_chunk`).
-LADDER = 16
+#: The beam of pose paths (see :class:`PathSettings`). Measured (paired, Panda): 12 starts
+#: instead of 16 with 12 tracks, 0.95-0.97x the time on 240 paths; then 10 and 10, another
+#: 0.93-0.96x on 440 paths, with the same success and travel within 2 %; 8 and 8 were faster
+#: still but made the short pose paths longer than the seeded TRAC-IK's. A ladder waypoint every
+#: 64 instead of 16 made them 4 % longer (``docs/benchmarks.md``).
+POSE_BEAM = {'starts': 10, 'tracks': 10, 'ladder': 16}
+
+#: The beam of position paths. A position waypoint leaves a redundant arm ``n - 3`` dimensions
+#: of self-motion, so a track is seldom lost and a narrow beam keeps the paths as short.
+#: Measured (paired, Panda, 100 position paths each): 4 starts and 4 tracks instead of 10 and
+#: 10, 0.71x the time; then a ladder waypoint every 64 instead of 16, 0.77x; the same success
+#: and travel.
+POSITION_BEAM = {'starts': 4, 'tracks': 4, 'ladder': 64}
 
 
 @dataclass
@@ -86,12 +98,11 @@ class PathSettings:
     """How a path is planned (see :meth:`SelectiveIK.solve_path`).
 
     ``starts``: distinct solutions asked for at the first waypoint (and where every track is
-    lost); ``tracks``: the beam, the cheapest candidates kept per waypoint. Measured (paired,
-    Panda): 12 starts instead of 16 with 12 tracks, 0.95-0.97x the time (pose paths) and
-    0.92-0.94x (position paths) on 240 paths; then 10 and 10, another 0.93-0.96x and
-    0.87-0.90x on 440 paths, with the same success and travel within 2 %; 8 and 8 were faster
-    still but made the short pose paths longer than the seeded TRAC-IK's
-    (``docs/benchmarks.md``).
+    lost); ``tracks``: the beam, the cheapest candidates kept per waypoint (both at least
+    ``num_paths``); ``ladder``: every ``ladder``-th waypoint is joined to the previous one by
+    the whole ladder (tracks may switch, merge, be refilled by new starts); the waypoints
+    between are solved in one batch, each track continuing itself (:func:`_chunk`).
+    :meth:`for_paths` takes them from :data:`POSE_BEAM` or :data:`POSITION_BEAM`.
     """
 
     num_paths: int = 4
@@ -100,13 +111,26 @@ class PathSettings:
     orientation_path_tolerance: float = 0.05
     starts: int = 10
     tracks: int = 10
+    ladder: int = 16
     seed_weight: float = 1.0
+
+    @classmethod
+    def for_paths(cls, pose: bool, **kw) -> 'PathSettings':
+        """The settings of pose paths (``pose``) or position paths, the beam by their kind."""
+        beam = dict(POSE_BEAM if pose else POSITION_BEAM)
+        beam.update(kw)
+        num = beam.get('num_paths', cls.num_paths)
+        beam['starts'], beam['tracks'] = max(beam['starts'], num), max(beam['tracks'], num)
+        return cls(**beam)
 
 
 def _starts(ctx: Context, goal: Goal, q_seed, obstacles, count: int,
             deadline) -> Tuple[np.ndarray, Evaluation]:
-    """Distinct exact configurations at a waypoint (the solver's ranked ones) and evaluations."""
-    res = pipeline.solve(ctx, goal, count, q_seed, obstacles, True, None, deadline)
+    """Distinct exact configurations at a waypoint (the solver's first ones) and evaluations."""
+    # position waypoints: the first distinct exact ones (the seed and its own posture are among
+    # the candidates); pose waypoints gained nothing from it (paired, Panda and xArm7)
+    res = pipeline.solve(ctx, goal, count, q_seed, obstacles, True, None, deadline,
+                         early=goal.rotation is None)
     q = np.array([s.q for s in res.solutions if s.converged and not s.in_collision])
     q = q.reshape(-1, ctx.robot.dof)
     return q, Evaluation.of(ctx, q)
@@ -246,7 +270,8 @@ def _edges(ctx: Context, prev: np.ndarray, prev_cost: np.ndarray, prev_ev: Evalu
         total[a[~fine], b[~fine]] = np.inf
 
 
-Chunk = Tuple[List[np.ndarray], List[np.ndarray], Evaluation]
+Poses = Tuple[np.ndarray, np.ndarray]  # tip positions (M, 3) and rotations (M, 3, 3)
+Chunk = Tuple[List[np.ndarray], List[np.ndarray], Evaluation, List[Poses]]
 
 
 def _chunk(ctx: Context, q: np.ndarray, ev: Evaluation, cost0: np.ndarray, ga: Goal,
@@ -264,9 +289,10 @@ def _chunk(ctx: Context, q: np.ndarray, ev: Evaluation, cost0: np.ndarray, ga: G
     there (cost inf).
 
     Returns:
-        per waypoint the configurations (T, n) and costs (T,) (``cost0`` plus the travel), and
-        the evaluation at the last one; or None when a waypoint would keep fewer than two
-        tracks (the caller then goes one waypoint at a time, with new starts if need be).
+        per waypoint the configurations (T, n) and costs (T,) (``cost0`` plus the travel), the
+        evaluation at the last one and per waypoint the tip poses ((T, 3), (T, 3, 3)); or None
+        when a waypoint would keep fewer than two tracks (the caller then goes one waypoint at
+        a time, with new starts if need be).
     """
     cfg, robot = ctx.config, ctx.robot
     t, n = q.shape
@@ -321,7 +347,8 @@ def _chunk(ctx: Context, q: np.ndarray, ev: Evaluation, cost0: np.ndarray, ga: G
     costs = np.where(ok, costs, np.inf)
     last = slice((m - 1) * t, m * t)
     out_ev = Evaluation(p[last], r[last], j[last], j[last] - jac_before[-1])
-    return list(qs), list(costs), out_ev
+    tips = list(zip(p.reshape(m, t, 3), r.reshape(m, t, 3, 3)))
+    return list(qs), list(costs), out_ev, tips
 
 
 def _turns(goals: Sequence[Goal]) -> np.ndarray:
@@ -341,6 +368,7 @@ def solve_path(ctx: Context, goals: Sequence[Goal], q_seed: Optional[np.ndarray]
     cand: List[np.ndarray] = []          # candidates per waypoint (M_i, dof)
     back: List[np.ndarray] = []          # best predecessor per candidate (-1: a start)
     cost: List[np.ndarray] = []          # best cost to reach each candidate
+    tips: List[Poses] = []               # their tip poses
     reached = 0
     timed_out = False
     reach = _reach(ctx.robot.chain)
@@ -358,6 +386,7 @@ def solve_path(ctx: Context, goals: Sequence[Goal], q_seed: Optional[np.ndarray]
             if len(q) == 0:
                 break
             cand.append(q), back.append(np.full(len(q), -1)), cost.append(c0)
+            tips.append((ev.p, ev.r))
             reached = i = 1
             continue
         live = np.isfinite(cost[-1])
@@ -365,15 +394,15 @@ def solve_path(ctx: Context, goals: Sequence[Goal], q_seed: Optional[np.ndarray]
         prev_ev = ev
         if not live.all():
             prev, prev_idx, prev_ev = prev[live], prev_idx[live], ev.rows(live)
-        if (i - 1) % LADDER and i >= one_by_one:  # the waypoints up to the next ladder one
-            m = min(LADDER - (i - 1) % LADDER, n - i)
+        if (i - 1) % s.ladder and i >= one_by_one:  # the waypoints up to the next ladder one
+            m = min(s.ladder - (i - 1) % s.ladder, n - i)
             out = _chunk(ctx, prev, prev_ev, cost[-1][prev_idx], goals[i - 1],
                          goals[i:i + m], turns[i - 1:i - 1 + m], reach, obstacles, s, deadline)
             if out is None:
                 one_by_one = i + m  # no second try before the next ladder waypoint
             else:
                 for k, (qk, ck) in enumerate(zip(*out[:2])):
-                    cand.append(qk), cost.append(ck)
+                    cand.append(qk), cost.append(ck), tips.append(out[3][k])
                     back.append(prev_idx if k == 0 else np.arange(len(qk)))
                 ev = out[2]
                 reached = i = i + m
@@ -401,8 +430,9 @@ def solve_path(ctx: Context, goals: Sequence[Goal], q_seed: Optional[np.ndarray]
         keep = np.argsort(c, kind='stable')[:s.tracks]  # a beam: the cheapest tracks go on
         cand.append(q[keep]), back.append(prev_idx[best][keep]), cost.append(c[keep])
         ev = ev.rows(keep)
+        tips.append((ev.p, ev.r))
         reached = i = i + 1
-    paths = _paths(ctx, goals, cand, back, cost, obstacles, s)
+    paths = _paths(ctx, goals, cand, back, cost, tips, obstacles, s)
     success = reached == n and bool(paths)
     fraction = reached / n if paths else 0.0
     msg = '' if success else (
@@ -413,8 +443,13 @@ def solve_path(ctx: Context, goals: Sequence[Goal], q_seed: Optional[np.ndarray]
     return PathResult(success, fraction, paths, time.perf_counter() - t0, timed_out, msg)
 
 
-def _paths(ctx: Context, goals, cand, back, cost, obstacles, s: PathSettings) -> List[JointPath]:
-    """The best paths to the last reached waypoint, from distinct starts, best first."""
+def _paths(ctx: Context, goals, cand, back, cost, tips, obstacles,
+           s: PathSettings) -> List[JointPath]:
+    """The best paths to the last reached waypoint, from distinct starts, best first.
+
+    Their errors come from the candidates' tip poses (``tips``, each waypoint's, computed by
+    Pinocchio when the candidates were refined), not from FK again.
+    """
     if not cand:
         return []
     ends = np.argsort(cost[-1], kind='stable')
@@ -432,7 +467,8 @@ def _paths(ctx: Context, goals, cand, back, cost, obstacles, s: PathSettings) ->
         if any(np.abs(q[0] - other).max() < 1e-6 for other in starts):
             continue  # the same start as a better path: not a distinct alternative
         starts.append(q[0])
-        p, r = ctx.robot.tip_poses(q, ctx.data)
+        p = np.array([tips[i][0][r] for i, r in enumerate(rows)])
+        r = np.array([tips[i][1][r] for i, r in enumerate(rows)])
         perr = np.linalg.norm(p - positions[:len(q)], axis=1)
         oerr = np.zeros(len(q)) if rotations is None else rotation_angle(rotations[:len(q)], r)
         steps = np.abs(np.diff(q, axis=0))
