@@ -453,27 +453,34 @@ def _paths(ctx: Context, goals, cand, back, cost, tips, obstacles,
     if not cand:
         return []
     ends = np.argsort(cost[-1], kind='stable')
-    positions = np.array([g.position for g in goals])
-    rotations = None if goals[0].rotation is None else np.array([g.rotation for g in goals])
+    ends = ends[np.isfinite(cost[-1][ends])]
+    m = len(cand)
+    # every end's rows at once, waypoint by waypoint back to the start
+    rows = np.empty((m, len(ends)), dtype=int)
+    rows[-1] = ends
+    for i in range(m - 1, 0, -1):
+        rows[i - 1] = back[i][rows[i]]
+    qs = np.stack([cand[i][rows[i]] for i in range(m)], axis=1)          # (E, m, n)
+    ps = np.stack([tips[i][0][rows[i]] for i in range(m)], axis=1)       # (E, m, 3)
+    positions = np.array([g.position for g in goals[:m]])
+    rotations = None if goals[0].rotation is None else np.array([g.rotation for g in goals[:m]])
     out, starts = [], []
-    for e in ends:
-        if not np.isfinite(cost[-1][e]) or len(out) >= s.num_paths:
+    for k, e in enumerate(ends):
+        if len(out) >= s.num_paths:
             break
-        rows = [int(e)]
-        for i in range(len(cand) - 1, 0, -1):
-            rows.append(int(back[i][rows[-1]]))
-        rows.reverse()
-        q = np.array([cand[i][r] for i, r in enumerate(rows)])
+        q = qs[k]
         if any(np.abs(q[0] - other).max() < 1e-6 for other in starts):
             continue  # the same start as a better path: not a distinct alternative
         starts.append(q[0])
-        p = np.array([tips[i][0][r] for i, r in enumerate(rows)])
-        r = np.array([tips[i][1][r] for i, r in enumerate(rows)])
-        perr = np.linalg.norm(p - positions[:len(q)], axis=1)
-        oerr = np.zeros(len(q)) if rotations is None else rotation_angle(rotations[:len(q)], r)
-        steps = np.abs(np.diff(q, axis=0))
-        clear = ctx.checker.clearance(q, obstacles) if obstacles else np.full(len(q), np.inf)
-        out.append(JointPath(q, perr, oerr, float(steps.max()) if len(steps) else 0.0,
-                             float(np.linalg.norm(np.diff(q, axis=0), axis=1).sum()),
+        perr = np.linalg.norm(ps[k] - positions, axis=1)
+        if rotations is None:
+            oerr = np.zeros(m)
+        else:
+            r = np.array([tips[i][1][rows[i, k]] for i in range(m)])
+            oerr = rotation_angle(rotations, r)
+        steps = np.diff(q, axis=0)
+        clear = ctx.checker.clearance(q, obstacles) if obstacles else np.full(m, np.inf)
+        out.append(JointPath(q, perr, oerr, float(np.abs(steps).max()) if len(steps) else 0.0,
+                             float(np.linalg.norm(steps, axis=1).sum()),
                              float(clear.min()), float(cost[-1][e])))
     return out
