@@ -204,10 +204,6 @@ def refine(ctx: Context, q: np.ndarray, goal: Goal, deadline: Optional[float] = 
     return Refined(q, perr_all, oerr_all, cut_short)
 
 
-#: :func:`follow` drops a row whose error did not halve in a step from this iteration on.
-FOLLOW_STALL_AFTER = 2
-
-
 def follow(ctx: Context, q: np.ndarray, start: Evaluation, goal: Goal, iterations: int,
            deadline: Optional[float] = None) -> Tuple[np.ndarray, np.ndarray, Evaluation]:
     """Configurations near ``goal`` refined onto it, carrying their evaluations: a lean refine.
@@ -226,10 +222,7 @@ def follow(ctx: Context, q: np.ndarray, start: Evaluation, goal: Goal, iteration
         q: configurations (M, n) [rad].
         start: their evaluation.
         goal: the target: one, or one per row (``position`` (M, 3), ``rotation`` (M, 3, 3)).
-        iterations: most steps per row; rows not exact after them are dropped, and so are
-            rows whose error did not halve in a step from step :data:`FOLLOW_STALL_AFTER` on
-            (from a step away the steps converge fast; such a row is held by a joint limit or
-            a singularity).
+        iterations: most steps per row; rows not exact after them are dropped.
         deadline: a ``time.perf_counter()`` value after which no step starts.
 
     Returns:
@@ -244,33 +237,22 @@ def follow(ctx: Context, q: np.ndarray, start: Evaluation, goal: Goal, iteration
     pos, rot = goal.position, goal.rotation
     per_row = pos.ndim == 2
     parts = []
-    last = None  # the going rows' squared errors at the previous iteration
     for it in range(iterations + 1):
         err = pos - ap
-        size = np.einsum('ij,ij->i', err, err) / tol2
-        ok = size <= 1
+        ok = np.einsum('ij,ij->i', err, err) <= tol2
         if rot is not None:
             rot_err = rotation_log(rot @ ar.transpose(0, 2, 1))
-            turn = np.einsum('ij,ij->i', rot_err, rot_err) / otol2
-            ok &= turn <= 1
-            size = np.maximum(size, turn)
+            ok &= np.einsum('ij,ij->i', rot_err, rot_err) <= otol2
             err = np.concatenate([err, rot_err], axis=1)
         if ok.all():
             parts.append((act, aq, ap, ar, aj, it > 0))
             break
         if ok.any():
             parts.append((act[ok], aq[ok], ap[ok], ar[ok], aj[ok], it > 0))
-        # from a step away the steps converge fast: a row whose error did not halve is held
-        # by a joint limit or a singularity and is dropped
-        go = ~ok if last is None or it < FOLLOW_STALL_AFTER else ~ok & (size < 0.25 * last)
-        if not go.all():
-            if not go.any():
-                break
+            go = ~ok
             act, aq, ap, ar, aj, dj, err = act[go], aq[go], ap[go], ar[go], aj[go], dj[go], err[go]
-            size = size[go]
             if per_row:
                 pos, rot = pos[go], None if rot is None else rot[go]
-        last = size
         if it == iterations or (deadline is not None and time.perf_counter() > deadline):
             break
         j = aj[:, :dims] + 0.5 * dj[:, :dims] if it == 0 else aj[:, :dims]
