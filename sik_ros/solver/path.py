@@ -17,14 +17,16 @@ waypoint can be reached, the longest feasible prefix is returned with its ``frac
 The whole ladder (tracks switching, merging, refilled by new starts) joins every
 ``ladder``-th waypoint (:class:`PathSettings`) to the one before; between two of them every
 track continues itself, and those waypoints are solved in one batch (:func:`_chunk`): the
-tracks' steps predicted from their Jacobians, then refined and checked all at once. A batch
-that would leave fewer than two tracks at a waypoint is dropped, and those waypoints go on one
+tracks' steps predicted from their Jacobians, then refined and checked all at once. The
+first such batch starts from the starts themselves. A batch that would leave fewer than two
+tracks at a waypoint (none, when it began with one) is dropped, and those waypoints go on one
 at a time. The starts of position paths are the first distinct exact solutions the solver
 finds (the seed and its own posture among its candidates). The paths' errors come from the tip
 poses computed when their configurations were refined.
 """
 
 from dataclasses import dataclass, field
+import math
 import time
 from typing import List, Optional, Sequence, Tuple
 
@@ -44,6 +46,9 @@ EDGE_CHECKS = (0.25, 0.5, 0.75)
 #: Most refinement steps of a track onto its next waypoint (a few suffice from a step away).
 TRACK_ITERATIONS = 10
 
+#: Metres of path a radian of the tool's turn counts as, when batches are cut by length.
+TURN_LENGTH = 0.15
+
 #: The beam of pose paths (see :class:`PathSettings`). Measured (paired, Panda): 12 starts
 #: instead of 16 with 12 tracks, 0.95-0.97x the time on 240 paths; then 10 and 10, another
 #: 0.93-0.96x on 440 paths, with the same success and travel within 2 %; 8 and 8 were faster
@@ -55,8 +60,10 @@ POSE_BEAM = {'starts': 10, 'tracks': 10, 'ladder': 16}
 #: of self-motion, so a track is seldom lost and a narrow beam keeps the paths as short.
 #: Measured (paired, Panda, 100 position paths each): 4 starts and 4 tracks instead of 10 and
 #: 10, 0.71x the time; then a ladder waypoint every 64 instead of 16, 0.77x; the same success
-#: and travel.
-POSITION_BEAM = {'starts': 4, 'tracks': 4, 'ladder': 64}
+#: and travel. The first batch from the starts themselves: 0.92x. Batches cut at 10 cm of path
+#: (their predicted steps drift from the path as about the cube of its length): 0.96x (6 cm:
+#: 0.99x; pose paths gained nothing from it).
+POSITION_BEAM = {'starts': 4, 'tracks': 4, 'ladder': 64, 'batch_length': 0.1}
 
 
 @dataclass
@@ -101,7 +108,9 @@ class PathSettings:
     lost); ``tracks``: the beam, the cheapest candidates kept per waypoint (both at least
     ``num_paths``); ``ladder``: every ``ladder``-th waypoint is joined to the previous one by
     the whole ladder (tracks may switch, merge, be refilled by new starts); the waypoints
-    between are solved in one batch, each track continuing itself (:func:`_chunk`).
+    between are solved in one batch, each track continuing itself (:func:`_chunk`), a batch
+    covering at most ``batch_length`` of the path [m] (the tracks' predicted steps drift
+    from the path as about the cube of the length they cover).
     :meth:`for_paths` takes them from :data:`POSE_BEAM` or :data:`POSITION_BEAM`.
     """
 
@@ -112,6 +121,7 @@ class PathSettings:
     starts: int = 10
     tracks: int = 10
     ladder: int = 16
+    batch_length: float = math.inf
     seed_weight: float = 1.0
 
     @classmethod
@@ -291,8 +301,8 @@ def _chunk(ctx: Context, q: np.ndarray, ev: Evaluation, cost0: np.ndarray, ga: G
     Returns:
         per waypoint the configurations (T, n) and costs (T,) (``cost0`` plus the travel), the
         evaluation at the last one and per waypoint the tip poses ((T, 3), (T, 3, 3)); or None
-        when a waypoint would keep fewer than two tracks (the caller then goes one waypoint at
-        a time, with new starts if need be).
+        when a waypoint would keep fewer than two tracks (none, when ``q`` holds one) (the
+        caller then goes one waypoint at a time, with new starts if need be).
     """
     cfg, robot = ctx.config, ctx.robot
     t, n = q.shape
@@ -341,7 +351,7 @@ def _chunk(ctx: Context, q: np.ndarray, ev: Evaluation, cost0: np.ndarray, ga: G
         clear[live] = ctx.checker.clearance(flat[live], obstacles, deadline) > 0
         ok &= clear.reshape(m, t)
     ok = np.logical_and.accumulate(ok, axis=0)
-    if (ok.sum(axis=1) < 2).any():
+    if (ok.sum(axis=1) < min(2, t)).any():
         return None
     costs = cost0 + np.cumsum(np.linalg.norm(diff, axis=2), axis=0)
     costs = np.where(ok, costs, np.inf)
@@ -373,6 +383,9 @@ def solve_path(ctx: Context, goals: Sequence[Goal], q_seed: Optional[np.ndarray]
     timed_out = False
     reach = _reach(ctx.robot.chain)
     turns = _turns(goals)
+    # the path's length up to each waypoint (a turn counting TURN_LENGTH per radian)
+    arc = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(
+        np.array([g.position for g in goals]), axis=0), axis=1) + TURN_LENGTH * turns)])
     i = one_by_one = 0
     while i < n:
         goal = goals[i]
@@ -394,8 +407,11 @@ def solve_path(ctx: Context, goals: Sequence[Goal], q_seed: Optional[np.ndarray]
         prev_ev = ev
         if not live.all():
             prev, prev_idx, prev_ev = prev[live], prev_idx[live], ev.rows(live)
-        if (i - 1) % s.ladder and i >= one_by_one:  # the waypoints up to the next ladder one
-            m = min(s.ladder - (i - 1) % s.ladder, n - i)
+        # the waypoints up to the next ladder one (the first run of them from the starts,
+        # already distinct: no ladder step before it)
+        if ((i - 1) % s.ladder or i == 1) and i >= one_by_one:
+            m = min(s.ladder - (i - 1) % s.ladder, n - i,
+                    max(1, int(np.searchsorted(arc, arc[i - 1] + s.batch_length, 'right')) - i))
             out = _chunk(ctx, prev, prev_ev, cost[-1][prev_idx], goals[i - 1],
                          goals[i:i + m], turns[i - 1:i - 1 + m], reach, obstacles, s, deadline)
             if out is None:
