@@ -6,7 +6,8 @@ path the workers take turns, the order flipping every path, so the machine's dri
 both alike. Paths come from ``bench/paths.py``'s generator (lines and arcs, every other one
 with the tool orientation held), each solved from a random current state. Prints, per goal
 kind and checkout, whole-path success, the median time per path, the median of the per-path
-time ratios to the first checkout, and the median travel and largest step of the best path.
+time ratios to the first checkout, and the median travel, largest step and distance of the
+start from the current state (L2 over the joints) of the best path.
 
     python bench/paths_ab.py --paths 80 old=/path/to/other/checkout new=.
 """
@@ -51,7 +52,9 @@ def worker(root: str, seed: int, count: int, bundle: str = 'panda') -> None:
         print(json.dumps({'pose': quats is not None, 'ok': bool(res.success),
                           't': (time.perf_counter() - t0) * 1e3,
                           'travel': best.travel if best else float('nan'),
-                          'step': best.max_step if best else float('nan')}), flush=True)
+                          'step': best.max_step if best else float('nan'),
+                          'start': float(np.linalg.norm(best.q[0] - q)) if best else float('nan')}),
+              flush=True)
 
 
 def main() -> None:
@@ -72,8 +75,9 @@ def main() -> None:
     ref = answers[first]
     print(f'# bench/paths_ab.py: {args.paths} paths of {args.bundle} (seed {args.seed}), A B A B')
     print('| checkout | paths | success | time per path (median) | ratio to '
-          f'{first} (median) | travel (median) | max step (median) |')
-    print('|---|---|---|---|---|---|---|')
+          f'{first} (median) | travel (median) | max step (median) | from the current state '
+          '(median) |')
+    print('|---|---|---|---|---|---|---|---|')
     for name in answers:
         for pose in (True, False):
             rows = [(a, b) for a, b in zip(answers[name], ref) if a['pose'] == pose]
@@ -82,7 +86,8 @@ def main() -> None:
                   f'| {np.median([a["t"] for a, _ in rows]):.1f} ms '
                   f'| {np.median([a["t"] / b["t"] for a, b in rows]):.3f} '
                   f'| {np.nanmedian([a["travel"] for a, _ in rows]):.3f} rad '
-                  f'| {np.nanmedian([a["step"] for a, _ in rows]):.3f} rad |')
+                  f'| {np.nanmedian([a["step"] for a, _ in rows]):.3f} rad '
+                  f'| {np.nanmedian([a["start"] for a, _ in rows]):.2f} rad |')
 
 
 if __name__ == '__main__':

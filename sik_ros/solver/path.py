@@ -20,9 +20,8 @@ track continues itself, and those waypoints are solved in one batch (:func:`_chu
 tracks' steps predicted from their Jacobians, then refined and checked all at once. The
 first such batch starts from the starts themselves. A batch that would leave fewer than two
 tracks at a waypoint (none, when it began with one) is dropped, and those waypoints go on one
-at a time. The starts of position paths are the first distinct exact solutions the solver
-finds (the seed and its own posture among its candidates). The paths' errors come from the tip
-poses computed when their configurations were refined.
+at a time. The paths' errors come from the tip poses computed when their configurations were
+refined.
 """
 
 from dataclasses import dataclass, field
@@ -136,11 +135,14 @@ class PathSettings:
 
 def _starts(ctx: Context, goal: Goal, q_seed, obstacles, count: int,
             deadline) -> Tuple[np.ndarray, Evaluation]:
-    """Distinct exact configurations at a waypoint (the solver's first ones) and evaluations."""
-    # position waypoints: the first distinct exact ones (the seed and its own posture are among
-    # the candidates); pose waypoints gained nothing from it (paired, Panda and xArm7)
-    res = pipeline.solve(ctx, goal, count, q_seed, obstacles, True, None, deadline,
-                         early=goal.rotation is None)
+    """Distinct exact configurations at a waypoint (the solver's ranked ones) and evaluations.
+
+    With a seed every candidate is refined to its end, for the solution nearest the seed (a
+    path starting near the current state): stopping at the first distinct exact ones, as
+    without a seed, took position paths 0.94x the time but started them 3.2 rad from the
+    current state instead of 2.0 (median of 88 Panda paths).
+    """
+    res = pipeline.solve(ctx, goal, count, q_seed, obstacles, True, None, deadline)
     q = np.array([s.q for s in res.solutions if s.converged and not s.in_collision])
     q = q.reshape(-1, ctx.robot.dof)
     return q, Evaluation.of(ctx, q)

@@ -101,14 +101,8 @@ def fill_indices(ctx: Context, goal: Goal, sols: List[Solution]) -> None:
 
 def solve(ctx: Context, goal: Goal, num: int, q_seed: Optional[np.ndarray],
           obstacles: Sequence[Obstacle], refined: bool, objective: Optional[Objective],
-          deadline: Optional[float], early: bool = False) -> IKResult:
-    """Ranked solutions for one checked goal (see the module's stages).
-
-    With ``early`` (a path's starts), refinement stops at the first ``num`` distinct exact
-    solutions even with a seed (there the seed's distance is only one part of a path's cost,
-    and the seed and its own posture are among the candidates refined), and the solutions
-    carry no posture index (NaN) unless there are obstacles.
-    """
+          deadline: Optional[float]) -> IKResult:
+    """Ranked solutions for one checked goal (see the module's stages)."""
     cfg = ctx.config
     # a goal far from every position in the data is out of reach: answer quickly
     far = ctx.models[goal.kind].table.distance_to_data(goal.position) > cfg.reach_margin
@@ -124,9 +118,8 @@ def solve(ctx: Context, goal: Goal, num: int, q_seed: Optional[np.ndarray],
         c = c.take(distinct_mask(c.q, cfg.distinct_threshold * 0.5, ctx.ignores_last(goal.kind)))
         # ranked by the default objective, the first distinct exact solutions found are as
         # good as any: stop refining once there are enough
-        enough = num if early and not obstacles else None if (
-            q_seed is not None or obstacles or objective is not None
-            or cfg.early_stop_margin < 0) else num + spare(cfg, num)
+        enough = None if (q_seed is not None or obstacles or objective is not None
+                          or cfg.early_stop_margin < 0) else num + spare(cfg, num)
         if seeds is not None:
             c = Candidates.concat(c, seed_starts(ctx, goal, seeds, cfg.seed_starts,
                                                  c.z.shape[1]))
@@ -175,8 +168,7 @@ def solve(ctx: Context, goal: Goal, num: int, q_seed: Optional[np.ndarray],
         more = best_distinct(more.take(more.exact), cfg.distinct_threshold,
                              ctx.ignores_last(goal.kind))
         sols = rank(ctx, more, q_seed, obstacles, objective, limit=num, deadline=deadline)
-    if not early or obstacles:  # (Algorithm 2 below adjusts the indices)
-        fill_indices(ctx, goal, sols)
+    fill_indices(ctx, goal, sols)
     if obstacles and refined and not any(s.converged and not s.in_collision for s in sols) \
             and not past(deadline):
         extra = adjust_index(ctx, goal, sols, obstacles, deadline)
