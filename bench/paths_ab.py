@@ -53,8 +53,8 @@ def worker(root: str, seed: int, count: int, bundle: str = 'panda') -> None:
                           't': (time.perf_counter() - t0) * 1e3,
                           'travel': best.travel if best else float('nan'),
                           'step': best.max_step if best else float('nan'),
-                          'start': float(np.linalg.norm(best.q[0] - q)) if best else float('nan')}),
-              flush=True)
+                          'start': (float(np.linalg.norm(best.q[0] - q)) if best
+                                    else float('nan'))}), flush=True)
 
 
 def main() -> None:
