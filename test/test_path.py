@@ -65,9 +65,11 @@ def test_a_path_that_leaves_the_workspace_reports_its_fraction(ik):
     check(ik, res.paths[0], pos, None, 0.3)
 
 
-def test_the_seed_picks_the_nearest_branch(ik):
+@pytest.mark.parametrize('pose', [True, False])
+def test_the_seed_picks_the_nearest_branch(ik, pose):
     """Two seeds in different postures: each best path starts near its own seed."""
     pos, quat = line(ik, 0.2, 20)
+    quat = quat if pose else None
     first = ik.solve_path(pos, quat, seed=Q0)
     other = first.paths[-1].q[0]  # a start of another ranked path
     second = ik.solve_path(pos, quat, seed=other)

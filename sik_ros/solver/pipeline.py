@@ -101,8 +101,13 @@ def fill_indices(ctx: Context, goal: Goal, sols: List[Solution]) -> None:
 
 def solve(ctx: Context, goal: Goal, num: int, q_seed: Optional[np.ndarray],
           obstacles: Sequence[Obstacle], refined: bool, objective: Optional[Objective],
-          deadline: Optional[float]) -> IKResult:
-    """Ranked solutions for one checked goal (see the module's stages)."""
+          deadline: Optional[float], first_found: bool = False) -> IKResult:
+    """Ranked solutions for one checked goal (see the module's stages).
+
+    With ``first_found`` refinement stops at the first distinct exact solutions even with a
+    seed (then ranked by it), as it does without one: the seed's own row may be left
+    unfinished (a path's starts follow the seed onto the goal on their own).
+    """
     cfg = ctx.config
     # a goal far from every position in the data is out of reach: answer quickly
     far = ctx.models[goal.kind].table.distance_to_data(goal.position) > cfg.reach_margin
@@ -118,8 +123,9 @@ def solve(ctx: Context, goal: Goal, num: int, q_seed: Optional[np.ndarray],
         c = c.take(distinct_mask(c.q, cfg.distinct_threshold * 0.5, ctx.ignores_last(goal.kind)))
         # ranked by the default objective, the first distinct exact solutions found are as
         # good as any: stop refining once there are enough
-        enough = None if (q_seed is not None or obstacles or objective is not None
-                          or cfg.early_stop_margin < 0) else num + spare(cfg, num)
+        enough = None if ((q_seed is not None and not first_found) or obstacles
+                          or objective is not None or cfg.early_stop_margin < 0) \
+            else num + spare(cfg, num)
         if seeds is not None:
             c = Candidates.concat(c, seed_starts(ctx, goal, seeds, cfg.seed_starts,
                                                  c.z.shape[1]))
