@@ -25,7 +25,6 @@ refined.
 """
 
 from dataclasses import dataclass, field
-import math
 import time
 from typing import List, Optional, Sequence, Tuple
 
@@ -45,9 +44,6 @@ EDGE_CHECKS = (0.25, 0.5, 0.75)
 #: Most refinement steps of a track onto its next waypoint (a few suffice from a step away).
 TRACK_ITERATIONS = 10
 
-#: Metres of path a radian of the tool's turn counts as, when batches are cut by length.
-TURN_LENGTH = 0.15
-
 #: The beam of pose paths (see :class:`PathSettings`). Measured (paired, Panda): 12 starts
 #: instead of 16 with 12 tracks, 0.95-0.97x the time on 240 paths; then 10 and 10, another
 #: 0.93-0.96x on 440 paths, with the same success and travel within 2 %; 8 and 8 were faster
@@ -60,9 +56,9 @@ POSE_BEAM = {'starts': 10, 'tracks': 10, 'ladder': 16}
 #: Measured (paired, Panda, 100 position paths each): 4 starts and 4 tracks instead of 10 and
 #: 10, 0.71x the time; then a ladder waypoint every 64 instead of 16, 0.77x; the same success
 #: and travel. The first batch from the starts themselves: 0.92x. Batches cut at 10 cm of path
-#: (their predicted steps drift from the path as about the cube of its length): 0.96x (6 cm:
-#: 0.99x; pose paths gained nothing from it).
-POSITION_BEAM = {'starts': 4, 'tracks': 4, 'ladder': 64, 'batch_length': 0.1}
+#: (their predicted steps drift from the path as about the cube of its length) were tried:
+#: 0.96x in one run, 1.13x in another (300 paths), so left out.
+POSITION_BEAM = {'starts': 4, 'tracks': 4, 'ladder': 64}
 
 
 @dataclass
@@ -107,9 +103,7 @@ class PathSettings:
     lost); ``tracks``: the beam, the cheapest candidates kept per waypoint (both at least
     ``num_paths``); ``ladder``: every ``ladder``-th waypoint is joined to the previous one by
     the whole ladder (tracks may switch, merge, be refilled by new starts); the waypoints
-    between are solved in one batch, each track continuing itself (:func:`_chunk`), a batch
-    covering at most ``batch_length`` of the path [m] (the tracks' predicted steps drift
-    from the path as about the cube of the length they cover).
+    between are solved in one batch, each track continuing itself (:func:`_chunk`).
     :meth:`for_paths` takes them from :data:`POSE_BEAM` or :data:`POSITION_BEAM`.
     """
 
@@ -120,7 +114,6 @@ class PathSettings:
     starts: int = 10
     tracks: int = 10
     ladder: int = 16
-    batch_length: float = math.inf
     seed_weight: float = 1.0
 
     @classmethod
@@ -402,9 +395,6 @@ def solve_path(ctx: Context, goals: Sequence[Goal], q_seed: Optional[np.ndarray]
     timed_out = False
     reach = _reach(ctx.robot.chain)
     turns = _turns(goals)
-    # the path's length up to each waypoint (a turn counting TURN_LENGTH per radian)
-    arc = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(
-        np.array([g.position for g in goals]), axis=0), axis=1) + TURN_LENGTH * turns)])
     i = one_by_one = 0
     while i < n:
         goal = goals[i]
@@ -429,8 +419,7 @@ def solve_path(ctx: Context, goals: Sequence[Goal], q_seed: Optional[np.ndarray]
         # the waypoints up to the next ladder one (the first run of them from the starts,
         # already distinct: no ladder step before it)
         if ((i - 1) % s.ladder or i == 1) and i >= one_by_one:
-            m = min(s.ladder - (i - 1) % s.ladder, n - i,
-                    max(1, int(np.searchsorted(arc, arc[i - 1] + s.batch_length, 'right')) - i))
+            m = min(s.ladder - (i - 1) % s.ladder, n - i)
             out = _chunk(ctx, prev, prev_ev, cost[-1][prev_idx], goals[i - 1],
                          goals[i:i + m], turns[i - 1:i - 1 + m], reach, obstacles, s, deadline)
             if out is None:
