@@ -128,6 +128,8 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument('--paths', type=int, default=200)
     parser.add_argument('--seed', type=int, default=2024)
+    parser.add_argument('--num-paths', type=int, default=4,
+                        help='ranked paths asked of ours (the peers give one)')
     args = parser.parse_args()
     torch.set_num_threads(1)
     ik = SelectiveIK.load('panda')
@@ -140,7 +142,8 @@ def main() -> None:
         pose = k % 2 == 0
         q_cur = rng.uniform(robot.lower, robot.upper)
         t0 = time.perf_counter()
-        res = ik.solve_path(pos, quats if pose else None, seed=q_cur, timeout=10.0)
+        res = ik.solve_path(pos, quats if pose else None, seed=q_cur, timeout=10.0,
+                            num_paths=args.num_paths)
         t_ours = time.perf_counter() - t0
         t0 = time.perf_counter()
         if pose:
@@ -156,7 +159,8 @@ def main() -> None:
                      'travel_peer': travel(q_peer), 'n': len(pos)})
     print(f'# bench/paths.py: {args.paths} Panda paths (seed {args.seed}), lines and arcs of '
           f'10-60 cm, 20-60 waypoints, solved from a random current state; success = every '
-          f'waypoint exact and no joint step above {STEP} rad')
+          f'waypoint exact and no joint step above {STEP} rad; ours asked for '
+          f'{args.num_paths} ranked path(s)')
     print('| paths | length | n | ours: success | peer | peer: success | time ours / peer '
           '(median, ms) | ratio (median) | travel ours / peer where both succeed (median, rad) |')
     print('|---|---|---|---|---|---|---|---|---|')

@@ -328,8 +328,17 @@ def _chunk(ctx: Context, q: np.ndarray, ev: Evaluation, cost0: np.ndarray, ga: G
     if rot is not None:
         move[0, :, 3:] = rotation_log(rot[0] @ ev.r.transpose(0, 2, 1))
         move[1:, :, 3:] = rotation_log(rot[1:] @ rot[:-1].transpose(0, 2, 1))[:, None]
+    djac = ev.djac
+    fresh = ~djac.any(axis=(1, 2))
+    if fresh.any():
+        # new tracks (starts) carry no change of their Jacobian yet: it is measured one step
+        # ahead, so that their steps too are predicted to second order
+        ahead = dls_step(ev.jac[fresh, :dims], move[0, fresh], cfg.damping ** 2, np.eye(dims))
+        djac = djac.copy()
+        djac[fresh] = robot.jacobian_loop(np.clip(q[fresh] + ahead, robot.lower, robot.upper),
+                                          ctx.data)[2] - ev.jac[fresh]
     mid = (np.arange(m) + 0.5)[:, None, None, None]
-    jac = (ev.jac[None, :, :dims] + mid * ev.djac[None, :, :dims]).reshape(m * t, dims, n)
+    jac = (ev.jac[None, :, :dims] + mid * djac[None, :, :dims]).reshape(m * t, dims, n)
     dq = dls_step(jac, move.reshape(m * t, dims), cfg.damping ** 2, np.eye(dims))
     guess = np.clip(q + np.cumsum(dq.reshape(m, t, n), axis=0), robot.lower, robot.upper)
     flat = guess.reshape(m * t, n)
