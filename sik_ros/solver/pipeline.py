@@ -104,9 +104,12 @@ def solve(ctx: Context, goal: Goal, num: int, q_seed: Optional[np.ndarray],
           deadline: Optional[float], first_found: bool = False) -> IKResult:
     """Ranked solutions for one checked goal (see the module's stages).
 
-    With ``first_found`` refinement stops at the first distinct exact solutions even with a
-    seed (then ranked by it), as it does without one: the seed's own row may be left
-    unfinished (a path's starts follow the seed onto the goal on their own).
+    With ``first_found`` (a path's starts) refinement stops at the first ``num`` distinct
+    exact solutions even with a seed (then ranked by it): the seed's own row may be left
+    unfinished (a path's starts follow the seed onto the goal on their own). Their posture
+    indices are left unknown (NaN) unless obstacles need them (Algorithm 2). Paired on 300
+    Panda position paths, the ``num`` without the usual spare ones and no indices: 0.94x the
+    time, the same paths.
     """
     cfg = ctx.config
     # a goal far from every position in the data is out of reach: answer quickly
@@ -125,7 +128,7 @@ def solve(ctx: Context, goal: Goal, num: int, q_seed: Optional[np.ndarray],
         # good as any: stop refining once there are enough
         enough = None if ((q_seed is not None and not first_found) or obstacles
                           or objective is not None or cfg.early_stop_margin < 0) \
-            else num + spare(cfg, num)
+            else num + (0 if first_found else spare(cfg, num))
         if seeds is not None:
             c = Candidates.concat(c, seed_starts(ctx, goal, seeds, cfg.seed_starts,
                                                  c.z.shape[1]))
@@ -174,7 +177,8 @@ def solve(ctx: Context, goal: Goal, num: int, q_seed: Optional[np.ndarray],
         more = best_distinct(more.take(more.exact), cfg.distinct_threshold,
                              ctx.ignores_last(goal.kind))
         sols = rank(ctx, more, q_seed, obstacles, objective, limit=num, deadline=deadline)
-    fill_indices(ctx, goal, sols)
+    if not first_found or obstacles:
+        fill_indices(ctx, goal, sols)
     if obstacles and refined and not any(s.converged and not s.in_collision for s in sols) \
             and not past(deadline):
         extra = adjust_index(ctx, goal, sols, obstacles, deadline)
