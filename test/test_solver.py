@@ -391,3 +391,26 @@ def test_a_goal_whose_first_solutions_all_collide_gets_a_free_one(panda, ik):
     assert free
     assert not ik.checker.self_collision(np.array([s.q for s in free])).any()
     check_solutions(panda, ik, res, pos)
+
+
+def test_restarts_for_free_solutions_leave_obstacles_to_algorithm_2(ik, targets, monkeypatch):
+    """Solutions that all touch an obstacle (not the arm itself) get no free-solution restarts.
+
+    Algorithm 2 (adjusting the index) is the answer to obstacles; the restarts are for goals
+    whose solutions collide with the arm itself.
+    """
+    import importlib
+    pipeline = importlib.import_module('sik_ros.solver.pipeline')
+    calls, restart = [], pipeline.restart
+
+    def counting(*args, **kwargs):
+        calls.append(kwargs.get('keep'))
+        return restart(*args, **kwargs)
+    monkeypatch.setattr(pipeline, 'restart', counting)
+    _, pos, _ = targets
+    shoulder = Obstacle('sphere', (0.25,), (0.0, 0.0, 0.333))  # every posture passes through it
+    res = ik.solve(pos[0], num_solutions=4, obstacles=[shoulder])
+    exact = [s for s in res.solutions if s.converged]
+    assert exact and all(s.min_obstacle_distance <= 0 for s in exact)
+    assert not any(s.self_collision for s in exact)
+    assert pipeline.FREE_RESTARTS not in calls

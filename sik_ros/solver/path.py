@@ -34,7 +34,7 @@ from sik_ros.chain import SerialChain
 from sik_ros.collision import Obstacle
 from sik_ros.rotations import rotation_angle, rotation_log
 from sik_ros.solver import pipeline  # noqa: I100 (a sibling module, not the package)
-from sik_ros.solver.context import Context, Goal
+from sik_ros.solver.context import Context, Goal, POSITION
 from sik_ros.solver.ranking import distinct_mask
 from sik_ros.solver.refine import dls_step, Evaluation, follow
 
@@ -100,46 +100,49 @@ class PathSettings:
     """How a path is planned (see :meth:`SelectiveIK.solve_path`).
 
     ``starts``: distinct solutions asked for at the first waypoint (and where every track is
-    lost); ``tracks``: the beam, the cheapest candidates kept per waypoint (both at least
-    ``num_paths``); ``ladder``: every ``ladder``-th waypoint is joined to the previous one by
-    the whole ladder (tracks may switch, merge, be refilled by new starts); the waypoints
-    between are solved in one batch, each track continuing itself (:func:`_chunk`).
-    :meth:`for_paths` takes them from :data:`POSE_BEAM` or :data:`POSITION_BEAM`.
+    lost); ``tracks``: the beam, the cheapest candidates kept per waypoint (both raised to
+    ``num_paths`` when below it); ``ladder``: every ``ladder``-th waypoint is joined to the
+    previous one by the whole ladder (tracks may switch, merge, be refilled by new starts); the
+    waypoints between are solved in one batch, each track continuing itself (:func:`_chunk`).
+    The defaults are :data:`POSE_BEAM`'s; :meth:`for_paths` takes them from :data:`POSE_BEAM`
+    or :data:`POSITION_BEAM` by the paths' kind.
     """
 
     num_paths: int = 4
     max_joint_step: float = 0.3
     path_tolerance: float = 0.005
     orientation_path_tolerance: float = 0.05
-    starts: int = 10
-    tracks: int = 10
-    ladder: int = 16
+    starts: int = POSE_BEAM['starts']
+    tracks: int = POSE_BEAM['tracks']
+    ladder: int = POSE_BEAM['ladder']
     seed_weight: float = 1.0
+
+    def __post_init__(self):
+        """Starts and tracks enough for ``num_paths`` paths from distinct starts."""
+        object.__setattr__(self, 'starts', max(self.starts, self.num_paths))
+        object.__setattr__(self, 'tracks', max(self.tracks, self.num_paths))
 
     @classmethod
     def for_paths(cls, pose: bool, **kw) -> 'PathSettings':
         """The settings of pose paths (``pose``) or position paths, the beam by their kind."""
-        beam = dict(POSE_BEAM if pose else POSITION_BEAM)
-        beam.update(kw)
-        num = beam.get('num_paths', cls.num_paths)
-        beam['starts'], beam['tracks'] = max(beam['starts'], num), max(beam['tracks'], num)
-        return cls(**beam)
+        return cls(**{**(POSE_BEAM if pose else POSITION_BEAM), **kw})
 
 
 def _starts(ctx: Context, goal: Goal, q_seed, obstacles, count: int,
             deadline) -> Tuple[np.ndarray, Evaluation]:
-    """Distinct exact configurations at a waypoint, ranked by the seed, and their evaluations.
+    """Distinct exact configurations at a waypoint, free of collisions, and their evaluations.
 
-    A path should start near the current state (the seed). At a pose waypoint the solver
-    refines every candidate to its end (the seed's own row among them) for the solution
-    nearest the seed. At a position waypoint that was most of a path's time: there it stops
-    at the first distinct exact solutions, and the seed is followed onto the waypoint by
-    :func:`follow` alone. Measured (paired, against refining every candidate): 200 Panda
-    paths, position paths 0.90x the time, starting nearer the current state (2.38 against 2.47
-    rad, median) with the same travel; on 60 UR5 paths 0.90x (2.64 against 2.87 rad). Without
-    the seed's own row, stopping at the first solutions started Panda paths 3.2 rad from the
-    current state instead of 2.0 (median of 88 paths). Pose paths took 1.14x the time with
-    these starts.
+    A path should start near the current state (the seed). With a seed, at a pose waypoint the
+    solver refines every candidate to its end (the seed's own row among them) for the
+    solutions nearest the seed. At a position waypoint that was most of a path's time: there
+    it stops at the first distinct exact solutions (then ranked by the seed), and the seed is
+    followed onto the waypoint by :func:`follow` alone. Without a seed (new starts where every
+    track was lost) the solver's first distinct exact solutions, as for any goal. Measured
+    (paired, against refining every candidate): 200 Panda paths, position paths 0.90x the
+    time, starting nearer the current state (2.38 against 2.47 rad, median) with the same
+    travel; on 60 UR5 paths 0.90x (2.64 against 2.87 rad). Without the seed followed on its
+    own, stopping at the first solutions started Panda paths 3.2 rad from the current state
+    instead of 2.0 (median of 88 paths). Pose paths took 1.14x the time with these starts.
     """
     position = goal.rotation is None and q_seed is not None
     res = pipeline.solve(ctx, goal, count, q_seed, obstacles, True, None, deadline,
@@ -152,8 +155,11 @@ def _starts(ctx: Context, goal: Goal, q_seed, obstacles, count: int,
                                   ctx.config.refine_iterations, deadline)
         if len(near) and not ctx.checker.self_collision(near)[0] and (
                 not obstacles or ctx.checker.clearance(near, obstacles, deadline)[0] > 0):
+            # a new track: no change of its Jacobian from a previous waypoint (the one from
+            # the current state is no waypoint step)
+            near_ev = Evaluation(near_ev.p, near_ev.r, near_ev.jac, np.zeros_like(near_ev.jac))
             q, ev = np.concatenate([near, q]), Evaluation.concat(near_ev, ev)
-            keep = distinct_mask(q, ctx.config.distinct_threshold)
+            keep = distinct_mask(q, ctx.config.distinct_threshold, ctx.ignores_last(POSITION))
             q, ev = q[keep], ev.rows(keep)
     return q, ev
 
@@ -465,6 +471,8 @@ def solve_path(ctx: Context, goals: Sequence[Goal], q_seed: Optional[np.ndarray]
         ev = ev.rows(keep)
         tips.append((ev.p, ev.r))
         reached = i = i + 1
+    # a step that ran past the deadline (a solve, a clearance check) may have cut it short
+    timed_out = timed_out or (reached < n and pipeline.past(deadline))
     paths = _paths(ctx, goals, cand, back, cost, tips, obstacles, s)
     success = reached == n and bool(paths)
     fraction = reached / n if paths else 0.0

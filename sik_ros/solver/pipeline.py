@@ -8,7 +8,8 @@
    (arms with more than six joints); for six joints or fewer the other branches' starts join
    the first refinement (the seed table's configurations near the goal pose, or random ones);
 4. exact solutions first, one per distinct posture, with the 2 pi equivalents of periodic
-   joints, ranked (collisions, objective);
+   joints, ranked (collisions, objective); when every exact one collides with the arm itself
+   (goals close to the base), restarts for free ones;
 5. Algorithm 2 when obstacles leave no free exact solution.
 """
 
@@ -99,6 +100,26 @@ def fill_indices(ctx: Context, goal: Goal, sols: List[Solution]) -> None:
             s.posture_index = zi.astype(np.float32)
 
 
+def distinct_postures(ctx: Context, c: Candidates, goal: Goal,
+                      q_seed: Optional[np.ndarray]) -> Candidates:
+    """Stage 4 before ranking: the exact candidates (all when none is), one per posture.
+
+    With periodic joints, of a posture's 2 pi equivalents the one nearest the seed (or the
+    middle of the joint ranges) stays, and its equivalents within the limits are added.
+    """
+    cfg = ctx.config
+    if c.exact.any():  # with exact solutions, only exact ones are returned
+        c = c.take(c.exact)
+    c = best_distinct(c, cfg.distinct_threshold, ctx.ignores_last(goal.kind))
+    if ctx.robot.periodic.any():
+        centre = q_seed if q_seed is not None else (ctx.robot.lower + ctx.robot.upper) / 2
+        c = c.take(~same_postures(c.q, ctx.robot.periodic,
+                                  np.linalg.norm(c.q - centre, axis=1)))
+        c = best_distinct(periodic_equivalents(ctx, c), cfg.distinct_threshold,
+                          ctx.ignores_last(goal.kind))
+    return c
+
+
 def solve(ctx: Context, goal: Goal, num: int, q_seed: Optional[np.ndarray],
           obstacles: Sequence[Obstacle], refined: bool, objective: Optional[Objective],
           deadline: Optional[float], first_found: bool = False) -> IKResult:
@@ -125,7 +146,8 @@ def solve(ctx: Context, goal: Goal, num: int, q_seed: Optional[np.ndarray],
         # decoded postures that nearly coincide would refine to the same solution
         c = c.take(distinct_mask(c.q, cfg.distinct_threshold * 0.5, ctx.ignores_last(goal.kind)))
         # ranked by the default objective, the first distinct exact solutions found are as
-        # good as any: stop refining once there are enough
+        # good as any: stop refining once there are enough (with ``first_found`` also with a
+        # seed, the few found then ranked by it)
         enough = None if ((q_seed is not None and not first_found) or obstacles
                           or objective is not None or cfg.early_stop_margin < 0) \
             else num + (0 if first_found else spare(cfg, num))
@@ -158,25 +180,17 @@ def solve(ctx: Context, goal: Goal, num: int, q_seed: Optional[np.ndarray],
             c = walk(ctx, c, goal, deadline, num + max(margin, 0))
     else:
         c = assess(c.q, c.z, *errors(ctx, c.q, goal), goal.kind, cfg)
-    if c.exact.any():  # with exact solutions, only exact ones are returned
-        c = c.take(c.exact)
-    c = best_distinct(c, cfg.distinct_threshold, ctx.ignores_last(goal.kind))
-    if ctx.robot.periodic.any():
-        centre = q_seed if q_seed is not None else (ctx.robot.lower + ctx.robot.upper) / 2
-        c = c.take(~same_postures(c.q, ctx.robot.periodic,
-                                  np.linalg.norm(c.q - centre, axis=1)))
-        c = best_distinct(periodic_equivalents(ctx, c), cfg.distinct_threshold,
-                          ctx.ignores_last(goal.kind))
+    c = distinct_postures(ctx, c, goal, q_seed)
     sols = rank(ctx, c, q_seed, obstacles, objective, limit=num, deadline=deadline)
-    if refined and c.exact.any() and not any(s.converged and not s.in_collision for s in sols) \
-            and not past(deadline):
-        # every exact solution found touches the arm itself or an obstacle (goals close to
-        # the base): refine perturbed copies and random configurations for a free one
+    if refined and c.exact.any() and not past(deadline) and \
+            all(s.self_collision for s in sols if s.converged):
+        # every exact solution found touches the arm itself (goals close to the base):
+        # refine perturbed copies and random configurations for a free one (obstacles are
+        # Algorithm 2's, below)
         more, cut = restart(ctx, c, goal, deadline, keep=FREE_RESTARTS)
         timed_out = timed_out or cut
-        more = best_distinct(more.take(more.exact), cfg.distinct_threshold,
-                             ctx.ignores_last(goal.kind))
-        sols = rank(ctx, more, q_seed, obstacles, objective, limit=num, deadline=deadline)
+        c = distinct_postures(ctx, more, goal, q_seed)
+        sols = rank(ctx, c, q_seed, obstacles, objective, limit=num, deadline=deadline)
     if not first_found or obstacles:
         fill_indices(ctx, goal, sols)
     if obstacles and refined and not any(s.converged and not s.in_collision for s in sols) \
