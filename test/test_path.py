@@ -262,3 +262,29 @@ def test_a_path_cut_short_by_its_timeout_says_so(ik, pose):
         res = ik.solve_path(pos, quat if pose else None, seed=Q0, timeout=timeout)
         assert res.success or (res.timed_out and res.message.startswith('timed out')), \
             (timeout, res.message)
+
+
+def test_a_position_path_the_narrow_beam_loses_is_planned_again_wider(ik, monkeypatch):
+    """Every track of the narrow position beam lost: the wide beam's get through.
+
+    A line from ``bench/paths.py``'s generator (seed 45, path 227), solved from its random
+    current state: the branch nearest that state cannot follow the line past its 14th waypoint
+    (nor can a DLS continuation from it), and the narrow beam's five starts all die there.
+    """
+    import sik_ros.solver.path as path_mod
+    direction = np.array([0.0223, -0.2550, -0.9667])
+    pos = np.array([0.0937, 0.1972, 0.8980]) + np.linspace(0, 0.2133, 29)[:, None] * \
+        (direction / np.linalg.norm(direction))
+    seed = np.array([-0.733, 0.008, -1.528, -1.544, 2.681, 0.567, 0.936])
+    plans, plan = [], path_mod._plan
+
+    def counting(*args):
+        out = plan(*args)
+        plans.append(out.success)
+        return out
+    monkeypatch.setattr(path_mod, '_plan', counting)
+    res = ik.solve_path(pos, seed=seed)
+    assert plans == [False, True]
+    assert res.success and res.fraction == 1.0
+    for path in res.paths:
+        check(ik, path, pos, None, 0.3)

@@ -223,15 +223,18 @@ class SelectiveIK:
         goals = check_path(positions, orientations, self.goals, self.config.max_waypoints)
         q_seed = None if seed is None else check_seed(self.robot, seed)
         obstacles = check_obstacles(obstacles, self.config.max_obstacles)
-        settings = PathSettings.for_paths(
-            orientations is not None,
-            num_paths=check_num_solutions(num_paths, self.config.max_solutions_cap),
-            max_joint_step=positive(max_joint_step, 'max_joint_step'),
-            path_tolerance=positive(path_tolerance, 'path_tolerance'))
+        given = dict(num_paths=check_num_solutions(num_paths, self.config.max_solutions_cap),
+                     max_joint_step=positive(max_joint_step, 'max_joint_step'),
+                     path_tolerance=positive(path_tolerance, 'path_tolerance'))
+        pose = orientations is not None
+        settings = PathSettings.for_paths(pose, **given)
+        # a position path that fails with its narrow beam is planned again with the wide one
+        wider = None if pose else PathSettings.for_paths(True, **given)
         timeout = seconds(timeout, 'timeout')
         deadline = None if timeout is None else t0 + timeout
         with self._lock:
-            result = _path.solve_path(self._ctx, goals, q_seed, obstacles, settings, deadline)
+            result = _path.solve_path(self._ctx, goals, q_seed, obstacles, settings, deadline,
+                                      wider)
         result.elapsed = time.perf_counter() - t0
         return result
 
