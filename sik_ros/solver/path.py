@@ -154,17 +154,22 @@ def _starts(ctx: Context, goal: Goal, q_seed, obstacles, count: int,
             # a new track: no change of its Jacobian from a previous waypoint (the one from
             # the current state is no waypoint step)
             near_ev = Evaluation(near_ev.p, near_ev.r, near_ev.jac, np.zeros_like(near_ev.jac))
-            q, ev = np.concatenate([near, q]), Evaluation.concat(near_ev, ev)
-            keep = distinct_mask(q, ctx.config.distinct_threshold, ctx.ignores_last(POSITION))
-            q, ev = q[keep], ev.rows(keep)
+            q, ev = _distinct_union(ctx, (near, near_ev), (q, ev))
         if len(q) < min(2, count) and not pipeline.past(deadline):
             # the first solutions found were few (most collide): all the solver's then, as at
             # a pose waypoint
-            more, more_ev = _solver_starts(ctx, goal, q_seed, obstacles, count, deadline, False)
-            q, ev = np.concatenate([q, more]), Evaluation.concat(ev, more_ev)
-            keep = distinct_mask(q, ctx.config.distinct_threshold, ctx.ignores_last(POSITION))
-            q, ev = q[keep], ev.rows(keep)
+            q, ev = _distinct_union(ctx, (q, ev), _solver_starts(ctx, goal, q_seed, obstacles,
+                                                                 count, deadline, False))
     return q, ev
+
+
+def _distinct_union(ctx: Context, *parts: Tuple[np.ndarray, Evaluation]
+                    ) -> Tuple[np.ndarray, Evaluation]:
+    """The rows of several position-waypoint starts, in order, one per distinct posture."""
+    q = np.concatenate([part[0] for part in parts])
+    ev = Evaluation.concat(*(part[1] for part in parts))
+    keep = distinct_mask(q, ctx.config.distinct_threshold, ctx.ignores_last(POSITION))
+    return q[keep], ev.rows(keep)
 
 
 def _solver_starts(ctx: Context, goal: Goal, q_seed, obstacles, count: int, deadline,
