@@ -228,8 +228,9 @@ class SelectiveIK:
                      path_tolerance=positive(path_tolerance, 'path_tolerance'))
         pose = orientations is not None
         settings = PathSettings.for_paths(pose, **given)
-        # a position path that fails with its narrow beam is planned again with the wide one
-        wider = None if pose else PathSettings.for_paths(True, **given)
+        # a position path that fails with its narrow beam is planned again with the wide one,
+        # from starts spread over the postures
+        wider = None if pose else PathSettings.for_paths(True, near_seed=False, **given)
         timeout = seconds(timeout, 'timeout')
         deadline = None if timeout is None else t0 + timeout
         with self._lock:

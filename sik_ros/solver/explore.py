@@ -28,19 +28,20 @@ def unindexed(q: np.ndarray, latent: int) -> np.ndarray:
     return np.full((len(q), latent), np.nan)
 
 
-def restart(ctx: Context, c: Candidates, goal: Goal, deadline, keep: int = 8
-            ) -> Tuple[Candidates, bool]:
+def restart(ctx: Context, c: Candidates, goal: Goal, deadline, keep: int = 8,
+            stream: int = 0) -> Tuple[Candidates, bool]:
     """``c`` and new candidates from perturbed copies of its best and from random ones.
 
-    The perturbations come from a random stream fixed per target, so answers stay
-    deterministic.
+    The perturbations come from a random stream fixed per target (and ``stream``, for rounds
+    that should draw anew), so answers stay deterministic.
 
     Returns:
         all candidates, and whether the deadline cut the refinement short.
     """
     robot = ctx.robot
     best = np.argsort(pose_score(c.perr, c.oerr))[:keep]
-    rng = np.random.default_rng(zlib.crc32(goal.position.tobytes()))
+    key = zlib.crc32(goal.position.tobytes())
+    rng = np.random.default_rng(key if stream == 0 else [key, stream])
     span = robot.upper - robot.lower
     q2 = np.concatenate([c.q[best] + rng.normal(0, 0.15, (len(best), c.q.shape[1])) * span,
                          rng.uniform(robot.lower, robot.upper, (keep, c.q.shape[1]))])

@@ -44,6 +44,9 @@ EDGE_CHECKS = (0.25, 0.5, 0.75)
 #: Most refinement steps of a track onto its next waypoint (a few suffice from a step away).
 TRACK_ITERATIONS = 10
 
+#: Table postures nearest the seed among which a position path's starts are chosen.
+NEAR_POOL = 48
+
 #: The beam of pose paths (see :class:`PathSettings`). Measured (paired, Panda): 12 starts
 #: instead of 16 with 12 tracks, 0.95-0.97x the time on 240 paths; then 10 and 10, another
 #: 0.93-0.96x on 440 paths, with the same success and travel within 2 %; 8 and 8 were faster
@@ -104,8 +107,10 @@ class PathSettings:
     ``num_paths`` when below it); ``ladder``: every ``ladder``-th waypoint is joined to the
     previous one by the whole ladder (tracks may switch, merge, be refilled by new starts); the
     waypoints between are solved in one batch, each track continuing itself (:func:`_chunk`).
-    The defaults are :data:`POSE_BEAM`'s; :meth:`for_paths` takes them from :data:`POSE_BEAM`
-    or :data:`POSITION_BEAM` by the paths' kind.
+    ``near_seed``: a position path with a seed starts from the seed and the table's postures
+    nearest it (else from the seed and the solver's first solutions, spread over the
+    postures: :func:`_starts`). The defaults are :data:`POSE_BEAM`'s; :meth:`for_paths`
+    takes them from :data:`POSE_BEAM` or :data:`POSITION_BEAM` by the paths' kind.
     """
 
     num_paths: int = 4
@@ -116,6 +121,7 @@ class PathSettings:
     tracks: int = POSE_BEAM['tracks']
     ladder: int = POSE_BEAM['ladder']
     seed_weight: float = 1.0
+    near_seed: bool = True
 
     def __post_init__(self):
         """Starts and tracks enough for ``num_paths`` paths from distinct starts."""
@@ -128,39 +134,79 @@ class PathSettings:
         return cls(**{**(POSE_BEAM if pose else POSITION_BEAM), **kw})
 
 
-def _starts(ctx: Context, goal: Goal, q_seed, obstacles, count: int,
-            deadline) -> Tuple[np.ndarray, Evaluation]:
+def _starts(ctx: Context, goal: Goal, q_seed, obstacles, count: int, deadline,
+            near_seed: bool = True) -> Tuple[np.ndarray, Evaluation]:
     """Distinct exact configurations at a waypoint, free of collisions, and their evaluations.
 
-    A path should start near the current state (the seed). With a seed, at a pose waypoint the
+    A path should start near the current state (the seed). At a pose waypoint with a seed the
     solver refines every candidate to its end (the seed's own row among them) for the
-    solutions nearest the seed. At a position waypoint that was most of a path's time: there
-    it stops at the first distinct exact solutions (then ranked by the seed), and the seed is
-    followed onto the waypoint by :func:`follow` alone. Without a seed (new starts where every
-    track was lost) the solver's first distinct exact solutions, as for any goal. Measured
-    (paired, against refining every candidate): 200 Panda paths, position paths 0.90x the
-    time, starting nearer the current state (2.38 against 2.47 rad, median) with the same
-    travel; on 60 UR5 paths 0.90x (2.64 against 2.87 rad). Without the seed followed on its
-    own, stopping at the first solutions started Panda paths 3.2 rad from the current state
-    instead of 2.0 (median of 88 paths). Pose paths took 1.14x the time with these starts.
+    solutions nearest the seed. At a position waypoint with a seed the seed itself and the
+    table's postures nearest it (:func:`_near_seed`) are followed onto the waypoint together
+    (:func:`_followed`): no decoding or ranking, the rows already near the goal and the
+    seed. Without ``near_seed`` (or postures in the table), for starts spread over the
+    postures (a wider beam's second try), the seed followed and the solver's first distinct
+    exact solutions. Without a seed (new starts where every track was lost) the solver's
+    first distinct exact solutions, as for any goal.
+
+    Measured (paired, against the solver's first distinct exact solutions and the seed
+    followed alone): 300 Panda position paths, 0.69x the time, the same success, travel
+    0.809 against 0.853 rad and starts 2.28 against 2.55 rad from the current state
+    (medians); 150 paths each on the UR5, xArm7 and Kinova, 0.56x, 0.62x and 0.64x the time,
+    the same success and start distance, travel +1 %, +1 % and +5 %. Before that, the
+    solver's first solutions without the seed followed on its own started Panda paths 3.2
+    rad from the current state instead of 2.0 (median of 88 paths); pose paths took 1.14x
+    the time with the first solutions instead of all.
     """
-    position = goal.rotation is None and q_seed is not None
-    q, ev = _solver_starts(ctx, goal, q_seed, obstacles, count, deadline, position)
-    if position:
-        _, near, near_ev = follow(ctx, q_seed[None], Evaluation.of(ctx, q_seed[None]), goal,
-                                  ctx.config.refine_iterations, deadline)
-        if len(near) and not ctx.checker.self_collision(near)[0] and (
-                not obstacles or ctx.checker.clearance(near, obstacles, deadline)[0] > 0):
-            # a new track: no change of its Jacobian from a previous waypoint (the one from
-            # the current state is no waypoint step)
-            near_ev = Evaluation(near_ev.p, near_ev.r, near_ev.jac, np.zeros_like(near_ev.jac))
-            q, ev = _distinct_union(ctx, (near, near_ev), (q, ev))
-        if len(q) < min(2, count) and not pipeline.past(deadline):
-            # the first solutions found were few (most collide): all the solver's then, as at
-            # a pose waypoint
-            q, ev = _distinct_union(ctx, (q, ev), _solver_starts(ctx, goal, q_seed, obstacles,
-                                                                 count, deadline, False))
+    if goal.rotation is not None or q_seed is None:
+        return _solver_starts(ctx, goal, q_seed, obstacles, count, deadline, False)
+    near = _near_seed(ctx, goal, q_seed, count) if near_seed else None
+    rows = q_seed[None] if near is None else np.concatenate([q_seed[None], near])
+    parts = [_followed(ctx, rows, goal, obstacles, deadline)]
+    if near is None:
+        parts.append(_solver_starts(ctx, goal, q_seed, obstacles, count, deadline, True))
+    q, ev = _distinct_union(ctx, *parts)
+    if len(q) < min(2, count) and not pipeline.past(deadline):
+        # few of them reached the waypoint free of collisions: all the solver's then, as at a
+        # pose waypoint
+        q, ev = _distinct_union(ctx, (q, ev), _solver_starts(ctx, goal, q_seed, obstacles,
+                                                             count, deadline, False))
     return q, ev
+
+
+def _near_seed(ctx: Context, goal: Goal, q_seed: np.ndarray, count: int
+               ) -> Optional[np.ndarray]:
+    """Up to ``count - 1`` of the table's postures near a position goal, nearest the seed.
+
+    The postures decoded at the cells nearest the goal (the table's cached ones) are a few
+    refinement steps from it; of the :data:`NEAR_POOL` nearest the seed (L2 over the joints),
+    greedily those distinct from the seed and from each other. None when the table keeps no
+    postures.
+    """
+    table = ctx.models[POSITION].table
+    if table.postures is None or not ctx.config.cached_postures:
+        return None
+    rows = table.rows_near(goal.position, ctx.config.k_cells)
+    q = np.clip(table.postures[rows].astype(np.float64), ctx.robot.lower, ctx.robot.upper)
+    q = q[np.argsort(np.linalg.norm(q - q_seed, axis=1), kind='stable')[:NEAR_POOL]]
+    q = np.concatenate([q_seed[None], q])
+    keep = distinct_mask(q, ctx.config.distinct_threshold, ctx.ignores_last(POSITION))
+    return q[1:][keep[1:]][:count - 1]
+
+
+def _followed(ctx: Context, q: np.ndarray, goal: Goal, obstacles,
+              deadline) -> Tuple[np.ndarray, Evaluation]:
+    """The rows of ``q`` that :func:`follow` takes onto ``goal`` free of collisions.
+
+    They start tracks: no change of their Jacobian from a previous waypoint (the one from the
+    current state or a table posture is no waypoint step).
+    """
+    _, q, ev = follow(ctx, q, Evaluation.of(ctx, q), goal, ctx.config.refine_iterations,
+                      deadline)
+    free = ~ctx.checker.self_collision(q)
+    if obstacles and free.any():
+        free[free] = ctx.checker.clearance(q[free], obstacles, deadline) > 0
+    ev = ev.rows(free)
+    return q[free], Evaluation(ev.p, ev.r, ev.jac, np.zeros_like(ev.jac))
 
 
 def _distinct_union(ctx: Context, *parts: Tuple[np.ndarray, Evaluation]
@@ -421,8 +467,10 @@ def solve_path(ctx: Context, goals: Sequence[Goal], q_seed: Optional[np.ndarray]
 
     When the path fails within its time and ``wider`` is given (a wider beam), it is planned
     again with it, and the answer that reaches further is returned: a narrow beam of position
-    paths seldom loses every track, but when it does, the tracks of a wider one may be on a
-    branch that gets through (measured: 2 of 150 Panda position paths, both solved again).
+    paths seldom loses every track, but when it does, the tracks of a wider one, from starts
+    spread over the postures (``wider.near_seed`` False), may be on a branch that gets
+    through (measured: 6 of 600 Panda position paths, 1 when the narrow beam too started
+    from the solver's solutions; each solved again).
     """
     result = _plan(ctx, goals, q_seed, obstacles, s, deadline)
     if result.success or result.timed_out or wider is None:
@@ -454,7 +502,7 @@ def _plan(ctx: Context, goals: Sequence[Goal], q_seed: Optional[np.ndarray],
             timed_out = True
             break
         if i == 0:
-            q, ev = _starts(ctx, goal, q_seed, obstacles, s.starts, deadline)
+            q, ev = _starts(ctx, goal, q_seed, obstacles, s.starts, deadline, s.near_seed)
             c0 = np.zeros(len(q)) if q_seed is None else \
                 s.seed_weight * np.linalg.norm(q - q_seed, axis=1)
             if len(q) == 0:
