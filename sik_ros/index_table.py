@@ -124,17 +124,27 @@ class PriorTable:
         raise InvalidArgument('a prior table keeps no orientations')
 
 
+#: Rows up to which :func:`farthest_point_subset` computes every pair's distance at once.
+PAIRWISE_ROWS = 1024
+
+
 def farthest_point_subset(points: np.ndarray, k: int, first: int = 0) -> np.ndarray:
     """Indices of ``k`` rows of ``points`` chosen greedily far apart (farthest-point sampling)."""
     n = len(points)
     if n <= k:
         return np.arange(n)
+    # a few hundred rows (a solve's candidates): every pair's distance in one call, instead
+    # of one call per pick; more (a table's cells when built): a row of distances per pick
+    pairs = cdist(points, points) if n <= PAIRWISE_ROWS else None
+
+    def row(i: int) -> np.ndarray:
+        return pairs[i] if pairs is not None else cdist(points[i:i + 1], points)[0]
     chosen = [first]
-    dist = cdist(points[first:first + 1], points)[0]
+    dist = row(first).copy()
     for _ in range(k - 1):
         i = int(np.argmax(dist))
         chosen.append(i)
-        np.minimum(dist, cdist(points[i:i + 1], points)[0], out=dist)
+        np.minimum(dist, row(i), out=dist)
     return np.array(chosen)
 
 

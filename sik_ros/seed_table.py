@@ -80,10 +80,13 @@ class SeedTable:
         dist, rows = self.tree.query(np.concatenate([position, QUATERNION_SCALE * quat]), k=k)
         dist, rows = np.atleast_1d(dist), np.atleast_1d(rows)
         # a quaternion and its negative are one rotation (the table's have w >= 0): the other
-        # sign, only as near as the k-th found, matters for goals with w near 0
-        d2, r2 = self.tree.query(np.concatenate([position, -QUATERNION_SCALE * quat]), k=k,
-                                 distance_upper_bound=float(dist[-1]))
-        found = np.isfinite(np.atleast_1d(d2))
+        # sign, only as near as the k-th found, matters for goals with w near 0 (every row is
+        # at least ``scale * w`` from it, so it is looked up only when that is nearer)
+        found = np.zeros(0, dtype=bool)
+        if QUATERNION_SCALE * quat[3] < dist[-1]:
+            d2, r2 = self.tree.query(np.concatenate([position, -QUATERNION_SCALE * quat]),
+                                     k=k, distance_upper_bound=float(dist[-1]))
+            found = np.isfinite(np.atleast_1d(d2))
         if found.any():
             dist = np.concatenate([dist, np.atleast_1d(d2)[found]])
             rows = np.concatenate([rows, np.atleast_1d(r2)[found]])

@@ -102,7 +102,8 @@ def same_postures(q: np.ndarray, periodic: np.ndarray, key: np.ndarray,
     if not periodic.any() or len(q) < 2:
         return np.zeros(len(q), dtype=bool)
     d = q[:, None] - q[None]
-    d[..., periodic] = np.angle(np.exp(1j * d[..., periodic]))
+    turns = d[..., periodic]
+    d[..., periodic] = turns - 2 * np.pi * np.round(turns / (2 * np.pi))
     close = np.abs(d).max(axis=2) < tol
     rank = np.argsort(np.argsort(key, kind='stable'), kind='stable')
     return (close & (rank[None, :] < rank[:, None])).any(axis=1)
