@@ -54,8 +54,10 @@ class SeedTable:
         self.manifest = manifest
         p, quat = robot.fk_batch(self.q)
         # fk_batch's quaternions have w >= 0 (each rotation has two)
+        # leaves of 32 rows: look-ups 0.86x the time of the default 16's on a UR5 table (the
+        # same rows found)
         self.tree = cKDTree(np.concatenate([p, QUATERNION_SCALE * quat], axis=1),
-                            balanced_tree=False, compact_nodes=False)
+                            leafsize=32, balanced_tree=False, compact_nodes=False)
 
     def __len__(self) -> int:
         """Number of configurations."""
