@@ -169,3 +169,25 @@ def test_build_model_reads_a_plain_urdf(ur5):
     model = build_model(ur5.urdf_path)
     assert [model.joints[j].shortname() for j in range(1, model.njoints)][:2] == [
         'JointModelRZ', 'JointModelRY']
+
+
+def test_position_path_starts_take_the_turns_nearest_the_seed(ur5_bundle, ur5):
+    """A position path's table postures take the 2 pi turns nearest the seed.
+
+    Each periodic joint within its limits, as a brute force over the turns finds.
+    """
+    import sik_ros.solver.path as path_mod
+    from sik_ros.solver.context import Goal
+    from sik_ros.solver.explore import nearest_turns
+    ik = SelectiveIK.load(ur5_bundle[0])
+    rng = np.random.default_rng(3)
+    for q in rng.uniform(ur5.lower, ur5.upper, (5, 6)):
+        seed = rng.uniform(ur5.lower, ur5.upper)
+        near = path_mod._near_seed(ik._ctx, Goal(ur5.fk(q)[0]), seed, 4)
+        assert len(near)
+        for row in near:
+            for j in range(6):
+                turns = row[j] + 2 * np.pi * np.arange(-2, 3)
+                turns = turns[(turns >= ur5.lower[j] - 1e-9) & (turns <= ur5.upper[j] + 1e-9)]
+                assert abs(row[j] - seed[j]) <= np.abs(turns - seed[j]).min() + 1e-9
+        np.testing.assert_array_equal(nearest_turns(ik._ctx, near, seed), near)

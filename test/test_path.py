@@ -289,3 +289,54 @@ def test_a_position_path_the_narrow_beam_loses_is_planned_again_wider(ik, monkey
     assert res.success and res.fraction == 1.0
     for path in res.paths:
         check(ik, path, pos, None, 0.3)
+
+
+def test_position_starts_are_the_seed_and_the_table_postures_nearest_it(ik):
+    """A position path's starts: the seed followed onto the waypoint, then table postures.
+
+    Every start exact, free of self-collision and distinct; the table's postures taken
+    nearest the seed, with the seed's own last joint (it only turns the tool about its axis).
+    Without them (``near_seed`` False, the wider beam's second try), or with a table that
+    keeps no postures, the solver's solutions join the seed's.
+    """
+    import sik_ros.solver.path as path_mod
+    from sik_ros.solver.context import Goal
+    from sik_ros.solver.refine import Evaluation, follow
+    ctx = ik._ctx
+    seed = np.array([1.0, 0.5, -0.8, -1.5, 0.4, 2.6, -1.2])
+    goal = Goal(ik.fk(Q0)[0])
+    near = path_mod._near_seed(ctx, goal, seed, 4)
+    assert len(near) == 3
+    assert np.all(near[:, -1] == seed[-1])
+    gaps = np.linalg.norm(near - seed, axis=1)
+    assert np.all(np.diff(gaps) >= 0)
+    _, alone, _ = follow(ctx, seed[None], Evaluation.of(ctx, seed[None]), goal,
+                         path_mod.START_ITERATIONS)
+    # the seed and three table postures; the seed and the solver's first four
+    for (q, _), most in ((path_mod._starts(ctx, goal, seed, [], 4, None), 4),
+                         (path_mod._starts(ctx, goal, seed, [], 4, None, near_seed=False), 5),
+                         (path_mod._starts(ik.with_config(cached_postures=False)._ctx, goal,
+                                           seed, [], 4, None), 5)):
+        assert 2 <= len(q) <= most
+        np.testing.assert_allclose(q[0], alone[0])
+        p, _ = chain_forward(ik.robot.chain, q)
+        assert np.linalg.norm(p - goal.position, axis=1).max() <= ik.config.position_tolerance
+        assert not ik.checker.self_collision(q).any()
+        d = np.linalg.norm(q[:, None, :-1] - q[None, :, :-1], axis=2) + 9 * np.eye(len(q))
+        assert d.min() >= ik.config.distinct_threshold
+
+
+def test_position_starts_keep_clear_of_obstacles(ik):
+    """A box where the seed's own start would be: no start touches it."""
+    import sik_ros.solver.path as path_mod
+    from sik_ros.solver.context import Goal
+    ctx = ik._ctx
+    seed = np.array([1.0, 0.5, -0.8, -1.5, 0.4, 2.6, -1.2])
+    goal = Goal(ik.fk(Q0)[0])
+    free, _ = path_mod._starts(ctx, goal, seed, [], 4, None)
+    _, _, origins, _ = chain_forward(ik.robot.chain, free[:1], frames=True)
+    box = Obstacle('box', (0.1, 0.1, 0.1), tuple(origins[0, 3]))
+    assert ik.checker.clearance(free[:1], [box])[0] <= 0
+    q, _ = path_mod._starts(ctx, goal, seed, [box], 4, None)
+    assert len(q) >= 2
+    assert np.all(ik.checker.clearance(q, [box]) > 0)

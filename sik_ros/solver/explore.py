@@ -102,6 +102,28 @@ def periodic_equivalents(ctx: Context, c: Candidates, per_solution: int = 16) ->
                       out.exact)
 
 
+def nearest_turns(ctx: Context, q: np.ndarray, target: np.ndarray) -> np.ndarray:
+    """``q`` (M, n) with periodic joints turned by 2 pi turns to their values nearest ``target``.
+
+    Each periodic joint takes, of its 2 pi equivalents within the limits, the one nearest
+    ``target`` (n,): the same placements of the arm.
+    """
+    periodic = ctx.robot.periodic
+    if not periodic.any() or len(q) == 0:
+        return q
+    lo, hi = ctx.robot.lower[periodic], ctx.robot.upper[periodic]
+    v = q[:, periodic]
+    base = v + 2 * np.pi * np.round((target[periodic] - v) / (2 * np.pi))
+    options = base[None] + 2 * np.pi * np.array([0.0, -1.0, 1.0])[:, None, None]  # (3, M, p)
+    fits = (options >= lo - 1e-9) & (options <= hi + 1e-9)
+    gap = np.where(fits, np.abs(options - target[periodic]), np.inf)
+    best = np.argmin(gap, axis=0)
+    chosen = np.take_along_axis(options, best[None], axis=0)[0]
+    out = q.copy()
+    out[:, periodic] = np.where(np.isfinite(gap.min(axis=0)), chosen, v)
+    return out
+
+
 @functools.lru_cache(maxsize=16)
 def _turn_patterns(periodic: Tuple[bool, ...]) -> np.ndarray:
     """Shifts (P, n) [rad] that turn one, then two, periodic joints by +-2 pi."""
