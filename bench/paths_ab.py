@@ -7,7 +7,8 @@ both alike. Paths come from ``bench/paths.py``'s generator (lines and arcs, ever
 with the tool orientation held), each solved from a random current state. Prints, per goal
 kind and checkout, whole-path success, the median time per path, the median of the per-path
 time ratios to the first checkout, and the median travel, largest step and distance of the
-start from the current state (L2 over the joints) of the best path.
+start from the current state (L2 over the joints) of the best path; the travel also path by
+path against the first checkout's, on the paths both solve.
 
     python bench/paths_ab.py --paths 80 old=/path/to/other/checkout new=.
 """
@@ -75,17 +76,23 @@ def main() -> None:
     ref = answers[first]
     print(f'# bench/paths_ab.py: {args.paths} paths of {args.bundle} (seed {args.seed}), A B A B')
     print('| checkout | paths | success | time per path (median) | ratio to '
-          f'{first} (median) | travel (median) | max step (median) | from the current state '
+          f'{first} (median) | travel (median) | travel path by path to {first}\'s (mean '
+          'ratio; longer / shorter by 1 %) | max step (median) | from the current state '
           '(median) |')
-    print('|---|---|---|---|---|---|---|---|')
+    print('|---|---|---|---|---|---|---|---|---|')
     for name in answers:
         for pose in (True, False):
             rows = [(a, b) for a, b in zip(answers[name], ref) if a['pose'] == pose]
+            # travel path by path, where both solve it (and the reference moves at all)
+            both = np.array([a['travel'] / b['travel'] for a, b in rows
+                             if a['ok'] and b['ok'] and b['travel'] > 0])
             print(f'| {name} | {"pose" if pose else "position"} '
                   f'| {100 * np.mean([a["ok"] for a, _ in rows]):.1f} % '
                   f'| {np.median([a["t"] for a, _ in rows]):.1f} ms '
                   f'| {np.median([a["t"] / b["t"] for a, b in rows]):.3f} '
                   f'| {np.nanmedian([a["travel"] for a, _ in rows]):.3f} rad '
+                  f'| {both.mean():.3f}; {100 * np.mean(both > 1.01):.0f} / '
+                  f'{100 * np.mean(both < 0.99):.0f} % '
                   f'| {np.nanmedian([a["step"] for a, _ in rows]):.3f} rad '
                   f'| {np.nanmedian([a["start"] for a, _ in rows]):.2f} rad |')
 
