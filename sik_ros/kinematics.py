@@ -260,10 +260,13 @@ class Robot:
         fid = self._tip_id
         frame = np.empty((len(q), 4, 4))
         jac = np.empty((len(q), 6, self.dof))
+        # a live reference to the tip's placement in ``data``: looked up once, not per row
+        # (the look-up cost as much as the Jacobian)
+        tip = data.oMf[fid]
         for i, qi in enumerate(q):
             # also places the frame (data.oMf[fid]) for the configuration
             jac[i] = pin.computeFrameJacobian(self.model, data, qi, fid, pin.LOCAL_WORLD_ALIGNED)
-            frame[i] = data.oMf[fid].homogeneous
+            frame[i] = tip.homogeneous
         pos, rot = frame[:, :3, 3], frame[:, :3, :3]
         if not self._base_is_world:
             rb, tb = self.chain.base_rotation, self.chain.base_translation
@@ -280,10 +283,11 @@ class Robot:
         fid = self._tip_id
         pos = np.empty((len(q), 3))
         rot = np.empty((len(q), 3, 3))
+        tip = data.oMf[fid]  # a live reference, as in :meth:`jacobian_loop`
         for i, qi in enumerate(q):
             pin.framesForwardKinematics(self.model, data, qi)
-            pos[i] = data.oMf[fid].translation
-            rot[i] = data.oMf[fid].rotation
+            pos[i] = tip.translation
+            rot[i] = tip.rotation
         if not self._base_is_world:
             rb, tb = self.chain.base_rotation, self.chain.base_translation
             pos = pos @ rb.T + tb
