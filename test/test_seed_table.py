@@ -9,7 +9,9 @@ import pytest
 from sik_ros.bundle import add_to_bundle, load_bundle
 from sik_ros.dataset import collect
 from sik_ros.errors import ArtifactMismatch, CorruptArtifact, InvalidArgument
-from sik_ros.seed_table import default_rows, NEIGHBOURS, QUATERNION_SCALE, SeedTable
+from sik_ros.robots import load_robot
+from sik_ros.seed_table import (base_turn, default_rows, NEIGHBOURS, QUATERNION_SCALE,
+                                SeedTable)
 
 
 @pytest.fixture(scope='module')
@@ -46,8 +48,9 @@ def test_starts_are_the_nearest_rows_by_tip_pose_and_far_apart(ur5, table):
     angles = np.concatenate([np.cos(starts), np.sin(starts)], axis=1)
     gaps = np.linalg.norm(angles[:, None] - angles[None], axis=2) + 9 * np.eye(12)
     assert gaps.min() > 0.3
-    # every start is among the 100 nearest rows by tip pose (position, 0.3 x quaternion,
-    # either sign of it)
+    # every start is as near the goal by tip pose (position, 0.3 x quaternion, either sign of
+    # it) as the 100th nearest row: the rows, turned about the base axis to the goal's
+    # azimuth, only come nearer
 
     def distance(q):
         pos, qt = ur5.fk_batch(q)
@@ -145,3 +148,27 @@ def test_isolated_pose_solutions_from_the_seed_table_or_random_starts(ur5_bundle
 def test_only_arms_of_six_joints_or_fewer_get_one_by_default(ur5, panda):
     """Redundant arms walk their self-motion instead: no seed table unless asked for."""
     assert default_rows(ur5) > 0 and default_rows(panda) is None
+
+
+def test_starts_turn_with_the_goal_about_the_base_axis(ur5, table):
+    """A goal turned about the base's z axis starts from the same rows, joint 1 turned alike."""
+    assert base_turn(ur5) == 1.0
+    q0 = np.array([0.4, -1.1, 1.3, -0.9, 1.2, 0.3])
+    p, quat = ur5.fk(q0)
+    starts = table.starts(p, quat, 8)
+    q1 = q0.copy()
+    q1[0] += 1.0
+    p1, quat1 = ur5.fk(q1)
+    turned = table.starts(p1, quat1, 8)
+    step = np.angle(np.exp(1j * (turned - starts)))  # joint 1 may be a whole turn apart
+    np.testing.assert_allclose(step[:, 0], 1.0, atol=1e-9)
+    np.testing.assert_allclose(step[:, 1:], 0.0, atol=1e-9)
+    assert np.all(turned >= ur5.lower) and np.all(turned <= ur5.upper)
+    # their tips are the goal's neighbours: 3,000 rows serve every azimuth
+    reached, _ = ur5.fk_batch(turned)
+    assert np.median(np.linalg.norm(reached - p1, axis=1)) < 0.25
+
+
+def test_an_arm_not_turned_by_its_first_joint_keeps_plain_keys():
+    """The SO-100's first joint does not turn it about the base's z axis: no turn is assumed."""
+    assert base_turn(load_robot('so100')) == 0.0
