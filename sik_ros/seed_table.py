@@ -15,14 +15,16 @@ Measured on a UR5 bundle (100 pose goals, paired, ``docs/benchmarks.md``): 24 su
 reach 6.5 branches per goal in 0.62x the time that 48 uniform random starts and the position
 model's oriented postures took to reach 5.9.
 
-Most arms' first joint turns the whole arm about the base's z axis (:func:`base_turn`): a pose
-turned about that axis is reached by turning the first joint alike. For them every row is
-keyed by its tip pose turned to azimuth 0 (onto the half-plane y = 0, :func:`turned`), its
-first joint turned back with it, and a goal is looked up turned alike; the rows found get the
-goal's azimuth on their first joint. Every row then serves every azimuth: the same table is
+An arm's first joint turns the whole arm about its own axis, a line fixed to the base
+(:func:`first_axis`): a pose turned about that line is reached by turning the first joint
+alike. Every row is keyed by its tip pose in a frame along that axis (:func:`to_axis_frame`)
+turned to azimuth 0 (onto the half-plane y = 0, :func:`turned`), its first joint turned back
+with it, and a goal is looked up turned alike; the rows found get the goal's azimuth on their
+first joint. Every row then serves every azimuth: the same table is
 one dimension denser. Measured (paired, 300 pose goals, ``bench/solve_ab.py``): the starts
 4.6 cm and 0.47 rad from the goal (median) instead of 9.7 cm and 0.71 rad; UR5 calls 0.90x
-the time with 6.41 branches instead of 6.36, Kinova 0.89x with 6.27 instead of 6.19.
+the time with 6.41 branches instead of 6.36, Kinova 0.89x with 6.27 instead of 6.19; the
+SO-100 (its first axis 4.5 cm off the base's z axis) 0.93x, the same solutions found.
 """
 
 import json
@@ -35,10 +37,12 @@ from scipy.spatial import cKDTree
 
 from sik_ros.artifacts import (atomic_write, check_robot_manifest, FORMAT_VERSION, range_codes,
                                range_values)
+from sik_ros.chain import chain_forward
 from sik_ros.dataset import Dataset
 from sik_ros.errors import ArtifactMismatch, CorruptArtifact, InvalidArgument
 from sik_ros.index_table import farthest_point_subset
 from sik_ros.kinematics import Robot
+from sik_ros.rotations import rotation_to_quaternion, z_to_axis
 
 #: Configurations a seed table keeps by default (6 MB for 6 joints; 250,000 reach nearly as many
 #: branches on the UR5: 6.8 against 6.9 of 60 goals).
@@ -48,7 +52,7 @@ DEFAULT_ROWS = 500_000
 QUATERNION_SCALE = 0.3
 #: Nearest configurations by tip pose that the far-apart starts are chosen among.
 NEIGHBOURS = 100
-#: The turn [rad] of the first joint with which :func:`base_turn` checks an arm.
+#: The turn [rad] of the first joint with which :func:`first_axis` checks an arm.
 BASE_CHECK_ANGLE = 0.7
 
 
@@ -65,17 +69,18 @@ class SeedTable:
         self.manifest = manifest
         self._lower, self._upper = robot.lower[0], robot.upper[0]
         p, quat = robot.fk_batch(self.q)
-        # an arm whose first joint turns it about the base's z axis (most do) reaches a pose
-        # turned about that axis by turning its first joint alike: rows are keyed by their
-        # tip poses turned onto the half-plane y = 0 (azimuth 0), their first joint turned
-        # back with them, so every row serves every azimuth
-        self._turn = base_turn(robot)
+        # the first joint turns the whole arm about its own axis, fixed to the base: a pose
+        # turned about that axis is reached by turning the first joint alike. Rows are keyed
+        # by their tip poses in a frame along that axis, turned to azimuth 0 (the half-plane
+        # y = 0), their first joint turned back with them: every row serves every azimuth
+        self._axis = first_axis(robot)
         self._base_q = self.q
-        if self._turn:
+        if self._axis is not None:
+            p, quat = to_axis_frame(self._axis, p, quat)
             azimuth = np.arctan2(p[:, 1], p[:, 0])
             p, quat = turned(p, quat, -azimuth)
             self._base_q = self.q.copy()
-            self._base_q[:, 0] -= self._turn * azimuth
+            self._base_q[:, 0] -= azimuth
         # leaves of 32 rows: look-ups 0.86x the time of the default 16's on a UR5 table (the
         # same rows found)
         self.tree = cKDTree(np.concatenate([p, QUATERNION_SCALE * quat], axis=1),
@@ -101,9 +106,10 @@ class SeedTable:
         quat = np.asarray(quaternion, dtype=float)
         position = np.asarray(position, dtype=float)
         azimuth = 0.0
-        if self._turn:
-            azimuth = float(np.arctan2(position[1], position[0]))
-            p1, q1 = turned(position[None], quat[None], np.array([-azimuth]))
+        if self._axis is not None:
+            p1, q1 = to_axis_frame(self._axis, position[None], quat[None])
+            azimuth = float(np.arctan2(p1[0, 1], p1[0, 0]))
+            p1, q1 = turned(p1, q1, np.array([-azimuth]))
             position, quat = p1[0], q1[0]
         quat = -quat if quat[3] < 0 else quat  # as the table's
         dist, rows = self.tree.query(np.concatenate([position, QUATERNION_SCALE * quat]), k=k)
@@ -122,9 +128,9 @@ class SeedTable:
             rows = rows[np.argsort(dist, kind='stable')]                 # nearest first
             rows = rows[np.sort(np.unique(rows, return_index=True)[1])][:k]  # each row once
         q = self._base_q[rows]
-        if self._turn:
+        if self._axis is not None:
             q = q.copy()
-            q[:, 0] += self._turn * azimuth
+            q[:, 0] += azimuth
             # the first joint back within its limits by a whole turn where one does it
             q[q[:, 0] < self._lower, 0] += 2 * np.pi
             q[q[:, 0] > self._upper, 0] -= 2 * np.pi
@@ -205,24 +211,39 @@ class SeedTable:
         return cls(robot, range_values(codes, robot.lower, robot.upper), manifest)
 
 
-def base_turn(robot: Robot) -> float:
-    """+1 or -1 when turning the first joint turns the whole arm about the base's z axis, else 0.
+def first_axis(robot: Robot) -> Optional[Tuple[np.ndarray, np.ndarray]]:
+    """The first joint's axis as a frame: origin (3,) and rotation (3, 3) whose z is the axis.
 
-    Checked on a few fixed configurations: the tip poses with the first joint turned by an
-    angle equal the tip poses turned by it (+1) or by its opposite (-1) about z.
+    A revolute first joint turns the whole arm about this line, fixed to the base. Checked on
+    a few fixed configurations (the tip poses with the first joint turned by
+    :data:`BASE_CHECK_ANGLE` equal the tip poses turned about the line); None if they differ.
     """
-    rng = np.random.default_rng(0)
-    q = rng.uniform(robot.lower, robot.upper, (8, robot.dof))
-    p, quat = robot.fk_batch(q)
+    zero = np.zeros((1, robot.dof))
+    _, _, origins, axes = chain_forward(robot.chain, zero, frames=True)
+    origin, axis = origins[0, 0], axes[0, 0] / np.linalg.norm(axes[0, 0])
+    frame = (origin, z_to_axis(axis))
+    q = np.random.default_rng(0).uniform(robot.lower, robot.upper, (8, robot.dof))
     moved = q.copy()
     moved[:, 0] += BASE_CHECK_ANGLE
-    p2, quat2 = robot.fk_batch(moved)
-    for sign in (1.0, -1.0):
-        pt, qt = turned(p, quat, np.full(len(q), sign * BASE_CHECK_ANGLE))
-        if np.allclose(pt, p2, atol=1e-9) and np.allclose(
-                np.abs(np.einsum('ij,ij->i', qt, quat2)), 1.0, atol=1e-9):
-            return sign
-    return 0.0
+    p, quat = to_axis_frame(frame, *robot.fk_batch(q))
+    p2, quat2 = to_axis_frame(frame, *robot.fk_batch(moved))
+    pt, qt = turned(p, quat, np.full(len(q), BASE_CHECK_ANGLE))
+    if np.allclose(pt, p2, atol=1e-9) and np.allclose(
+            np.abs(np.einsum('ij,ij->i', qt, quat2)), 1.0, atol=1e-9):
+        return frame
+    return None
+
+
+def to_axis_frame(frame: Tuple[np.ndarray, np.ndarray], p: np.ndarray, quat: np.ndarray
+                  ) -> Tuple[np.ndarray, np.ndarray]:
+    """Positions (N, 3) and quaternions (N, 4, x y z w) in ``frame`` (origin, rotation)."""
+    origin, rot = frame
+    c = rotation_to_quaternion(rot.T[None])[0]  # the frame's inverse, x y z w
+    cx, cy, cz, cw = c
+    x, y, z, w = quat.T
+    q = np.stack([cw * x + cx * w + cy * z - cz * y, cw * y - cx * z + cy * w + cz * x,
+                  cw * z + cx * y - cy * x + cz * w, cw * w - cx * x - cy * y - cz * z], axis=1)
+    return (p - origin) @ rot, q
 
 
 def turned(p: np.ndarray, quat: np.ndarray, angle: np.ndarray

@@ -10,7 +10,7 @@ from sik_ros.bundle import add_to_bundle, load_bundle
 from sik_ros.dataset import collect
 from sik_ros.errors import ArtifactMismatch, CorruptArtifact, InvalidArgument
 from sik_ros.robots import load_robot
-from sik_ros.seed_table import (base_turn, default_rows, NEIGHBOURS, QUATERNION_SCALE,
+from sik_ros.seed_table import (default_rows, first_axis, NEIGHBOURS, QUATERNION_SCALE,
                                 SeedTable)
 
 
@@ -150,9 +150,11 @@ def test_only_arms_of_six_joints_or_fewer_get_one_by_default(ur5, panda):
     assert default_rows(ur5) > 0 and default_rows(panda) is None
 
 
-def test_starts_turn_with_the_goal_about_the_base_axis(ur5, table):
-    """A goal turned about the base's z axis starts from the same rows, joint 1 turned alike."""
-    assert base_turn(ur5) == 1.0
+def test_starts_turn_with_the_goal_about_the_first_axis(ur5, table):
+    """A goal turned about the first joint's axis starts from the same rows, joint 1 turned."""
+    origin, rot = first_axis(ur5)
+    np.testing.assert_allclose(origin[:2], 0.0, atol=1e-12)  # the UR5's: the base's z axis
+    np.testing.assert_allclose(rot[:, 2], [0.0, 0.0, 1.0], atol=1e-12)
     q0 = np.array([0.4, -1.1, 1.3, -0.9, 1.2, 0.3])
     p, quat = ur5.fk(q0)
     starts = table.starts(p, quat, 8)
@@ -169,6 +171,16 @@ def test_starts_turn_with_the_goal_about_the_base_axis(ur5, table):
     assert np.median(np.linalg.norm(reached - p1, axis=1)) < 0.25
 
 
-def test_an_arm_not_turned_by_its_first_joint_keeps_plain_keys():
-    """The SO-100's first joint does not turn it about the base's z axis: no turn is assumed."""
-    assert base_turn(load_robot('so100')) == 0.0
+def test_a_first_axis_off_the_base_origin_is_found_and_turns_the_arm():
+    """The SO-100's first joint turns it about a line 4.5 cm off the base's z axis."""
+    from sik_ros.seed_table import to_axis_frame, turned
+    so100 = load_robot('so100')
+    frame = first_axis(so100)
+    assert frame is not None and abs(frame[0][1]) > 0.04
+    q = np.random.default_rng(8).uniform(so100.lower, so100.upper, (20, so100.dof))
+    moved = q.copy()
+    moved[:, 0] += 0.3
+    p, quat = turned(*to_axis_frame(frame, *so100.fk_batch(q)), np.full(20, 0.3))
+    p2, quat2 = to_axis_frame(frame, *so100.fk_batch(moved))
+    np.testing.assert_allclose(p, p2, atol=1e-9)
+    np.testing.assert_allclose(np.abs(np.einsum('ij,ij->i', quat, quat2)), 1.0, atol=1e-9)
