@@ -86,13 +86,13 @@ def main() -> None:
             # travel path by path, where both solve it (and the reference moves at all)
             both = np.array([a['travel'] / b['travel'] for a, b in rows
                              if a['ok'] and b['ok'] and b['travel'] > 0])
+            paired = (f'{both.mean():.3f}; {100 * np.mean(both > 1.01):.0f} / '
+                      f'{100 * np.mean(both < 0.99):.0f} %' if len(both) else '—')
             print(f'| {name} | {"pose" if pose else "position"} '
                   f'| {100 * np.mean([a["ok"] for a, _ in rows]):.1f} % '
                   f'| {np.median([a["t"] for a, _ in rows]):.1f} ms '
                   f'| {np.median([a["t"] / b["t"] for a, b in rows]):.3f} '
-                  f'| {np.nanmedian([a["travel"] for a, _ in rows]):.3f} rad '
-                  f'| {both.mean():.3f}; {100 * np.mean(both > 1.01):.0f} / '
-                  f'{100 * np.mean(both < 0.99):.0f} % '
+                  f'| {np.nanmedian([a["travel"] for a, _ in rows]):.3f} rad | {paired} '
                   f'| {np.nanmedian([a["step"] for a, _ in rows]):.3f} rad '
                   f'| {np.nanmedian([a["start"] for a, _ in rows]):.2f} rad |')
 

@@ -23,8 +23,10 @@ with it, and a goal is looked up turned alike; the rows found get the goal's azi
 first joint. Every row then serves every azimuth: the same table is
 one dimension denser. Measured (paired, 300 pose goals, ``bench/solve_ab.py``): the starts
 4.6 cm and 0.47 rad from the goal (median) instead of 9.7 cm and 0.71 rad; UR5 calls 0.90x
-the time with 6.41 branches instead of 6.36, Kinova 0.89x with 6.27 instead of 6.19; the
-SO-100 (its first axis 4.5 cm off the base's z axis) 0.93x, the same solutions found.
+the time with 6.41 branches instead of 6.36, Kinova 0.89x with 6.27 instead of 6.19. A first
+joint short of a whole turn (the SO-100's spans 4 rad) cannot take every goal's azimuth: the
+look-up goes further until it has ``neighbours`` rows that can (the same time as without the
+keys, 1.00x, the same solutions found).
 """
 
 import json
@@ -97,7 +99,8 @@ class SeedTable:
         Args:
             position: goal position (3,) [m] in the base frame.
             quaternion: goal orientation, a unit quaternion x y z w (either sign).
-            count: configurations wanted (fewer when the table is smaller).
+            count: configurations wanted (fewer when the table is smaller, or its rows'
+                first joints cannot take the goal's azimuth).
             neighbours: nearest configurations (by tip pose) the far-apart ones come from.
         """
         k = min(neighbours, len(self.q))
@@ -112,33 +115,50 @@ class SeedTable:
             p1, q1 = turned(p1, q1, np.array([-azimuth]))
             position, quat = p1[0], q1[0]
         quat = -quat if quat[3] < 0 else quat  # as the table's
-        dist, rows = self.tree.query(np.concatenate([position, QUATERNION_SCALE * quat]), k=k)
-        dist, rows = np.atleast_1d(dist), np.atleast_1d(rows)
-        # a quaternion and its negative are one rotation (the table's have w >= 0): the other
-        # sign, only as near as the k-th found, matters for goals with w near 0 (every row is
-        # at least ``scale * w`` from it, so it is looked up only when that is nearer)
-        found = np.zeros(0, dtype=bool)
-        if QUATERNION_SCALE * quat[3] < dist[-1]:
-            d2, r2 = self.tree.query(np.concatenate([position, -QUATERNION_SCALE * quat]),
-                                     k=k, distance_upper_bound=float(dist[-1]))
-            found = np.isfinite(np.atleast_1d(d2))
-        if found.any():
-            dist = np.concatenate([dist, np.atleast_1d(d2)[found]])
-            rows = np.concatenate([rows, np.atleast_1d(r2)[found]])
-            rows = rows[np.argsort(dist, kind='stable')]                 # nearest first
-            rows = rows[np.sort(np.unique(rows, return_index=True)[1])][:k]  # each row once
-        q = self._base_q[rows]
-        if self._axis is not None:
+        key = np.concatenate([position, QUATERNION_SCALE * quat])
+        # rows whose first joint cannot take the goal's azimuth within its limits are left
+        # out: look further until ``k`` of them can (a first joint short of a whole turn)
+        wanted = k
+        while True:
+            rows = self._nearest(key, wanted)
+            q = self._base_q[rows]
+            if self._axis is None:
+                break
             q = q.copy()
             q[:, 0] += azimuth
             # the first joint back within its limits by a whole turn where one does it
-            q[q[:, 0] < self._lower, 0] += 2 * np.pi
-            q[q[:, 0] > self._upper, 0] -= 2 * np.pi
-            q = q[(q[:, 0] >= self._lower) & (q[:, 0] <= self._upper)]
+            q[q[:, 0] < self._lower - 1e-9, 0] += 2 * np.pi
+            q[q[:, 0] > self._upper + 1e-9, 0] -= 2 * np.pi
+            fits = (q[:, 0] >= self._lower - 1e-9) & (q[:, 0] <= self._upper + 1e-9)
+            if fits.sum() >= k or wanted >= len(self.q):
+                q = q[fits][:k]
+                q[:, 0] = np.clip(q[:, 0], self._lower, self._upper)
+                break
+            wanted = min(2 * wanted, len(self.q))
         # far apart in joint space, an angle and its 2 pi equivalents alike
         pick = farthest_point_subset(np.concatenate([np.cos(q), np.sin(q)], axis=1),
-                                     min(count, len(rows)))
+                                     min(count, len(q)))
         return q[pick]
+
+    def _nearest(self, key: np.ndarray, k: int) -> np.ndarray:
+        """The ``k`` rows nearest a key (position, scale * quaternion with w >= 0), nearest first.
+
+        A quaternion and its negative are one rotation (the table's have w >= 0): the other
+        sign, only as near as the k-th found, matters for keys with w near 0 (every row is at
+        least ``scale * w`` from it, so it is looked up only when that is nearer).
+        """
+        dist, rows = self.tree.query(key, k=k)
+        dist, rows = np.atleast_1d(dist), np.atleast_1d(rows)
+        if key[6] < dist[-1]:
+            other = np.concatenate([key[:3], -key[3:]])
+            d2, r2 = self.tree.query(other, k=k, distance_upper_bound=float(dist[-1]))
+            found = np.isfinite(np.atleast_1d(d2))
+            if found.any():
+                dist = np.concatenate([dist, np.atleast_1d(d2)[found]])
+                rows = np.concatenate([rows, np.atleast_1d(r2)[found]])
+                rows = rows[np.argsort(dist, kind='stable')]                 # nearest first
+                rows = rows[np.sort(np.unique(rows, return_index=True)[1])][:k]  # each row once
+        return rows
 
     # -- building and files -----------------------------------------------------------------
 
@@ -214,9 +234,10 @@ class SeedTable:
 def first_axis(robot: Robot) -> Optional[Tuple[np.ndarray, np.ndarray]]:
     """The first joint's axis as a frame: origin (3,) and rotation (3, 3) whose z is the axis.
 
-    A revolute first joint turns the whole arm about this line, fixed to the base. Checked on
-    a few fixed configurations (the tip poses with the first joint turned by
-    :data:`BASE_CHECK_ANGLE` equal the tip poses turned about the line); None if they differ.
+    A revolute first joint turns the whole arm about this line, fixed to the base. A sanity
+    check on a few fixed configurations (the tip poses with the first joint turned by
+    :data:`BASE_CHECK_ANGLE` equal the tip poses turned about the line, to 1e-9); None if
+    they differ (it cannot for a serial chain of revolute joints).
     """
     zero = np.zeros((1, robot.dof))
     _, _, origins, axes = chain_forward(robot.chain, zero, frames=True)
@@ -228,8 +249,8 @@ def first_axis(robot: Robot) -> Optional[Tuple[np.ndarray, np.ndarray]]:
     p, quat = to_axis_frame(frame, *robot.fk_batch(q))
     p2, quat2 = to_axis_frame(frame, *robot.fk_batch(moved))
     pt, qt = turned(p, quat, np.full(len(q), BASE_CHECK_ANGLE))
-    if np.allclose(pt, p2, atol=1e-9) and np.allclose(
-            np.abs(np.einsum('ij,ij->i', qt, quat2)), 1.0, atol=1e-9):
+    if np.allclose(pt, p2, rtol=0, atol=1e-9) and np.allclose(
+            np.abs(np.einsum('ij,ij->i', qt, quat2)), 1.0, rtol=0, atol=1e-12):
         return frame
     return None
 

@@ -48,14 +48,23 @@ def test_starts_are_the_nearest_rows_by_tip_pose_and_far_apart(ur5, table):
     angles = np.concatenate([np.cos(starts), np.sin(starts)], axis=1)
     gaps = np.linalg.norm(angles[:, None] - angles[None], axis=2) + 9 * np.eye(12)
     assert gaps.min() > 0.3
-    # every start is as near the goal by tip pose (position, 0.3 x quaternion, either sign of
-    # it) as the 100th nearest row: the rows, turned about the base axis to the goal's
-    # azimuth, only come nearer
+    # every start is among the 100 rows nearest the goal in the table's key space: tip poses
+    # in a frame along the first joint's axis, turned to azimuth 0 (position, 0.3 x
+    # quaternion, either sign of it)
+    from sik_ros.seed_table import to_axis_frame, turned
+    frame = first_axis(ur5)
+
+    def keys(positions, quats):
+        pa, qa = to_axis_frame(frame, positions, quats)
+        pa, qa = turned(pa, qa, -np.arctan2(pa[:, 1], pa[:, 0]))
+        return np.concatenate([pa, QUATERNION_SCALE * qa], axis=1)
+
+    goal = keys(p[None], quat[None])[0]
 
     def distance(q):
-        pos, qt = ur5.fk_batch(q)
-        return np.min([np.linalg.norm(np.concatenate([pos - p, QUATERNION_SCALE * (qt - s * quat)],
-                                                     axis=1), axis=1) for s in (1, -1)], axis=0)
+        k = keys(*ur5.fk_batch(q))
+        return np.min([np.linalg.norm(k - np.concatenate([goal[:3], s * goal[3:]]), axis=1)
+                       for s in (1, -1)], axis=0)
     radius = np.sort(distance(table.q))[NEIGHBOURS - 1]
     assert distance(starts).max() <= radius + 1e-9
 
@@ -184,3 +193,29 @@ def test_a_first_axis_off_the_base_origin_is_found_and_turns_the_arm():
     p2, quat2 = to_axis_frame(frame, *so100.fk_batch(moved))
     np.testing.assert_allclose(p, p2, atol=1e-9)
     np.testing.assert_allclose(np.abs(np.einsum('ij,ij->i', quat, quat2)), 1.0, atol=1e-9)
+
+
+def test_a_first_joint_short_of_a_turn_still_gets_its_neighbours(monkeypatch, tmp_path):
+    """Rows whose first joint cannot take the goal's azimuth are replaced by farther ones.
+
+    The SO-100's first joint spans 4 rad: the rows nearest a goal in the turned keys that would
+    need joint 1 beyond its limits are left out, and the look-up goes further until it has
+    its ``neighbours`` rows (all within the limits).
+    """
+    import sik_ros.seed_table as seed_table
+    so100 = load_robot('so100')
+    data = collect(so100, tmp_path / 'so100', sampler='uniform', samples=6000, seed=5)
+    small = SeedTable.build(so100, data, rows=4000, seed=1)
+    pools, subset = [], seed_table.farthest_point_subset
+
+    def recording(points, k, *args):
+        pools.append(len(points))
+        return subset(points, k, *args)
+    monkeypatch.setattr(seed_table, 'farthest_point_subset', recording)
+    rng = np.random.default_rng(6)
+    for q in rng.uniform(so100.lower, so100.upper, (20, so100.dof)):
+        p, quat = so100.fk(q)
+        starts = small.starts(p, quat, 24, 100)
+        assert len(starts) == 24
+        assert np.all(starts >= so100.lower) and np.all(starts <= so100.upper)
+    assert pools == [100] * 20
