@@ -20,8 +20,7 @@ An arm's first joint turns the whole arm about its own axis, a line fixed to the
 alike. Every row is keyed by its tip pose in a frame along that axis (:func:`to_axis_frame`)
 turned to azimuth 0 (onto the half-plane y = 0, :func:`turned`), its first joint turned back
 with it, and a goal is looked up turned alike; the rows found get the goal's azimuth on their
-first joint. Every row then serves every azimuth: the same table is
-one dimension denser. Measured (paired, 300 pose goals, ``bench/solve_ab.py``): the starts
+first joint. Every row then serves every azimuth: the same table is one dimension denser. Measured (paired, 300 pose goals, ``bench/solve_ab.py``): the starts
 4.6 cm and 0.47 rad from the goal (median) instead of 9.7 cm and 0.71 rad; UR5 calls 0.90x
 the time with 6.41 branches instead of 6.36, Kinova 0.89x with 6.27 instead of 6.19. A first
 joint short of a whole turn (the SO-100's spans 4 rad) cannot take every goal's azimuth: the
@@ -78,7 +77,9 @@ class SeedTable:
         self._axis = first_axis(robot)
         self._base_q = self.q
         if self._axis is not None:
-            p, quat = to_axis_frame(self._axis, p, quat)
+            # the frame's inverse as a quaternion, once (a look-up would convert it every call)
+            self._inverse = rotation_to_quaternion(self._axis[1].T[None])[0]
+            p, quat = to_axis_frame(self._axis, p, quat, self._inverse)
             azimuth = np.arctan2(p[:, 1], p[:, 0])
             p, quat = turned(p, quat, -azimuth)
             self._base_q = self.q.copy()
@@ -110,7 +111,7 @@ class SeedTable:
         position = np.asarray(position, dtype=float)
         azimuth = 0.0
         if self._axis is not None:
-            p1, q1 = to_axis_frame(self._axis, position[None], quat[None])
+            p1, q1 = to_axis_frame(self._axis, position[None], quat[None], self._inverse)
             azimuth = float(np.arctan2(p1[0, 1], p1[0, 0]))
             p1, q1 = turned(p1, q1, np.array([-azimuth]))
             position, quat = p1[0], q1[0]
@@ -255,12 +256,16 @@ def first_axis(robot: Robot) -> Optional[Tuple[np.ndarray, np.ndarray]]:
     return None
 
 
-def to_axis_frame(frame: Tuple[np.ndarray, np.ndarray], p: np.ndarray, quat: np.ndarray
-                  ) -> Tuple[np.ndarray, np.ndarray]:
-    """Positions (N, 3) and quaternions (N, 4, x y z w) in ``frame`` (origin, rotation)."""
+def to_axis_frame(frame: Tuple[np.ndarray, np.ndarray], p: np.ndarray, quat: np.ndarray,
+                  inverse: Optional[np.ndarray] = None) -> Tuple[np.ndarray, np.ndarray]:
+    """Positions (N, 3) and quaternions (N, 4, x y z w) in ``frame`` (origin, rotation).
+
+    ``inverse``: the frame's inverse rotation as a quaternion (x y z w), when already known.
+    """
     origin, rot = frame
-    c = rotation_to_quaternion(rot.T[None])[0]  # the frame's inverse, x y z w
-    cx, cy, cz, cw = c
+    if inverse is None:
+        inverse = rotation_to_quaternion(rot.T[None])[0]
+    cx, cy, cz, cw = inverse
     x, y, z, w = quat.T
     q = np.stack([cw * x + cx * w + cy * z - cz * y, cw * y - cx * z + cy * w + cz * x,
                   cw * z + cx * y - cy * x + cz * w, cw * w - cx * x - cy * y - cz * z], axis=1)

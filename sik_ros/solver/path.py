@@ -152,11 +152,10 @@ def _starts(ctx: Context, goal: Goal, q_seed, obstacles, count: int, deadline,
     solutions nearest the seed. At a position waypoint with a seed the seed itself and the
     table's postures nearest it (:func:`_near_seed`) are followed onto the waypoint together
     (:func:`_followed`): no decoding or ranking, the rows already near the goal and the
-    seed. Without ``near_seed`` (or postures in the table, or with ``cached_postures``
-    off), for starts spread over the
-    postures (a wider beam's second try), the seed followed and the solver's first distinct
-    exact solutions. Without a seed (new starts where every track was lost) the solver's
-    first distinct exact solutions, as for any goal.
+    seed. Without ``near_seed`` (or postures in the table, or with ``cached_postures`` off),
+    for starts spread over the postures (a wider beam's second try), the seed followed and
+    the solver's first distinct exact solutions. Without a seed (new starts where every track
+    was lost) the solver's first distinct exact solutions, as for any goal.
 
     Measured (paired, against the solver's first distinct exact solutions and the seed
     followed alone): 300 Panda position paths, 0.69x the time, the same success, travel
@@ -165,10 +164,10 @@ def _starts(ctx: Context, goal: Goal, q_seed, obstacles, count: int, deadline,
     the same success and start distance, travel +1 %, +1 % and +5 %. Then the table
     postures' periodic joints turned nearest the seed and their last joint set to the seed's
     (a review found both): 0.95x on the Panda, starting 2.14 against 2.28 rad away (Kinova
-    2.37 against 2.52), travel within 2 %. Before that, the
-    solver's first solutions without the seed followed on its own started Panda paths 3.2
-    rad from the current state instead of 2.0 (median of 88 paths); pose paths took 1.14x
-    the time with the first solutions instead of all.
+    2.37 against 2.52), travel within 2 %. Before that, the solver's first solutions without
+    the seed followed on its own started Panda paths 3.2 rad from the current state instead
+    of 2.0 (median of 88 paths); pose paths took 1.14x the time with the first solutions
+    instead of all.
     """
     if goal.rotation is not None or q_seed is None:
         return _solver_starts(ctx, goal, q_seed, obstacles, count, deadline, False)
