@@ -20,12 +20,13 @@ An arm's first joint turns the whole arm about its own axis, a line fixed to the
 alike. Every row is keyed by its tip pose in a frame along that axis (:func:`to_axis_frame`)
 turned to azimuth 0 (onto the half-plane y = 0, :func:`turned`), its first joint turned back
 with it, and a goal is looked up turned alike; the rows found get the goal's azimuth on their
-first joint. Every row then serves every azimuth: the same table is one dimension denser. Measured (paired, 300 pose goals, ``bench/solve_ab.py``): the starts
-4.6 cm and 0.47 rad from the goal (median) instead of 9.7 cm and 0.71 rad; UR5 calls 0.90x
-the time with 6.41 branches instead of 6.36, Kinova 0.89x with 6.27 instead of 6.19. A first
-joint short of a whole turn (the SO-100's spans 4 rad) cannot take every goal's azimuth: the
-look-up goes further until it has ``neighbours`` rows that can (the same time as without the
-keys, 1.00x, the same solutions found).
+first joint. Every row then serves every azimuth: the same table is one dimension denser.
+Measured (paired, 300 pose goals, ``bench/solve_ab.py``): the starts 4.6 cm and 0.47 rad from
+the goal (median) instead of 9.7 cm and 0.71 rad; UR5 calls 0.90x the time with 6.41
+branches instead of 6.36, Kinova 0.89x with 6.27 instead of 6.19. A first joint short of a
+whole turn (the SO-100's spans 4 rad) cannot take every goal's azimuth: the look-up goes
+further until it has ``neighbours`` rows that can (the same time as without the keys, 1.00x,
+the same solutions found).
 """
 
 import json
