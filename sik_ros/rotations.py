@@ -27,7 +27,8 @@ def rotation_log(rot: np.ndarray) -> np.ndarray:
     """Rotation vectors (N, 3) [rad] of rotation matrices (N, 3, 3) (the SO(3) logarithm)."""
     v = 0.5 * (rot[:, _SKEW[0], _SKEW[1]] - rot[:, _SKEW[1], _SKEW[0]])
     sin = np.sqrt(np.einsum('ni,ni->n', v, v))
-    cos = np.clip((np.einsum('nii->n', rot) - 1) / 2, -1.0, 1.0)
+    # np.minimum(np.maximum()) as np.clip, without its wrapper's 5 us
+    cos = np.minimum(np.maximum((np.einsum('nii->n', rot) - 1) / 2, -1.0), 1.0)
     angle = np.arctan2(sin, cos)
     out = v * np.divide(angle, sin, out=np.ones_like(sin), where=sin > 1e-9)[:, None]
     near_pi = (sin < 1e-6) & (cos < 0)

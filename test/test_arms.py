@@ -191,3 +191,46 @@ def test_position_path_starts_take_the_turns_nearest_the_seed(ur5_bundle, ur5):
                 turns = turns[(turns >= ur5.lower[j] - 1e-9) & (turns <= ur5.upper[j] + 1e-9)]
                 assert abs(row[j] - seed[j]) <= np.abs(turns - seed[j]).min() + 1e-9
         np.testing.assert_array_equal(nearest_turns(ik._ctx, near, seed), near)
+
+
+def test_refinement_turns_a_periodic_joint_back_at_its_limit(ur5_bundle, ur5):
+    """A periodic joint stepping past its limit comes back by 2 pi; a path's steps clamp.
+
+    The start's wrist joint is 0.3 rad short of the goal's, turned by 2 pi to 6.2 rad, near
+    its 2 pi limit: refinement reaches the goal with that joint at the goal's own value (a
+    clamp at 2 pi held it there). Following a path (no joint may jump) still clamps.
+    """
+    from sik_ros.solver.refine import limited_step
+    ik = SelectiveIK.load(ur5_bundle[0])
+    goal_q = np.array([0.4, -1.2, 1.1, 0.217, 1.3, 0.6])
+    p, rot = ur5.fk_rot(goal_q[None])
+    start = goal_q.copy()
+    start[3] = 0.217 + 2 * np.pi - 0.3
+    assert start[3] < ur5.upper[3]
+    q, perr, oerr = ik.refine(start[None], p[0], rot[0])
+    assert perr[0] <= 1e-4 and oerr[0] <= 1e-3
+    assert abs(q[0, 3] - 0.217) < 1e-3 and np.all(q[0] <= ur5.upper)
+    # one step on the wrist joint alone, past the limit: turned back, or clamped
+    jac = np.zeros((1, 6, 6))
+    jac[0, 5, 3] = 1.0
+    err = np.array([[0, 0, 0, 0, 0, 0.3]])
+    turned = limited_step(ik._ctx, start[None], jac, err, 1e-6, np.eye(6), turn=True)
+    clamped = limited_step(ik._ctx, start[None], jac, err, 1e-6, np.eye(6))
+    assert turned[0, 3] == pytest.approx(0.217, abs=1e-3)
+    assert clamped[0, 3] == ur5.upper[3]
+
+
+def test_distinct_rows_with_periodic_joints_are_apart_however_turned():
+    """With ``periodic``, rows a whole turn apart are one posture; others by their distance."""
+    from sik_ros.solver.ranking import distinct_mask
+    periodic = np.array([True, True, False])
+    q = np.array([[0.1, 3.0, 0.0],
+                  [0.1 + 2 * np.pi, 3.0 - 2 * np.pi, 0.0],   # the first, turned: dropped
+                  [0.1, -3.1, 0.3],                         # 0.35 rad away, turned: dropped
+                  [0.1, 3.0, 0.6]])                         # 0.6 rad away: kept
+    np.testing.assert_array_equal(distinct_mask(q, 0.5), [True, True, True, True])
+    np.testing.assert_array_equal(distinct_mask(q, 0.5, periodic=periodic),
+                                  [True, False, False, True])
+    # the last joint left out (a tool roll at position goals): the last row joins the first
+    np.testing.assert_array_equal(distinct_mask(q, 0.5, True, periodic),
+                                  [True, False, False, False])

@@ -407,17 +407,29 @@ def restarts(monkeypatch):
     return calls
 
 
-def test_free_solution_restarts_draw_anew_when_a_round_finds_none(panda, ik, restarts):
-    """A second round of fresh draws finds the free solution the first round missed.
+def test_free_solution_restarts_draw_anew_when_a_round_finds_none(panda, ik, monkeypatch):
+    """A round of restarts that finds no free solution is followed by one of fresh draws.
 
-    The first waypoint of a feasible path (``bench/paths.py``'s generator, seed 2025, path
-    227; 14 cm from the base axis) from its random current state: every exact solution of the
-    call and of one round of restarts touches the arm itself.
+    A position goal 13 cm from the base axis (a configuration drawn at random, not touching
+    itself) from a random current state: every exact solution of the call touches the arm
+    itself. The first round of restarts is made to find nothing (its candidates dropped, as
+    when all of them touch the arm too: natural cases, such as the first waypoint of
+    ``bench/paths.py``'s seed 2025, path 227, became rare once refinement steps could be
+    0.6 rad); the second round draws anew and finds free solutions.
     """
-    pos = np.array([-0.0673401471665733, 0.12509609640506975, 0.27742936461149403])
-    seed = np.array([-1.594, -1.305, 1.334, -2.055, 1.801, 1.278, -2.588])
+    import importlib
+    pipeline = importlib.import_module('sik_ros.solver.pipeline')
+    streams, restart = [], pipeline.restart
+
+    def first_round_finds_nothing(ctx, c, *args, **kwargs):
+        streams.append(kwargs.get('stream'))
+        more, cut = restart(ctx, c, *args, **kwargs)
+        return (c if kwargs.get('stream') == 0 else more), cut
+    monkeypatch.setattr(pipeline, 'restart', first_round_finds_nothing)
+    pos = np.array([0.1082, -0.0702, 0.2527])
+    seed = np.array([1.192, 0.057, -2.011, -0.357, 1.543, 1.936, 2.602])
     res = ik.solve(pos, num_solutions=4, seed=seed)
-    assert [call.get('stream') for call in restarts][:2] == [0, 1]  # a second round
+    assert streams[:2] == [0, 1]  # a second round, of fresh draws
     free = [s for s in res.solutions if s.converged and not s.in_collision]
     assert free
     assert not ik.checker.self_collision(np.array([s.q for s in free])).any()

@@ -38,7 +38,10 @@ class SolverConfig:
             distinct decoded postures are returned, so a larger pool gives better raw answers.
         refine_iterations: most damped least squares iterations.
         damping: damping of the least squares steps.
-        max_step: largest joint change per iteration [rad].
+        max_step: largest joint change per iteration [rad]. 0.6 with ``stall_after`` 4:
+            paired on 300 UR5 and 200 Panda pose goals, 0.93x and 0.89x the time of 0.4 and 8
+            (UR5: 7.2 iterations a call instead of 9.2, the same branches; Panda: 15.06
+            distinct solutions against 15.08).
         distinct_threshold: solutions closer than this (L2 over the joints that move the tool
             centre point for position goals) are duplicates [rad].
         adjust_budget: decodes Algorithm 2 may spend adjusting an index.
@@ -98,7 +101,7 @@ class SolverConfig:
     raw_candidates: int = 192
     refine_iterations: int = 40
     damping: float = 1e-3
-    max_step: float = 0.4
+    max_step: float = 0.6
     distinct_threshold: float = 0.5
     adjust_budget: int = 24
     reach_margin: float = 0.15
@@ -107,7 +110,7 @@ class SolverConfig:
     prune_radius: float = 0.25
     stall_window: int = 3
     stall_ratio: float = 0.7
-    stall_after: int = 8
+    stall_after: int = 4
     early_stop_margin: int = 2
     cached_postures: bool = True
     walk_rounds: int = 6

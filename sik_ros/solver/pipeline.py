@@ -27,10 +27,10 @@ from sik_ros.solver.candidates import (oriented_postures, own_index, starting_po
 from sik_ros.solver.codec import decode, encode
 from sik_ros.solver.config import SolverConfig
 from sik_ros.solver.context import Context, Goal, POSE, POSITION
-from sik_ros.solver.explore import (branch_starts, periodic_equivalents, restart, seed_starts,
-                                    unindexed, walk)
-from sik_ros.solver.ranking import (assess, best_distinct, distinct_mask, merge, rank,
-                                    same_postures)
+from sik_ros.solver.explore import (branch_starts, nearest_turns, periodic_equivalents,
+                                    restart, seed_starts, unindexed, walk)
+from sik_ros.solver.ranking import (assess, best_distinct, by_score, distinct_mask, merge,
+                                    pose_score, rank)
 from sik_ros.solver.refine import errors, refine
 from sik_ros.solver.results import IKResult, Solution
 
@@ -107,20 +107,28 @@ def distinct_postures(ctx: Context, c: Candidates, goal: Goal,
                       q_seed: Optional[np.ndarray]) -> Candidates:
     """Stage 4 before ranking: the exact candidates (all when none is), one per posture.
 
-    With periodic joints, of a posture's 2 pi equivalents the one nearest the seed (or the
-    middle of the joint ranges) stays, and its equivalents within the limits are added.
+    With periodic joints each candidate first takes the 2 pi turns nearest the seed (or the
+    middle of the joint ranges), a posture found at several turns (from different starts)
+    is kept once, nearest the seed, and its equivalents within the limits are added.
     """
     cfg = ctx.config
     if c.exact.any():  # with exact solutions, only exact ones are returned
         c = c.take(c.exact)
-    c = best_distinct(c, cfg.distinct_threshold, ctx.ignores_last(goal.kind))
-    if ctx.robot.periodic.any():
-        centre = q_seed if q_seed is not None else (ctx.robot.lower + ctx.robot.upper) / 2
-        c = c.take(~same_postures(c.q, ctx.robot.periodic,
-                                  np.linalg.norm(c.q - centre, axis=1)))
-        c = best_distinct(periodic_equivalents(ctx, c), cfg.distinct_threshold,
-                          ctx.ignores_last(goal.kind))
-    return c
+    ignore_last = ctx.ignores_last(goal.kind)
+    periodic = ctx.robot.periodic
+    if not periodic.any():
+        return best_distinct(c, cfg.distinct_threshold, ignore_last)
+    centre = q_seed if q_seed is not None else (ctx.robot.lower + ctx.robot.upper) / 2
+    q = nearest_turns(ctx, c.q, centre)
+    # exact ones nearest the seed first (of nearly one posture, the one kept), then by score
+    near = np.linalg.norm(q - centre, axis=1)
+    c = Candidates(q, c.z, c.perr, c.oerr, c.exact).take(
+        np.lexsort((np.where(c.exact, near, pose_score(c.perr, c.oerr)), ~c.exact)))
+    c = c.take(distinct_mask(c.q, cfg.distinct_threshold, ignore_last, periodic))
+    c = periodic_equivalents(ctx, c)
+    # postures apart however turned: so are their equivalents (a whole turn from each other
+    # on some joint), unless that joint is the last one, left out of the distance
+    return best_distinct(c, cfg.distinct_threshold, ignore_last) if ignore_last else by_score(c)
 
 
 def solve(ctx: Context, goal: Goal, num: int, q_seed: Optional[np.ndarray],

@@ -47,26 +47,48 @@ def assess(q: np.ndarray, z: np.ndarray, perr: np.ndarray, oerr: np.ndarray, kin
     return Candidates(q, z, perr, oerr, converged(perr, oerr, kind, cfg))
 
 
-def distinct_mask(q: np.ndarray, threshold: float, ignore_last: bool = False) -> np.ndarray:
+def distinct_mask(q: np.ndarray, threshold: float, ignore_last: bool = False,
+                  periodic: Optional[np.ndarray] = None) -> np.ndarray:
     """Greedy keep-mask of rows (in their order) at least ``threshold`` apart [rad].
 
     With ``ignore_last`` the last joint is left out of the distance (for position goals, when
-    it only turns the tool about its own axis: :meth:`Context.ignores_last`).
+    it only turns the tool about its own axis: :meth:`Context.ignores_last`). With
+    ``periodic`` (n,) bool, those joints' differences are taken at their nearest 2 pi turns:
+    rows apart however turned.
     """
     cols = slice(0, q.shape[1] - 1) if ignore_last else slice(None)
-    near = cdist(q[:, cols], q[:, cols]) < threshold
-    mask = np.zeros(len(q), dtype=bool)
-    covered = np.zeros(len(q), dtype=bool)  # rows near an already kept one
-    for i in range(len(q)):
-        if not covered[i]:
-            mask[i] = True
-            covered |= near[i]
+    if periodic is not None and periodic.any():
+        d = turn_differences(q[:, cols], periodic[cols])
+        dist = np.sqrt(np.einsum('ijk,ijk->ij', d, d))
+    else:
+        dist = cdist(q[:, cols], q[:, cols])
+    # earlier[j, i]: row j, before row i, is near it
+    earlier = np.triu(dist < threshold, 1)
+    contested = earlier.any(axis=0)
+    mask = ~contested  # rows near no earlier one are kept whatever the others
+    # the others in order: kept unless near an earlier kept one (a Python step for each of
+    # these few only)
+    for i in np.flatnonzero(contested):
+        mask[i] = not (earlier[:i, i] & mask[:i]).any()
     return mask
+
+
+def turn_differences(q: np.ndarray, periodic: np.ndarray) -> np.ndarray:
+    """(M, M, n) pairwise differences of rows, periodic joints' 2 pi turns taken out."""
+    d = q[:, None] - q[None]
+    # times the mask, not a masked assignment: the other joints lose 0.0, at a third of the time
+    d -= np.rint(d * (0.5 / np.pi)) * (2 * np.pi * periodic)
+    return d
+
+
+def by_score(c: Candidates) -> Candidates:
+    """Exact candidates first, then by score."""
+    return c.take(np.lexsort((pose_score(c.perr, c.oerr), ~c.exact)))
 
 
 def best_distinct(c: Candidates, threshold: float, ignore_last: bool) -> Candidates:
     """Exact candidates first, then by score; one per distinct posture."""
-    c = c.take(np.lexsort((pose_score(c.perr, c.oerr), ~c.exact)))
+    c = by_score(c)
     return c.take(distinct_mask(c.q, threshold, ignore_last))
 
 
@@ -94,24 +116,6 @@ def equivalents(keys: np.ndarray, cost: np.ndarray) -> np.ndarray:
     out = np.ones(len(keys), dtype=bool)
     out[order[by_key[first]]] = False  # the cheapest row of each posture
     return out
-
-
-def same_postures(q: np.ndarray, periodic: np.ndarray, key: np.ndarray,
-                  tol: float = 1e-3) -> np.ndarray:
-    """(M,) bool: rows that are 2 pi equivalents, within ``tol`` [rad], of a row of lower ``key``.
-
-    The same posture found twice, from different starts, with periodic joints turns apart: the
-    row of lowest ``key`` (the nearest to the seed, or to the middle of the joint ranges) stays,
-    and the equivalents added afterwards (one or two joints turned) start from it.
-    """
-    if not periodic.any() or len(q) < 2:
-        return np.zeros(len(q), dtype=bool)
-    d = q[:, None] - q[None]
-    turns = d[..., periodic]
-    d[..., periodic] = turns - 2 * np.pi * np.round(turns / (2 * np.pi))
-    close = np.abs(d).max(axis=2) < tol
-    rank = np.argsort(np.argsort(key, kind='stable'), kind='stable')
-    return (close & (rank[None, :] < rank[:, None])).any(axis=1)
 
 
 def rank(ctx: Context, c: Candidates, q_seed: Optional[np.ndarray],
