@@ -128,10 +128,16 @@ class PriorTable:
 PAIRWISE_ROWS = 1024
 
 
-def farthest_point_subset(points: np.ndarray, k: int, first: int = 0) -> np.ndarray:
-    """Indices of ``k`` rows of ``points`` chosen greedily far apart (farthest-point sampling)."""
+def farthest_point_subset(points: np.ndarray, k: int, first: int = 0, spacing: float = 0.0,
+                          at_least: int = 1) -> np.ndarray:
+    """Indices of ``k`` rows of ``points`` chosen greedily far apart (farthest-point sampling).
+
+    With ``spacing`` > 0, fewer: once ``at_least`` rows are chosen, the choice stops when the
+    farthest row left is within ``spacing`` of a chosen one (every row left is then as near
+    one); a row equal to a chosen one is never chosen then.
+    """
     n = len(points)
-    if n <= k:
+    if n <= k and spacing <= 0:
         return np.arange(n)
     # a few hundred rows (a solve's candidates): every pair's distance in one call, instead
     # of one call per pick; more (a table's cells when built): a row of distances per pick
@@ -141,8 +147,10 @@ def farthest_point_subset(points: np.ndarray, k: int, first: int = 0) -> np.ndar
         return pairs[i] if pairs is not None else cdist(points[i:i + 1], points)[0]
     chosen = [first]
     dist = row(first).copy()
-    for _ in range(k - 1):
+    for _ in range(min(k, n) - 1):
         i = int(np.argmax(dist))
+        if spacing > 0 and (dist[i] <= 0 or (dist[i] < spacing and len(chosen) >= at_least)):
+            break
         chosen.append(i)
         np.minimum(dist, row(i), out=dist)
     return np.array(chosen)

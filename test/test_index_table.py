@@ -43,6 +43,22 @@ def test_farthest_point_subset_spreads_out():
     assert sorted(pts[chosen, 0].tolist()) == [0.0, 0.5, 1.0]
 
 
+def test_farthest_point_subset_with_a_spacing_stops_at_one_row_per_cluster():
+    """With ``spacing``, no row within it of a chosen one is taken (past ``at_least`` rows)."""
+    rng = np.random.default_rng(0)
+    centres = np.array([[0.0, 0.0], [5.0, 0.0], [0.0, 5.0]])
+    pts = np.repeat(centres, 20, axis=0) + rng.normal(0, 0.05, (60, 2))
+    chosen = farthest_point_subset(pts, 10, spacing=1.0)
+    assert sorted(chosen // 20) == [0, 1, 2]  # one per cluster, then every row is near one
+    assert len(farthest_point_subset(pts, 10, spacing=1.0, at_least=5)) == 5
+    np.testing.assert_array_equal(farthest_point_subset(pts, 10, spacing=1.0, at_least=5)[:3],
+                                  chosen)
+    # equal rows are never taken twice, even short of ``at_least``
+    assert len(farthest_point_subset(np.repeat(centres, 2, axis=0), 6, spacing=1.0,
+                                     at_least=6)) == 3
+    assert len(farthest_point_subset(pts, 10)) == 10  # no spacing: as many as asked
+
+
 def test_save_load_round_trip(tmp_path):
     """A saved table loads back with the same cells and indices (float16 storage)."""
     table = small_table()

@@ -208,14 +208,14 @@ def test_a_first_joint_short_of_a_turn_still_gets_its_neighbours(monkeypatch, tm
     small = SeedTable.build(so100, data, rows=4000, seed=1)
     pools, subset = [], seed_table.farthest_point_subset
 
-    def recording(points, k, *args):
+    def recording(points, k, *args, **kwargs):
         pools.append(len(points))
-        return subset(points, k, *args)
+        return subset(points, k, *args, **kwargs)
     monkeypatch.setattr(seed_table, 'farthest_point_subset', recording)
     rng = np.random.default_rng(6)
     for q in rng.uniform(so100.lower, so100.upper, (20, so100.dof)):
         p, quat = so100.fk(q)
         starts = small.starts(p, quat, 24, 100)
-        assert len(starts) == 24
+        assert seed_table.START_LEAST <= len(starts) <= 24
         assert np.all(starts >= so100.lower) and np.all(starts <= so100.upper)
     assert pools == [100] * 20

@@ -114,6 +114,12 @@ def nearest_turns(ctx: Context, q: np.ndarray, target: np.ndarray) -> np.ndarray
     lo, hi = ctx.robot.lower[periodic], ctx.robot.upper[periodic]
     v = q[:, periodic]
     base = v + 2 * np.pi * np.round((target[periodic] - v) / (2 * np.pi))
+    if ((base >= lo - 1e-9) & (base <= hi + 1e-9)).all():
+        # the turn nearest the target, within the limits (a whole turn or more around a
+        # target inside them, nearly always): the one chosen below, without the others
+        out = q.copy()
+        out[:, periodic] = base
+        return out
     options = base[None] + 2 * np.pi * np.array([0.0, -1.0, 1.0])[:, None, None]  # (3, M, p)
     fits = (options >= lo - 1e-9) & (options <= hi + 1e-9)
     gap = np.where(fits, np.abs(options - target[periodic]), np.inf)

@@ -66,9 +66,10 @@ def distinct_mask(q: np.ndarray, threshold: float, ignore_last: bool = False,
     earlier = np.triu(dist < threshold, 1)
     contested = earlier.any(axis=0)
     mask = ~contested  # rows near no earlier one are kept whatever the others
-    # the others in order: kept unless near an earlier kept one (a Python step for each of
-    # these few only)
-    for i in np.flatnonzero(contested):
+    # rows near one of those are dropped whatever the others (the same posture found again);
+    # the rest in order: kept unless near an earlier kept one (a Python step for each)
+    undecided = contested & ~(earlier & mask[:, None]).any(axis=0)
+    for i in np.flatnonzero(undecided):
         mask[i] = not (earlier[:i, i] & mask[:i]).any()
     return mask
 
