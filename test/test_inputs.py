@@ -181,3 +181,15 @@ def test_dataset_arrays_of_the_wrong_type_or_not_finite_are_refused(tmp_path, pa
     np.save(path / 'position.npy', pos)
     with pytest.raises(CorruptArtifact, match='position.npy has non-finite'):
         Dataset.load(path)
+
+
+def test_a_goal_quaternion_becomes_the_rotation_scipy_gives():
+    """The goal's rotation matrix, made in Python floats, is scipy's to the last bit."""
+    from scipy.spatial.transform import Rotation
+    from sik_ros.rotations import quaternion_matrix
+    from sik_ros.validation import quaternion
+    rng = np.random.default_rng(4)
+    for raw in rng.normal(size=(200, 4)) * 10.0 ** rng.uniform(-3, 3, (200, 1)):
+        quat = quaternion(raw, 'orientation')
+        np.testing.assert_array_equal(quaternion_matrix(quat),
+                                      Rotation.from_quat(quat).as_matrix())

@@ -11,6 +11,7 @@ from scipy.spatial.transform import Rotation
 from sik_ros.collision import Obstacle
 from sik_ros.errors import InvalidArgument, InvalidGoal, InvalidSeed, JointLimitViolation
 from sik_ros.kinematics import Robot
+from sik_ros.rotations import quaternion_matrix
 from sik_ros.solver.context import Goal
 from sik_ros.validation import MAX_DISTANCE, quaternion, vector
 
@@ -26,7 +27,7 @@ def check_goal(position, orientation, goals: Sequence[str]) -> Goal:
     rot = quat = None
     if orientation is not None:
         quat = quaternion(orientation, 'orientation', InvalidGoal)
-        rot = Rotation.from_quat(quat).as_matrix()
+        rot = quaternion_matrix(quat)
     goal = Goal(pos, rot, quat)
     if goal.kind not in goals:
         raise InvalidGoal(f'this bundle has no model for {goal.kind} goals (it has '
