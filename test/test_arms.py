@@ -147,6 +147,8 @@ def test_sik_build_makes_a_bundle_that_solves_with_2pi_equivalents(ur5_bundle, u
             assert np.linalg.norm(reached - p, axis=1).max() <= 1e-4
             d = np.linalg.norm(qs[:, None] - qs[None], axis=2) + np.eye(len(qs)) * 9
             assert d.min() >= 0.5  # distinct
+            # by the solver's own rule too (position goals: without the tool-roll joint)
+            assert ik.distinct_mask(qs, goal).all()
             if goal == 'pose':  # a pose has a few branches: their 2 pi equivalents follow them
                 wrapped = np.angle(np.exp(1j * (qs[:, None] - qs[None])))
                 same = np.all(np.abs(wrapped) < 1e-3, axis=2) & ~np.eye(len(qs), dtype=bool)

@@ -81,15 +81,21 @@ def seed_starts(ctx: Context, goal: Goal, seeds: SeedTable, count: int,
     return Candidates(q, unindexed(q, latent), inf, inf, np.zeros(len(q), dtype=bool))
 
 
-def periodic_equivalents(ctx: Context, c: Candidates, per_solution: int = 16) -> Candidates:
+def periodic_equivalents(ctx: Context, c: Candidates, per_solution: int = 16,
+                         ignore_last: bool = False) -> Candidates:
     """``c`` and, after each row, its equivalents with periodic joints turned by +-2 pi.
 
     A periodic joint's q and q +- 2 pi place the arm alike; each equivalent within the joint
     limits is a further solution (cable wrap, distance to the current state). Per row, at most
-    ``per_solution`` of them: one joint turned, then two.
+    ``per_solution`` of them: one joint turned, then two. With ``ignore_last`` (position goals
+    whose last joint only turns the tool: postures told apart without it) the last joint is
+    never turned: that would give the same posture again.
     """
     robot = ctx.robot
-    patterns = _turn_patterns(tuple(bool(p) for p in robot.periodic))
+    turnable = tuple(bool(p) for p in robot.periodic)
+    if ignore_last:
+        turnable = turnable[:-1] + (False,)
+    patterns = _turn_patterns(turnable)
     if len(patterns) == 0 or len(c) == 0:
         return c
     q = c.q[:, None, :] + patterns[None]                              # (M, P, n)
