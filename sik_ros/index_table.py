@@ -137,8 +137,8 @@ def farthest_point_subset(points: np.ndarray, k: int, first: int = 0, spacing: f
     one); a row equal to a chosen one is never chosen then.
     """
     n = len(points)
-    if n <= k and spacing <= 0:
-        return np.arange(n)
+    if n == 0 or k < 1 or (n <= k and spacing <= 0):
+        return np.arange(min(n, max(k, 0)))
     # a few hundred rows (a solve's candidates): every pair's distance in one call, instead
     # of one call per pick; more (a table's cells when built): a row of distances per pick
     pairs = cdist(points, points) if n <= PAIRWISE_ROWS else None

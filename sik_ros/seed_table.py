@@ -182,6 +182,8 @@ class SeedTable:
     def _nearest(self, key: np.ndarray, k: int) -> np.ndarray:
         """The ``k`` rows nearest a key (position, scale * quaternion with w >= 0), nearest first.
 
+        Nearly: the look-up takes :data:`LOOKUP_EPS` of slack.
+
         A quaternion and its negative are one rotation (the table's have w >= 0): the other
         sign, only as near as the k-th found, matters for keys with w near 0 (every row is at
         least ``scale * w`` from it, so it is looked up only when that is nearer).

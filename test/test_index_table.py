@@ -57,6 +57,9 @@ def test_farthest_point_subset_with_a_spacing_stops_at_one_row_per_cluster():
     assert len(farthest_point_subset(np.repeat(centres, 2, axis=0), 6, spacing=1.0,
                                      at_least=6)) == 3
     assert len(farthest_point_subset(pts, 10)) == 10  # no spacing: as many as asked
+    # nothing to choose from (a seed table none of whose rows fits a goal's azimuth)
+    assert len(farthest_point_subset(np.empty((0, 2)), 10, spacing=1.0, at_least=5)) == 0
+    assert len(farthest_point_subset(pts, 0, spacing=1.0)) == 0
 
 
 def test_save_load_round_trip(tmp_path):

@@ -193,3 +193,10 @@ def test_a_goal_quaternion_becomes_the_rotation_scipy_gives():
         quat = quaternion(raw, 'orientation')
         np.testing.assert_array_equal(quaternion_matrix(quat),
                                       Rotation.from_quat(quat).as_matrix())
+
+
+def test_a_distinct_threshold_of_a_whole_turn_or_more_is_refused(ik):
+    """2 pi equivalents are told apart by a whole turn of a joint: the threshold stays below."""
+    with pytest.raises(InvalidArgument, match='distinct_threshold must be below 2 pi'):
+        ik.with_config(distinct_threshold=2 * math.pi)
+    assert ik.with_config(distinct_threshold=6.0).config.distinct_threshold == 6.0

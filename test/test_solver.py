@@ -378,15 +378,18 @@ def test_a_seeded_pose_goal_decodes_the_seeds_own_posture_index(targets):
     assert len(z) >= 1.25 * 64 - ik.config.oriented_candidates
 
 
-def test_a_goal_whose_first_solutions_all_collide_gets_a_free_one(panda, ik):
+def test_a_goal_whose_first_solutions_all_collide_gets_a_free_one(panda, ik, restarts):
     """Near the base the first exact solutions may all touch the arm: restarts find free ones.
 
     A waypoint of a feasible path (``bench/paths.py``'s generator) from a random current
     state: before the restarts, all 16 solutions were exact and self-colliding.
     """
+    import importlib
+    pipeline = importlib.import_module('sik_ros.solver.pipeline')
     pos = np.array([-0.0629, 0.0905, 0.4266])
     seed = np.array([1.281, -0.567, -2.602, -2.859, 2.083, 2.394, -2.018])
     res = ik.solve(pos, num_solutions=4, seed=seed)
+    assert pipeline.FREE_RESTARTS in [call.get('keep') for call in restarts]  # a round ran
     free = [s for s in res.solutions if s.converged and not s.in_collision]
     assert free
     assert not ik.checker.self_collision(np.array([s.q for s in free])).any()
@@ -419,17 +422,19 @@ def test_free_solution_restarts_draw_anew_when_a_round_finds_none(panda, ik, mon
     """
     import importlib
     pipeline = importlib.import_module('sik_ros.solver.pipeline')
-    streams, restart = [], pipeline.restart
+    streams, drawn, restart = [], [], pipeline.restart
 
     def first_round_finds_nothing(ctx, c, *args, **kwargs):
         streams.append(kwargs.get('stream'))
         more, cut = restart(ctx, c, *args, **kwargs)
+        drawn.append(more.q[len(c):])  # the round's own candidates, refined
         return (c if kwargs.get('stream') == 0 else more), cut
     monkeypatch.setattr(pipeline, 'restart', first_round_finds_nothing)
     pos = np.array([0.1082, -0.0702, 0.2527])
     seed = np.array([1.192, 0.057, -2.011, -0.357, 1.543, 1.936, 2.602])
     res = ik.solve(pos, num_solutions=4, seed=seed)
     assert streams[:2] == [0, 1]  # a second round, of fresh draws
+    assert drawn[0].shape == drawn[1].shape and not np.allclose(drawn[0], drawn[1])
     free = [s for s in res.solutions if s.converged and not s.in_collision]
     assert free
     assert not ik.checker.self_collision(np.array([s.q for s in free])).any()

@@ -38,12 +38,13 @@ class SolverConfig:
             distinct decoded postures are returned, so a larger pool gives better raw answers.
         refine_iterations: most damped least squares iterations.
         damping: damping of the least squares steps.
-        max_step: largest joint change per iteration [rad]. 0.6 with ``stall_after`` 4:
-            paired on 300 UR5 and 200 Panda pose goals, 0.93x and 0.89x the time of 0.4 and 8
-            (UR5: 7.2 iterations a call instead of 9.2, the same branches; Panda: 15.06
-            distinct solutions against 15.08).
+        max_step: largest joint change per iteration [rad] (also per step of a path's
+            tracks onto the next waypoint). 0.6 with ``stall_after`` 4: paired on 300 UR5 and
+            200 Panda pose goals, 0.93x and 0.89x the time of 0.4 and 8 (UR5: 7.2 iterations
+            a call instead of 9.2, the same branches; Panda: 15.06 distinct solutions against
+            15.08); Cartesian paths (300 Panda, 150 UR5) the same success and travel.
         distinct_threshold: solutions closer than this (L2 over the joints that move the tool
-            centre point for position goals) are duplicates [rad].
+            centre point for position goals) are duplicates [rad]; below 2 pi.
         adjust_budget: decodes Algorithm 2 may spend adjusting an index.
         give_up_after: refinement iterations after which a candidate still ten tolerances away
             is dropped.
@@ -80,8 +81,9 @@ class SolverConfig:
             6.3 branches (mean of 100 targets) against 5.3 and 6.1 with 32, for 1.4-1.7 ms more.
             Used where the seed table is not: bundles without one, or ``seed_starts`` 0.
         seed_starts: pose goals of arms with six joints or fewer whose bundle has a seed
-            table (:mod:`sik_ros.seed_table`): this many starts from it, the dataset
-            configurations nearest the goal pose chosen far apart in joint space, in place of
+            table (:mod:`sik_ros.seed_table`): up to this many starts from it, the dataset
+            configurations nearest the goal pose chosen far apart in joint space (no two
+            within ``seed_table.START_SPACING``, at least ``START_LEAST``), in place of
             the oriented and table postures and of the ``branch_restarts`` random ones (0: those
             instead). Redundant arms get none: on the Panda, 500,000 seeds in place of the
             oriented postures gave 0.97x the time for 16 pose solutions and 1.3x for one.
@@ -148,6 +150,10 @@ class SolverConfig:
             if isinstance(value, bool) or not isinstance(value, int) or value < low:
                 raise InvalidArgument(f'SolverConfig.{name} must be an integer >= {low}; got '
                                       f'{value!r}')
+        if self.distinct_threshold >= 2 * math.pi:
+            # 2 pi equivalents of a posture are told apart by a whole turn of some joint
+            raise InvalidArgument(f'SolverConfig.distinct_threshold must be below 2 pi; got '
+                                  f'{self.distinct_threshold!r}')
         if not isinstance(self.prune_at, (tuple, list)) or not all(
                 isinstance(v, int) and not isinstance(v, bool) and v >= 0 for v in self.prune_at):
             raise InvalidArgument(f'SolverConfig.prune_at must hold integers >= 0; got '

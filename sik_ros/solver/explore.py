@@ -69,7 +69,7 @@ def branch_starts(ctx: Context, goal: Goal, count: int, latent: int) -> Candidat
 
 def seed_starts(ctx: Context, goal: Goal, seeds: SeedTable, count: int,
                 latent: int) -> Candidates:
-    """``count`` dataset configurations whose tips were near the goal pose, far apart.
+    """Up to ``count`` dataset configurations whose tips were near the goal pose, far apart.
 
     Isolated solutions each need a start of their own; the bundle's seed table
     (:mod:`sik_ros.seed_table`) has configurations near the goal on every branch the data

@@ -52,8 +52,8 @@ NEAR_POOL = 48
 
 #: Most refinement steps of a position path's starts onto the first waypoint. Followed from the
 #: current state, 137 of 150 Panda seeds reached it, in 8 steps (median), 15 (p90), 27 (most);
-#: the others ran to the solver's 40. With 25: 0.96-0.97x the time on 2 x 150 position paths,
-#: the same paths (success, travel, start).
+#: the others ran to the solver's 40 (measured with steps of at most 0.4 rad; now 0.6). With
+#: 25: 0.96-0.97x the time on 2 x 150 position paths, the same paths (success, travel, start).
 START_ITERATIONS = 25
 
 #: The beam of pose paths (see :class:`PathSettings`). Measured (paired, Panda): 12 starts

@@ -109,7 +109,7 @@ def limited_step(ctx: Context, q: np.ndarray, j: np.ndarray, err: np.ndarray, la
     if turns:
         # the same placement of the arm, a turn back within the limits (a clamp there left
         # rows stuck against +-2 pi: 4 of a UR5 pose call's 24 starts, refined 8 steps for
-        # nothing)
+        # nothing, measured with stall checks from step 8)
         whole = 2 * np.pi * robot.periodic
         q += whole * (q < lower) - whole * (q > upper)
     return np.minimum(np.maximum(q, lower), upper)  # np.clip, without its wrapper's 5 us
