@@ -56,6 +56,8 @@ def distinct_mask(q: np.ndarray, threshold: float, ignore_last: bool = False,
     ``periodic`` (n,) bool, those joints' differences are taken at their nearest 2 pi turns:
     rows apart however turned.
     """
+    if len(q) < 2:
+        return np.ones(len(q), dtype=bool)
     cols = slice(0, q.shape[1] - 1) if ignore_last else slice(None)
     if periodic is not None and periodic.any():
         d = turn_differences(q[:, cols], periodic[cols])
