@@ -19,6 +19,7 @@ iteration and saves the decoder's forward pass (see docs/benchmarks.md).
 from dataclasses import dataclass
 import functools
 import json
+import math
 from pathlib import Path
 from typing import Dict, Optional, Protocol, Tuple
 import zipfile
@@ -80,6 +81,12 @@ class PostureTable(Protocol):
     def distance_to_data(self, position: np.ndarray) -> float:
         """How far ``position`` is from the data the table was made of [m]."""
 
+    def within(self, position: np.ndarray, distance: float) -> bool:
+        """Whether ``position`` lies within ``distance`` [m] of the data.
+
+        As ``distance_to_data(position) <= distance``.
+        """
+
     def oriented_rows(self, position: np.ndarray, quaternion: np.ndarray, count: int,
                       k_cells: int = 8) -> np.ndarray:
         """Rows near ``position`` whose tip orientations were nearest ``quaternion``."""
@@ -114,6 +121,10 @@ class PriorTable:
         """0: the prior covers every goal."""
         return 0.0
 
+    def within(self, position: np.ndarray, distance: float) -> bool:
+        """True: the prior covers every goal."""
+        return True
+
     def oriented_rows(self, position: np.ndarray, quaternion: np.ndarray, count: int,
                       k_cells: int = 8) -> np.ndarray:
         """Refused: prior draws carry no orientation.
@@ -122,6 +133,56 @@ class PriorTable:
             InvalidArgument: always.
         """
         raise InvalidArgument('a prior table keeps no orientations')
+
+
+#: Edge of the reach grid's voxels [m], how far past the cells it reaches [m], and its most
+#: voxels (a larger workspace gets none: every question goes to the KD-tree).
+REACH_VOXEL = 0.05
+REACH_PAD = 0.3
+REACH_MAX_VOXELS = 2_000_000
+
+
+class ReachGrid:
+    """How far each voxel's centre is from the nearest cell centre, on a grid over the cells.
+
+    A point in a voxel is within the voxel's half diagonal of its centre, so the voxel's
+    distance bounds the point's both ways: most questions "within d of the data?" are answered
+    by one array read, and only points within a half diagonal of the answer's edge (or off the
+    grid) need the KD-tree. A solve asks once per call, where the KD look-up cost 10 us when
+    warm and 40-120 us between a node's requests, when out of the caches.
+    """
+
+    def __init__(self, tree: cKDTree, centers: np.ndarray):
+        self.dist = None
+        if len(centers) == 0:
+            return
+        lo = centers.min(axis=0) - REACH_PAD
+        shape = np.ceil((centers.max(axis=0) + REACH_PAD - lo) / REACH_VOXEL).astype(int)
+        if int(np.prod(shape)) > REACH_MAX_VOXELS:
+            return
+        axes = [lo[i] + (np.arange(shape[i]) + 0.5) * REACH_VOXEL for i in range(3)]
+        points = np.stack(np.meshgrid(*axes, indexing='ij'), axis=-1).reshape(-1, 3)
+        self.dist = tree.query(points, k=1)[0].reshape(tuple(shape))
+        self.lo = tuple(float(v) for v in lo)
+        self.shape = tuple(int(v) for v in shape)
+        # the half diagonal, and a margin for the rounding of the distances
+        self.slack = REACH_VOXEL * math.sqrt(3) / 2 + 1e-9
+
+    def bounds(self, position: np.ndarray) -> Optional[Tuple[float, float]]:
+        """Least and most distance [m] from ``position`` to the nearest cell centre.
+
+        None off the grid.
+        """
+        if self.dist is None:
+            return None
+        index = []
+        for value, lo, size in zip(position, self.lo, self.shape):
+            i = math.floor((float(value) - lo) / REACH_VOXEL)
+            if not 0 <= i < size:
+                return None
+            index.append(i)
+        d = float(self.dist[index[0], index[1], index[2]])
+        return d - self.slack, d + self.slack
 
 
 #: Rows up to which :func:`farthest_point_subset` computes every pair's distance at once.
@@ -178,6 +239,7 @@ class IndexTable:
         self.postures = None if postures is None else np.asarray(postures, dtype=np.float32)
         self.manifest = manifest
         self.tree = cKDTree(self.centers)
+        self.reach = ReachGrid(self.tree, self.centers)
         self.cell = float(manifest['table_config']['cell'])
         self.latent_dim = self.indices.shape[1]
 
@@ -239,6 +301,19 @@ class IndexTable:
         """Distance from a position to the nearest cell centre [m]."""
         d, _ = self.tree.query(np.asarray(position, dtype=float), k=1)
         return float(d)
+
+    def within(self, position: np.ndarray, distance: float) -> bool:
+        """Whether ``position`` lies within ``distance`` [m] of the nearest cell centre.
+
+        From the :class:`ReachGrid` where it can tell, else from the KD-tree.
+        """
+        bounds = self.reach.bounds(position)
+        if bounds is not None:
+            if bounds[1] <= distance:
+                return True
+            if bounds[0] > distance:
+                return False
+        return self.distance_to_data(position) <= distance
 
     @functools.cached_property
     def index_bounds(self):

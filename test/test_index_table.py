@@ -189,3 +189,26 @@ def test_sik_index_cli_builds_a_bundle(tiny_bundle, uniform_small, tmp_path):
                           capture_output=True, text=True, timeout=120)
     assert pose.returncode == 2 and 'position-goal model' in pose.stderr
     assert not (tmp_path / 'p.npz').exists()
+
+
+def test_within_the_data_agrees_with_the_distance_and_mostly_skips_the_tree(monkeypatch):
+    """``within`` answers as the distance to the nearest cell centre does, on and off the grid.
+
+    Inside the workspace the reach grid answers most questions without the KD-tree.
+    """
+    rng = np.random.default_rng(2)
+    pos = rng.uniform(-0.6, 0.6, (4000, 3))
+    pos = pos[np.linalg.norm(pos, axis=1) < 0.6]  # a ball of data, 0.6 m across each way
+    table = IndexTable.build(rng.normal(size=(len(pos), 1)), pos, TableConfig(0.05, 0.05, 4),
+                             {'robot': {'robot': 'x'}, 'model': {'m': 1}})
+    assert table.reach.dist is not None
+    points = np.concatenate([rng.uniform(-1.5, 1.5, (3000, 3)),      # off the grid too
+                             rng.uniform(-0.4, 0.4, (1000, 3))])     # inside
+    for p in points:
+        for d in (0.02, 0.15, 0.4):
+            assert table.within(p, d) == (table.distance_to_data(p) <= d)
+    queries = []
+    monkeypatch.setattr(table, 'distance_to_data', lambda p: queries.append(p) or 0.0)
+    for p in points[3000:]:
+        assert table.within(p, 0.15)
+    assert len(queries) < 100  # of 1,000 inside the ball

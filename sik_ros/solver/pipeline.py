@@ -151,7 +151,7 @@ def solve(ctx: Context, goal: Goal, num: int, q_seed: Optional[np.ndarray],
     """
     cfg = ctx.config
     # a goal far from every position in the data is out of reach: answer quickly
-    far = ctx.models[goal.kind].table.distance_to_data(goal.position) > cfg.reach_margin
+    far = not ctx.models[goal.kind].table.within(goal.position, cfg.reach_margin)
     # isolated solutions (a pose, six joints or fewer): no self-motion to walk along, each
     # branch needs a start of its own, from the seed table near the goal pose when the bundle
     # has one, else drawn at random
