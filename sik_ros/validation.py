@@ -25,21 +25,25 @@ def vector(value, size: int, what: str, error: Type[InvalidArgument] = InvalidAr
         raise error(f'{what} must be {size} numbers; got {value!r}') from exc
     if arr.shape != (size,):
         raise error(f'{what} must have {size} elements; got shape {arr.shape}')
-    if not np.all(np.isfinite(arr)):
-        raise error(f'{what} must be finite; got {arr.tolist()}')
-    if limit is not None and np.any(np.abs(arr) > limit):
-        raise error(f'{what} must lie within {limit:g} m of the origin; got {arr.tolist()}')
+    # a few numbers: checked as Python floats (NumPy's checks cost 10 us each when its code
+    # is out of the caches, as at a node's requests)
+    values = arr.tolist()
+    if not all(math.isfinite(v) for v in values):
+        raise error(f'{what} must be finite; got {values}')
+    if limit is not None and any(abs(v) > limit for v in values):
+        raise error(f'{what} must lie within {limit:g} m of the origin; got {values}')
     return arr
 
 
 def quaternion(value, what: str, error: Type[InvalidArgument] = InvalidArgument) -> np.ndarray:
     """A unit quaternion x y z w from 4 finite numbers, not all zero (scaled safely)."""
     quat = vector(value, 4, f'{what} quaternion (x, y, z, w)', error)
-    scale = np.abs(quat).max()
-    if scale == 0 or not np.isfinite(scale) or scale < 1e-150:
+    scale = max(abs(v) for v in quat.tolist())
+    if scale == 0 or scale < 1e-150:
         raise error(f'{what} quaternion is zero')
-    quat = quat / scale  # no overflow in the norm, whatever the magnitude
-    return quat / np.linalg.norm(quat)
+    x, y, z, w = (v / scale for v in quat.tolist())  # no overflow in the norm
+    norm = math.sqrt(x * x + y * y + z * z + w * w)
+    return np.array([x / norm, y / norm, z / norm, w / norm])
 
 
 def seconds(value, what: str) -> Optional[float]:
