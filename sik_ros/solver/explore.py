@@ -14,6 +14,7 @@ from typing import Tuple
 import zlib
 
 import numpy as np
+from scipy.spatial.distance import cdist
 
 from sik_ros.seed_table import SeedTable
 from sik_ros.solver.batch import Candidates
@@ -171,8 +172,7 @@ def walk(ctx: Context, c: Candidates, goal: Goal, deadline, need: int) -> Candid
     rows = np.flatnonzero(c.exact)
     rows = rows[np.argsort(pose_score(c.perr[rows], c.oerr[rows]), kind='stable')]
     roll_free = ctx.ignores_last(goal.kind)
-    periodic = ctx.robot.periodic  # postures told apart however turned
-    found = c.q[rows[distinct_mask(c.q[rows], cfg.distinct_threshold, roll_free, periodic)]]
+    found = c.q[rows[distinct_mask(c.q[rows], cfg.distinct_threshold, roll_free)]]
     if len(found) >= need:
         return c
     frontier, heading = found, None
@@ -190,11 +190,9 @@ def walk(ctx: Context, c: Candidates, goal: Goal, deadline, need: int) -> Candid
         step = assess(r.q, unindexed(r.q, c.z.shape[1]), r.perr, r.oerr, goal.kind, cfg)
         pick = np.empty(0, dtype=int)
         if step.exact.any():
-            gap = step.q[step.exact][:, None] - found[None]
-            gap -= np.rint(gap * (0.5 / np.pi)) * (2 * np.pi * periodic)
-            far_enough = np.sqrt((gap * gap).sum(axis=2)).min(axis=1) >= cfg.distinct_threshold
+            far_enough = cdist(step.q[step.exact], found).min(axis=1) >= cfg.distinct_threshold
             pick = np.flatnonzero(step.exact)[far_enough]
-            pick = pick[distinct_mask(step.q[pick], cfg.distinct_threshold, roll_free, periodic)]
+            pick = pick[distinct_mask(step.q[pick], cfg.distinct_threshold, roll_free)]
         if len(pick) == 0:
             break
         new.append(step.take(pick))

@@ -154,13 +154,11 @@ def refine(ctx: Context, q: np.ndarray, goal: Goal, deadline: Optional[float] = 
     exact = np.zeros(n, dtype=bool)
     cut_short = False
     roll_free = ctx.ignores_last(goal.kind)
-    # rows a whole turn apart head for one posture (2 pi equivalents are added once ranked)
-    periodic = ctx.robot.periodic
     for it in range(iterations or cfg.refine_iterations):
         if prune and it in cfg.prune_at:
             alive = np.flatnonzero(~given_up)
             order = alive[np.argsort(score[alive], kind='stable')]
-            keep = distinct_mask(q[order], cfg.prune_radius, roll_free, periodic)
+            keep = distinct_mask(q[order], cfg.prune_radius, ctx.ignores_last(goal.kind))
             active[order[~keep]] = False
         idx = np.flatnonzero(active)
         if len(idx) == 0:
@@ -189,8 +187,7 @@ def refine(ctx: Context, q: np.ndarray, goal: Goal, deadline: Optional[float] = 
             exact[idx[done]] = True
             found = np.flatnonzero(exact)
             if len(found) >= enough and (
-                    distinct_mask(q[found], cfg.distinct_threshold, roll_free,
-                                  periodic).sum() >= enough):
+                    distinct_mask(q[found], cfg.distinct_threshold, roll_free).sum() >= enough):
                 break
         if window and it >= max(window, cfg.stall_after):
             # hardly closer than ``window`` iterations ago: stalled (near a solution the steps
