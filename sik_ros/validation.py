@@ -38,10 +38,11 @@ def vector(value, size: int, what: str, error: Type[InvalidArgument] = InvalidAr
 def quaternion(value, what: str, error: Type[InvalidArgument] = InvalidArgument) -> np.ndarray:
     """A unit quaternion x y z w from 4 finite numbers, not all zero (scaled safely)."""
     quat = vector(value, 4, f'{what} quaternion (x, y, z, w)', error)
-    scale = max(abs(v) for v in quat.tolist())
+    values = quat.tolist()
+    scale = max(abs(v) for v in values)
     if scale == 0 or scale < 1e-150:
         raise error(f'{what} quaternion is zero')
-    x, y, z, w = (v / scale for v in quat.tolist())  # no overflow in the norm
+    x, y, z, w = (v / scale for v in values)  # no overflow in the norm
     norm = math.sqrt(x * x + y * y + z * z + w * w)
     return np.array([x / norm, y / norm, z / norm, w / norm])
 

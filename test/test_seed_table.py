@@ -69,6 +69,20 @@ def test_starts_are_the_nearest_rows_by_tip_pose_and_far_apart(ur5, table):
     assert distance(starts).max() <= radius + 1e-9
 
 
+def test_the_goal_key_in_floats_is_the_tables_key_arithmetic(ur5, table):
+    """A goal's key, computed in Python floats, is the axis frame and turn the rows get."""
+    from sik_ros.seed_table import to_axis_frame, turned
+    rng = np.random.default_rng(8)
+    for q in rng.uniform(ur5.lower, ur5.upper, (50, 6)):
+        p, quat = ur5.fk(q)
+        key, azimuth = table._turned_key(p, quat)
+        pa, qa = to_axis_frame(first_axis(ur5), p[None], quat[None])
+        assert azimuth == pytest.approx(np.arctan2(pa[0, 1], pa[0, 0]), abs=1e-12)
+        pa, qa = turned(pa, qa, np.array([-azimuth]))
+        np.testing.assert_allclose(key, np.concatenate([pa[0], QUATERNION_SCALE * qa[0]]),
+                                   rtol=0, atol=1e-12)
+
+
 def test_a_small_table_gives_every_row_it_has(ur5, ur5_data):
     """Fewer rows than neighbours: every row is a start once, whatever the goal's quaternion."""
     small = SeedTable.build(ur5, ur5_data, rows=7, seed=2)

@@ -119,20 +119,17 @@ def nearest_turns(ctx: Context, q: np.ndarray, target: np.ndarray) -> np.ndarray
         return q
     lo, hi = ctx.robot.lower[periodic], ctx.robot.upper[periodic]
     v = q[:, periodic]
-    base = v + 2 * np.pi * np.round((target[periodic] - v) / (2 * np.pi))
-    if ((base >= lo - 1e-9) & (base <= hi + 1e-9)).all():
-        # the turn nearest the target, within the limits (a whole turn or more around a
-        # target inside them, nearly always): the one chosen below, without the others
-        out = q.copy()
-        out[:, periodic] = base
-        return out
-    options = base[None] + 2 * np.pi * np.array([0.0, -1.0, 1.0])[:, None, None]  # (3, M, p)
-    fits = (options >= lo - 1e-9) & (options <= hi + 1e-9)
-    gap = np.where(fits, np.abs(options - target[periodic]), np.inf)
-    best = np.argmin(gap, axis=0)
-    chosen = np.take_along_axis(options, best[None], axis=0)[0]
+    chosen = v + 2 * np.pi * np.round((target[periodic] - v) / (2 * np.pi))
+    # the turn nearest the target nearly always fits (a whole turn or more of range around a
+    # target inside it); else the nearest of the turns either side that does, or none
+    if not ((chosen >= lo - 1e-9) & (chosen <= hi + 1e-9)).all():
+        options = chosen[None] + 2 * np.pi * np.array([0.0, -1.0, 1.0])[:, None, None]
+        fits = (options >= lo - 1e-9) & (options <= hi + 1e-9)                 # (3, M, p)
+        gap = np.where(fits, np.abs(options - target[periodic]), np.inf)
+        best = np.take_along_axis(options, np.argmin(gap, axis=0)[None], axis=0)[0]
+        chosen = np.where(np.isfinite(gap.min(axis=0)), best, v)
     out = q.copy()
-    out[:, periodic] = np.where(np.isfinite(gap.min(axis=0)), chosen, v)
+    out[:, periodic] = chosen
     return out
 
 
