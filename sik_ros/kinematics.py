@@ -116,19 +116,33 @@ class Robot:
         # the base, and a floating or planar root
         lock = [j for j in range(1, full_model.njoints) if j not in path]
         q_ref = pin.neutral(full_model)
+        # A joint that shares a link's name makes Pinocchio's model reduction refuse the name.
+        # A locked joint becomes a fixed frame of its name, so it is renamed for good; an arm
+        # joint is renamed for the reduction only and gets its name back after it.
         bodies = {f.name for f in full_model.frames if f.type == pin.FrameType.BODY}
-        for j in lock:  # a locked joint becomes a fixed frame of its name: keep it unique
+        kept_names = {}
+        for j in range(1, full_model.njoints):
             name_j = full_model.names[j]
-            if name_j in bodies:
-                for i, frame in enumerate(full_model.frames):
-                    if frame.name == name_j and frame.type == pin.FrameType.JOINT:
-                        renamed = full_model.frames[i]
-                        renamed.name = f'{name_j}_locked'
-                        full_model.frames[i] = renamed
-                full_model.names[j] = f'{name_j}_locked'
+            if name_j not in bodies or not lock:
+                continue
+            suffix = '_locked' if j in lock else '_joint'
+            for i, frame in enumerate(full_model.frames):
+                if frame.name == name_j and frame.type == pin.FrameType.JOINT:
+                    renamed = full_model.frames[i]
+                    renamed.name = f'{name_j}{suffix}'
+                    full_model.frames[i] = renamed
+            full_model.names[j] = f'{name_j}{suffix}'
+            if j not in lock:
+                kept_names[f'{name_j}{suffix}'] = name_j
         self._locked = lock
         self._q_ref_full = q_ref
-        self.model = pin.buildReducedModel(full_model, lock, q_ref) if lock else full_model
+        try:
+            self.model = pin.buildReducedModel(full_model, lock, q_ref) if lock else full_model
+        except (RuntimeError, ValueError) as exc:
+            raise InvalidModel(f'{name}: Pinocchio cannot reduce the model to the chain '
+                               f'{base_frame!r} -> {tip_frame!r}: {exc}') from exc
+        for j in range(1, self.model.njoints):
+            self.model.names[j] = kept_names.get(self.model.names[j], self.model.names[j])
         self._full_model = full_model
         self.joint_names = [self.model.names[j] for j in range(1, self.model.njoints)]
         self.lower = np.array(self.model.lowerPositionLimit, dtype=float)

@@ -100,7 +100,7 @@ def unique_frame_names(model: pin.Model) -> pin.Model:
 
     A link and a joint may share a name in a URDF; Pinocchio's model reduction then refuses
     the name. The body keeps it, so a frame asked for by that name is the link (a moving
-    joint keeps its name: the robot renames it only when it locks it).
+    joint keeps its name: :class:`~sik_ros.kinematics.Robot` handles it at the reduction).
     """
     count = Counter(f.name for f in model.frames)
     for i, frame in enumerate(model.frames):

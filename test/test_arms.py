@@ -77,6 +77,31 @@ def test_an_ambiguous_frame_name_resolves_to_the_body():
     assert np.allclose(so100.fk(q)[0], so100.pin_placement(q).translation)
 
 
+def test_arm_joints_named_like_their_links_keep_their_names(tmp_path, ur5):
+    """A URDF whose arm joints share their child links' names (ANYmal C does so): it loads.
+
+    Pinocchio's model reduction (a gripper joint to lock) refused such names with a raw
+    ValueError; the joints keep their names, the links answer to them as frames.
+    """
+    text = ur5.urdf_path.read_text()
+    pairs = [('shoulder_pan_joint', 'shoulder_link'), ('elbow_joint', 'forearm_link')]
+    for joint, link in pairs:
+        text = text.replace(f'"{joint}"', f'"{link}"')
+    gripper = ('<link name="finger"/><joint name="finger_joint" type="prismatic">'
+               '<parent link="tool0"/><child link="finger"/><axis xyz="1 0 0"/>'
+               '<limit lower="0" upper="0.04" effort="1" velocity="1"/></joint></robot>')
+    urdf = tmp_path / 'arm.urdf'
+    urdf.write_text(text.replace('</robot>', gripper))
+    robot = load_robot('x', str(urdf), tip='tool0')
+    assert robot.dof == 6 and robot.joint_names[0] == 'shoulder_link'
+    assert robot.joint_names[2] == 'forearm_link'
+    frame = robot.model.frames[robot.model.getFrameId('forearm_link', pin.FrameType.BODY)]
+    assert robot.model.names[frame.parentJoint] == 'forearm_link'
+    q = np.random.default_rng(3).uniform(ur5.lower, ur5.upper, (5, 6))
+    assert np.allclose(robot.fk_rot(q)[0], ur5.fk_rot(q)[0], atol=1e-12)
+    assert np.allclose(robot.fk_rot(q)[0], [robot.pin_placement(qi).translation for qi in q])
+
+
 def test_a_prismatic_joint_in_the_chain_is_refused_by_name():
     """A tip past the Panda's finger joint: refused with the joint named, in one line."""
     with pytest.raises(InvalidModel, match="panda_finger_joint1.*prismatic") as info:
