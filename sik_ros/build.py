@@ -141,6 +141,9 @@ class Builder:
         """Every stage not yet done; the self-check's figures."""
         t0 = time.perf_counter()
         state = self._state()
+        # the self-check and the solver rank by collision geometry: a missing mesh fails here,
+        # not after the training
+        self.robot.collision_model
         if (self.out / 'bundle.json').exists() and 'bundle' not in state['done']:
             raise InvalidArgument(f'{self.out} already holds a bundle (remove it or use '
                                   f'another --out)')

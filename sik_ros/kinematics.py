@@ -344,9 +344,16 @@ class Robot:
     def collision_model(self) -> pin.GeometryModel:
         """The arm's collision geometry (coal), reduced like the kinematic model; loaded lazily."""
         if self._collision is None:
-            full_geom = pin.buildGeomFromUrdf(self._full_model, str(self._collision_urdf),
-                                              pin.GeometryType.COLLISION,
-                                              package_dirs=self._package_dirs)
+            try:
+                full_geom = pin.buildGeomFromUrdf(self._full_model, str(self._collision_urdf),
+                                                  pin.GeometryType.COLLISION,
+                                                  package_dirs=self._package_dirs)
+            except (RuntimeError, ValueError) as exc:
+                reason = ' '.join(str(exc).split())
+                raise InvalidModel(f'{self.name}: cannot load the collision geometry of '
+                                   f'{self._collision_urdf}: {reason} (put the folder holding '
+                                   f'its package on ROS_PACKAGE_PATH, or source its ROS '
+                                   f'workspace)') from exc
             if self._locked:
                 _, geom = pin.buildReducedModel(self._full_model, full_geom, self._locked,
                                                 self._q_ref_full)

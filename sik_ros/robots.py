@@ -20,6 +20,7 @@ loads it back and refuses a URDF that moved or changed.
 from collections import Counter
 import functools
 import math
+import os
 from pathlib import Path
 import re
 from typing import Dict, List, Mapping, Optional, Tuple
@@ -175,6 +176,22 @@ def chain_joint_or_none(model: pin.Model, j: int) -> bool:
         return False
 
 
+def package_dirs(urdf: Path) -> List[str]:
+    """Where the ``package://`` meshes of a URDF file may be: the folders that hold packages.
+
+    The URDF's own folder and every folder above it (a URDF in ``src/my_arm_description/urdf``
+    names its meshes ``package://my_arm_description/...``, found from ``src``), then each
+    ``share`` folder of a sourced ROS workspace (``AMENT_PREFIX_PATH``). Pinocchio also reads
+    ``ROS_PACKAGE_PATH`` itself.
+    """
+    path = Path(urdf).resolve()
+    dirs = [str(d) for d in path.parents]
+    for prefix in os.environ.get('AMENT_PREFIX_PATH', '').split(os.pathsep):
+        if prefix and Path(prefix, 'share').is_dir():
+            dirs.append(str(Path(prefix, 'share')))
+    return dirs
+
+
 def available_robots() -> list:
     """Names of the robots example-robot-data can load."""
     from example_robot_data.robots_loader import ROBOTS
@@ -216,7 +233,7 @@ def load_robot(name: str = 'panda', urdf: Optional[str] = None, base: Optional[s
         model = build_model(path)
         base, tip = _resolve_frames(model, '', base, tip)
         robot_name = model.name or path.stem
-        return Robot(robot_name, path, model, base, tip, package_dirs=[str(path.parent)],
+        return Robot(robot_name, path, model, base, tip, package_dirs=package_dirs(path),
                      urdf_source=path)
     robots = available_robots()
     if name not in robots:

@@ -1,6 +1,7 @@
 """Any arm: loading, default frames, periodic joints, budgets, sik-build, 2 pi equivalents."""
 
 import json
+import os
 from pathlib import Path
 import shutil
 import subprocess
@@ -107,6 +108,31 @@ def test_a_prismatic_joint_in_the_chain_is_refused_by_name():
     with pytest.raises(InvalidModel, match="panda_finger_joint1.*prismatic") as info:
         load_robot('panda', tip='panda_leftfinger')
     assert '\n' not in str(info.value)
+
+
+def test_meshes_of_a_urdf_in_a_package_folder_are_found(tmp_path, ur5):
+    """A URDF in ``src/<pkg>/urdf/`` finds its ``package://<pkg>/`` collision meshes."""
+    package = tmp_path / 'src' / 'example-robot-data'
+    (package / 'urdf').mkdir(parents=True)
+    (package / 'robots').symlink_to(ur5.urdf_path.parents[2])
+    urdf = package / 'urdf' / 'arm.urdf'
+    shutil.copyfile(ur5.urdf_path, urdf)
+    assert load_robot('x', str(urdf)).collision_model.ngeoms == ur5.collision_model.ngeoms
+
+
+def test_sik_build_refuses_missing_meshes_before_collecting(tmp_path, ur5):
+    """Collision meshes that cannot be found: exit 2, one line naming the mesh, nothing made."""
+    urdf = tmp_path / 'arm.urdf'
+    shutil.copyfile(ur5.urdf_path, urdf)
+    out = tmp_path / 'bundle'
+    run = subprocess.run(CLI + ['sik_ros.cli.build', '--urdf', str(urdf), '--out', str(out),
+                                '--quiet'], capture_output=True, text=True, timeout=120,
+                         env={**os.environ, 'ROS_PACKAGE_PATH': ''})
+    assert run.returncode == 2
+    lines = run.stderr.strip().splitlines()
+    assert len(lines) == 1 and 'collision/base.stl' in lines[0], lines
+    assert 'ROS_PACKAGE_PATH' in lines[0]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ['arm.urdf']
 
 
 def test_sik_collect_refuses_a_grid_over_its_budget_before_writing(tmp_path):
