@@ -113,25 +113,32 @@ def unique_frame_names(model: pin.Model) -> pin.Model:
     return model
 
 
-def _depths(model: pin.Model) -> Dict[int, int]:
-    """Per joint, the number of arm (revolute, non-gripper) joints from the root to it."""
+def _depths(model: pin.Model, grippers: bool) -> Dict[int, int]:
+    """Per joint, the number of arm joints (revolute; gripper ones only if ``grippers``) above."""
     depth = {0: 0}
     for j in range(1, model.njoints):
         arm = model.joints[j].shortname() in ('JointModelRX', 'JointModelRY', 'JointModelRZ',
                                               'JointModelRevoluteUnaligned') \
-            and not GRIPPER_JOINT.search(model.names[j])
+            and (grippers or not GRIPPER_JOINT.search(model.names[j]))
         depth[j] = depth[model.parents[j]] + int(arm)
     return depth
 
 
 def tip_candidates(model: pin.Model) -> List[str]:
-    """Frames that could be the tip, best first: those on the ends of the longest chains."""
-    depth = _depths(model)
+    """Frames that could be the tip, best first: those on the ends of the longest chains.
+
+    Joints named like a gripper's do not count, unless no other revolute joint is there (a
+    finger robot).
+    """
+    depth = _depths(model, grippers=False)
+    grippers = max(depth.values()) == 0
+    if grippers:
+        depth = _depths(model, grippers=True)
     best = max(depth.values())
     if best == 0:
         return []
     ends = [j for j, d in depth.items() if d == best and j > 0
-            and not GRIPPER_JOINT.search(model.names[j])
+            and (grippers or not GRIPPER_JOINT.search(model.names[j]))
             and model.joints[j].shortname() != 'JointModelFreeFlyer']
     # the deepest arm joint of each end: the joint itself (gripper joints do not count)
     names: List[str] = []

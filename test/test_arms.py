@@ -30,6 +30,13 @@ def test_a_six_joint_arm_with_whole_turn_joints_loads_with_default_frames(ur5):
     assert np.abs(p - ref).max() < 1e-9
 
 
+def test_a_finger_robot_gets_default_frames_from_its_finger_joints():
+    """Joints named like a gripper's are the chain when there is nothing else (TriFinger edu)."""
+    finger = load_robot('finger_edu')
+    assert (finger.dof, finger.base_frame, finger.tip_frame) == (
+        3, 'finger_base_link', 'finger_tip_link')
+
+
 def test_continuous_joints_become_periodic_and_keep_the_kinematics():
     """Kinova's continuous joints: revolute over +-2 pi, periodic, FK equal to the original's."""
     import example_robot_data as erd

@@ -1,0 +1,110 @@
+"""Try sik-build on many example-robot-data arms, as a new user would, with tiny budgets.
+
+For each arm: one ``sik-build --robot ARM`` with a tiny model, a small uniform sample and a
+one-minute budget (the frames it inferred, its wall time, the bundle's size and its
+self-check), then, on ``--targets`` pose goals (FK of random configurations, seeded), the
+distinct solutions of ours against TRAC-IK's from ``--attempts`` random seeds (what the arm's
+limits leave of its branches). A tiny build is far from a served bundle's accuracy or speed
+(``bench/arms.py`` measures those); this shows that each arm loads, builds, solves and finds the
+solutions there are.
+
+    python bench/sweep.py --out /tmp/sweep                       # the default list of arms
+    python bench/sweep.py --out /tmp/sweep --arms z1,ur10 --targets 30
+"""
+
+import argparse
+import json
+import os
+from pathlib import Path
+import subprocess
+import sys
+import time
+
+os.environ.setdefault('OMP_NUM_THREADS', '1')
+
+import numpy as np  # noqa: E402
+
+from sik_ros import SelectiveIK  # noqa: E402
+
+from arms import distinct  # noqa: E402,I100 (bench/arms.py, beside this script)
+from peers import TracIK  # noqa: E402
+
+ARMS = ('ur3_gripper,ur10,z1,b1_z1,bravo7_gripper,talos_arm,so101,tiago,pr2,baxter,'
+        'anymal_kinova')
+
+
+def tiny_build(arm, out, args):
+    """Build ``arm`` into ``out`` (unless there); its wall time [s] and the robot line printed."""
+    if (out / 'bundle.json').exists():
+        return None, ''
+    t0 = time.perf_counter()
+    run = subprocess.run([sys.executable, '-m', 'sik_ros.cli.build', '--robot', arm, '--out',
+                          str(out), '--time', str(args.time), '--rows', str(args.rows),
+                          '--preset', 'tiny', '--check-targets', str(args.targets), '--quiet'],
+                         capture_output=True, text=True)
+    if run.returncode != 0:
+        raise RuntimeError(f'{arm}: sik-build exited {run.returncode}: '
+                           f'{run.stderr.strip()[-300:]}')
+    robot_line = next((ln for ln in run.stdout.splitlines() if ln.startswith('robot ')), '')
+    return time.perf_counter() - t0, robot_line
+
+
+def sweep_arm(arm, args):
+    """One arm: build, self-check, pose goals against TRAC-IK; a dict of figures."""
+    out = Path(args.out) / arm
+    wall, _ = tiny_build(arm, out, args)
+    ik = SelectiveIK.load(out)
+    robot = ik.robot
+    check = json.loads((out / 'bundle.json').read_text())['self_check']
+    size = sum(f.stat().st_size for f in out.iterdir() if f.is_file())
+    rng = np.random.default_rng(args.seed)
+    tracik = TracIK(robot)
+    ours, peer, reached = [], [], []
+    for q in rng.uniform(robot.lower, robot.upper, (args.targets, robot.dof)):
+        p, quat = robot.fk(q)
+        res = ik.solve(p, quat, num_solutions=16)
+        ours.append(distinct(ik, [s.q for s in res.solutions if s.converged], 'pose'))
+        found = [s for ok, s in (tracik.solve(p, quat, rng.uniform(robot.lower, robot.upper))
+                                 for _ in range(args.attempts)) if ok]
+        peer.append(distinct(ik, found, 'pose'))
+        reached.append(bool(found))
+    return {'arm': arm, 'dof': robot.dof, 'base': robot.base_frame, 'tip': robot.tip_frame,
+            'periodic': int(robot.periodic.sum()), 'build_s': wall, 'bundle_mb': size / 1e6,
+            'check': check, 'ours_mean': float(np.mean(ours)), 'peer_mean': float(np.mean(peer)),
+            'at_least_peer': float(np.mean(np.array(ours) >= np.array(peer))),
+            'peer_reached': float(np.mean(reached))}
+
+
+def main():
+    """Parse arguments, sweep the arms, print a table (and ``--json``)."""
+    parser = argparse.ArgumentParser(description=__doc__.split('\n')[0])
+    parser.add_argument('--out', required=True, help='folder for the tiny bundles')
+    parser.add_argument('--arms', default=ARMS, help='comma-separated example-robot-data names')
+    parser.add_argument('--time', type=float, default=60.0, help='sik-build budget [s]')
+    parser.add_argument('--rows', type=int, default=200_000, help='uniform samples per arm')
+    parser.add_argument('--targets', type=int, default=50, help='targets per check')
+    parser.add_argument('--attempts', type=int, default=200, help='TRAC-IK seeds per target')
+    parser.add_argument('--seed', type=int, default=2024)
+    parser.add_argument('--json', help='write the figures here as well')
+    args = parser.parse_args()
+    rows = []
+    print('| arm | joints (periodic) | base → tip | build [s] | bundle [MB] | self-check '
+          'position: success, distinct median | pose: success, distinct median | pose '
+          'distinct, ours / TRAC-IK (mean) | ours ≥ TRAC-IK |')
+    print('|---|---|---|---|---|---|---|---|---|')
+    for arm in args.arms.split(','):
+        r = sweep_arm(arm, args)
+        rows.append(r)
+        c = r['check']
+        build = '—' if r['build_s'] is None else f'{r["build_s"]:.0f}'
+        print(f'| {arm} | {r["dof"]} ({r["periodic"]}) | {r["base"]} → {r["tip"]} | {build} | '
+              f'{r["bundle_mb"]:.1f} | {100 * c["position"]["success"]:.0f} %, '
+              f'{c["position"]["distinct_median"]:.0f} | {100 * c["pose"]["success"]:.0f} %, '
+              f'{c["pose"]["distinct_median"]:.0f} | {r["ours_mean"]:.2f} / '
+              f'{r["peer_mean"]:.2f} | {100 * r["at_least_peer"]:.0f} % |', flush=True)
+    if args.json:
+        Path(args.json).write_text(json.dumps(rows, indent=1))
+
+
+if __name__ == '__main__':
+    main()
