@@ -137,6 +137,15 @@ def test_sik_solve_exits_non_zero_when_it_prints_failed():
     assert run.returncode == 1 and run.stdout.startswith('FAILED'), run.stdout
 
 
+def test_sik_solve_heads_its_table_with_the_words_that_tell_joints_apart():
+    """UR-style names lose their shared ``_joint``; names that would clash are kept whole."""
+    from sik_ros.cli.solve import short_names
+    ur = ['shoulder_pan_joint', 'shoulder_lift_joint', 'elbow_joint', 'wrist_1_joint']
+    assert short_names(ur) == ['shoulder_pan', 'shoulder_lift', 'elbow', 'wrist_1']
+    assert short_names([f'panda_joint{i}' for i in (1, 2)]) == ['joint1', 'joint2']
+    assert short_names(['arm_a_joint', 'arm_a_joint']) == ['arm_a_joint', 'arm_a_joint']
+
+
 def _dataset(tmp_path, panda, **manifest_changes):
     """A tiny valid dataset, then its manifest or arrays changed."""
     import json

@@ -40,10 +40,27 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
+def short_names(names: List[str]) -> List[str]:
+    """Joint names without the ``_``-separated words they all share at the start or the end.
+
+    ``panda_joint1`` ... gives ``joint1`` ..., ``shoulder_pan_joint`` ... ``shoulder_pan`` ...;
+    the names themselves when that would leave an empty or a repeated one.
+    """
+    words = [n.split('_') for n in names]
+    start = 0
+    while all(len(w) > start + 1 and w[start] == words[0][start] for w in words):
+        start += 1
+    end = 0
+    while all(len(w) > start + end + 1 and w[-1 - end] == words[0][-1 - end] for w in words):
+        end += 1
+    short = ['_'.join(w[start:len(w) - end]) for w in words]
+    return short if len(set(short)) == len(short) and all(short) else list(names)
+
+
 def format_table(res: IKResult, joint_names: List[str]) -> str:
     """A readable table of ranked solutions."""
     lines = [f"{'#':>2} {'pos err [mm]':>12} {'rot err [deg]':>13} {'clearance':>9} "
-             f"{'score':>8}  q [rad] ({', '.join(n.split('_')[-1] for n in joint_names)})"]
+             f"{'score':>8}  q [rad] ({', '.join(short_names(joint_names))})"]
     for i, s in enumerate(res.solutions, 1):
         clear = '-' if not np.isfinite(s.min_obstacle_distance) else \
             f'{s.min_obstacle_distance:.3f}'
