@@ -2,17 +2,21 @@
 
 For each arm: one ``sik-build --robot ARM`` with a tiny model, a small uniform sample and a
 one-minute budget (the frames it inferred, its wall time, the bundle's size and its
-self-check), then, on ``--targets`` pose goals (FK of random configurations, seeded), the
-distinct solutions of ours against TRAC-IK's from ``--attempts`` random seeds (what the arm's
-limits leave of its branches). A tiny build is far from a served bundle's accuracy or speed
-(``bench/arms.py`` measures those); this shows that each arm loads, builds, solves and finds the
-solutions there are.
+self-check), then, for arms of six joints or fewer, on ``--targets`` pose goals (FK of random
+configurations, seeded), the branches (distinct solutions once every angle is wrapped to one
+turn, as ``bench/arms.py`` counts them) of ours against TRAC-IK's from ``--attempts`` random
+seeds: what the arm's limits leave of its branches. (The 2 pi equivalents of periodic joints
+are further distinct solutions, of which TRAC-IK's random seeds find many more than the 16 we
+return; a redundant arm's solutions are not isolated.) A tiny build is far from a served
+bundle's accuracy or speed (``bench/arms.py`` measures those); this shows that each arm loads,
+builds, solves and finds the solutions there are.
 
     python bench/sweep.py --out /tmp/sweep                       # the default list of arms
     python bench/sweep.py --out /tmp/sweep --arms z1,ur10 --targets 30
 """
 
 import argparse
+import contextlib
 import json
 import os
 from pathlib import Path
@@ -26,17 +30,35 @@ import numpy as np  # noqa: E402
 
 from sik_ros import SelectiveIK  # noqa: E402
 
-from arms import distinct  # noqa: E402,I100 (bench/arms.py, beside this script)
+from arms import branches  # noqa: E402,I100 (bench/arms.py, beside this script)
 from peers import TracIK  # noqa: E402
 
 ARMS = ('ur3_gripper,ur10,z1,b1_z1,bravo7_gripper,talos_arm,so101,tiago,pr2,baxter,'
         'anymal_kinova')
 
 
+@contextlib.contextmanager
+def quiet_stdout():
+    """The process's standard output (file descriptor 1, C++ included) muted for a while."""
+    sys.stdout.flush()
+    saved = os.dup(1)
+    with open(os.devnull, 'w') as null:
+        os.dup2(null.fileno(), 1)
+        try:
+            yield
+        finally:
+            os.dup2(saved, 1)
+            os.close(saved)
+
+
 def tiny_build(arm, out, args):
-    """Build ``arm`` into ``out`` (unless there); its wall time [s] and the robot line printed."""
+    """Build ``arm`` into ``out`` (unless there); its wall time [s] and the robot line printed.
+
+    The wall time is kept beside the bundle (``<out>.sweep.json``) for later runs.
+    """
+    record = out.with_name(out.name + '.sweep.json')
     if (out / 'bundle.json').exists():
-        return None, ''
+        return (json.loads(record.read_text()).get('build_s') if record.exists() else None), ''
     t0 = time.perf_counter()
     run = subprocess.run([sys.executable, '-m', 'sik_ros.cli.build', '--robot', arm, '--out',
                           str(out), '--time', str(args.time), '--rows', str(args.rows),
@@ -46,7 +68,9 @@ def tiny_build(arm, out, args):
         raise RuntimeError(f'{arm}: sik-build exited {run.returncode}: '
                            f'{run.stderr.strip()[-300:]}')
     robot_line = next((ln for ln in run.stdout.splitlines() if ln.startswith('robot ')), '')
-    return time.perf_counter() - t0, robot_line
+    wall = time.perf_counter() - t0
+    record.write_text(json.dumps({'build_s': wall}))
+    return wall, robot_line
 
 
 def sweep_arm(arm, args):
@@ -58,21 +82,26 @@ def sweep_arm(arm, args):
     check = json.loads((out / 'bundle.json').read_text())['self_check']
     size = sum(f.stat().st_size for f in out.iterdir() if f.is_file())
     rng = np.random.default_rng(args.seed)
-    tracik = TracIK(robot)
+    with quiet_stdout():  # KDL's URDF parser prints warnings about root links there
+        tracik = TracIK(robot)
     ours, peer, reached = [], [], []
-    for q in rng.uniform(robot.lower, robot.upper, (args.targets, robot.dof)):
+    # a redundant arm's solutions are not isolated: no branches to count
+    for q in rng.uniform(robot.lower, robot.upper, (args.targets * (robot.dof <= 6), robot.dof)):
         p, quat = robot.fk(q)
         res = ik.solve(p, quat, num_solutions=16)
-        ours.append(distinct(ik, [s.q for s in res.solutions if s.converged], 'pose'))
+        ours.append(branches([s.q for s in res.solutions if s.converged]))
         found = [s for ok, s in (tracik.solve(p, quat, rng.uniform(robot.lower, robot.upper))
                                  for _ in range(args.attempts)) if ok]
-        peer.append(distinct(ik, found, 'pose'))
+        peer.append(branches(found))
         reached.append(bool(found))
-    return {'arm': arm, 'dof': robot.dof, 'base': robot.base_frame, 'tip': robot.tip_frame,
-            'periodic': int(robot.periodic.sum()), 'build_s': wall, 'bundle_mb': size / 1e6,
-            'check': check, 'ours_mean': float(np.mean(ours)), 'peer_mean': float(np.mean(peer)),
-            'at_least_peer': float(np.mean(np.array(ours) >= np.array(peer))),
-            'peer_reached': float(np.mean(reached))}
+    row = {'arm': arm, 'dof': robot.dof, 'base': robot.base_frame, 'tip': robot.tip_frame,
+           'periodic': int(robot.periodic.sum()), 'build_s': wall, 'bundle_mb': size / 1e6,
+           'check': check}
+    if ours:
+        row.update(ours_mean=float(np.mean(ours)), peer_mean=float(np.mean(peer)),
+                   at_least_peer=float(np.mean(np.array(ours) >= np.array(peer))),
+                   peer_reached=float(np.mean(reached)))
+    return row
 
 
 def main():
@@ -90,7 +119,7 @@ def main():
     rows = []
     print('| arm | joints (periodic) | base → tip | build [s] | bundle [MB] | self-check '
           'position: success, distinct median | pose: success, distinct median | pose '
-          'distinct, ours / TRAC-IK (mean) | ours ≥ TRAC-IK |')
+          'branches, ours / TRAC-IK (mean) | ours ≥ TRAC-IK |')
     print('|---|---|---|---|---|---|---|---|---|')
     for arm in args.arms.split(','):
         r = sweep_arm(arm, args)
@@ -100,8 +129,10 @@ def main():
         print(f'| {arm} | {r["dof"]} ({r["periodic"]}) | {r["base"]} → {r["tip"]} | {build} | '
               f'{r["bundle_mb"]:.1f} | {100 * c["position"]["success"]:.0f} %, '
               f'{c["position"]["distinct_median"]:.0f} | {100 * c["pose"]["success"]:.0f} %, '
-              f'{c["pose"]["distinct_median"]:.0f} | {r["ours_mean"]:.2f} / '
-              f'{r["peer_mean"]:.2f} | {100 * r["at_least_peer"]:.0f} % |', flush=True)
+              f'{c["pose"]["distinct_median"]:.0f} | ' + (
+                  f'{r["ours_mean"]:.2f} / {r["peer_mean"]:.2f} | '
+                  f'{100 * r["at_least_peer"]:.0f} % |' if 'ours_mean' in r else '— | — |'),
+              flush=True)
     if args.json:
         Path(args.json).write_text(json.dumps(rows, indent=1))
 
