@@ -122,7 +122,12 @@ def main():
           'branches, ours / TRAC-IK (mean) | ours ≥ TRAC-IK |')
     print('|---|---|---|---|---|---|---|---|---|')
     for arm in args.arms.split(','):
-        r = sweep_arm(arm, args)
+        try:
+            r = sweep_arm(arm, args)
+        except Exception as exc:  # noqa: B902 (an arm that fails is a finding, not the end)
+            print(f'| {arm} | failed: {" ".join(str(exc).split())[:300]} |||||||', flush=True)
+            rows.append({'arm': arm, 'error': str(exc)})
+            continue
         rows.append(r)
         c = r['check']
         build = '—' if r['build_s'] is None else f'{r["build_s"]:.0f}'

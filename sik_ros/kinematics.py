@@ -9,7 +9,7 @@ Pinocchio's own frame placements.
 
 import hashlib
 from pathlib import Path
-from typing import Optional, Sequence, Tuple
+from typing import Optional, Sequence, Set, Tuple
 
 import numpy as np
 import pinocchio as pin
@@ -37,6 +37,21 @@ FRAME_PREFERENCE = ('BODY', 'OP_FRAME', 'FIXED_JOINT', 'JOINT', 'SENSOR')
 #: Joint types that can only be a floating or planar root: locked at their neutral value.
 ROOT_JOINTS = ('JointModelFreeFlyer', 'JointModelPlanar', 'JointModelSpherical',
                'JointModelSphericalZYX', 'JointModelTranslation')
+
+
+def unused_name(taken: Set[str], name: str) -> str:
+    """``name``, or ``name_2``, ``name_3``, ... : the first not in ``taken`` (then added to it)."""
+    candidate, k = name, 2
+    while candidate in taken:
+        candidate, k = f'{name}_{k}', k + 1
+    taken.add(candidate)
+    return candidate
+
+
+def pinocchio_reason(exc: Exception) -> str:
+    """A Pinocchio error's message on one line, without the C++ file and function it names."""
+    text = ' '.join(str(exc).split())
+    return text.rsplit('message: ', 1)[-1] if 'message: ' in text else text
 
 
 def find_frame(model: pin.Model, name: str) -> int:
@@ -118,31 +133,39 @@ class Robot:
         q_ref = pin.neutral(full_model)
         # A joint that shares a link's name makes Pinocchio's model reduction refuse the name.
         # A locked joint becomes a fixed frame of its name, so it is renamed for good; an arm
-        # joint is renamed for the reduction only and gets its name back after it.
+        # joint is renamed for the reduction only and gets its name back after it. New names
+        # are ones no frame or joint has.
         bodies = {f.name for f in full_model.frames if f.type == pin.FrameType.BODY}
+        taken = {f.name for f in full_model.frames} | set(full_model.names)
         kept_names = {}
         for j in range(1, full_model.njoints):
             name_j = full_model.names[j]
             if name_j not in bodies or not lock:
                 continue
-            suffix = '_locked' if j in lock else '_joint'
+            new_name = unused_name(taken, f'{name_j}{"_locked" if j in lock else "_joint"}')
             for i, frame in enumerate(full_model.frames):
                 if frame.name == name_j and frame.type == pin.FrameType.JOINT:
                     renamed = full_model.frames[i]
-                    renamed.name = f'{name_j}{suffix}'
+                    renamed.name = new_name
                     full_model.frames[i] = renamed
-            full_model.names[j] = f'{name_j}{suffix}'
+            full_model.names[j] = new_name
             if j not in lock:
-                kept_names[f'{name_j}{suffix}'] = name_j
+                kept_names[new_name] = name_j
         self._locked = lock
         self._q_ref_full = q_ref
         try:
             self.model = pin.buildReducedModel(full_model, lock, q_ref) if lock else full_model
         except (RuntimeError, ValueError) as exc:
             raise InvalidModel(f'{name}: Pinocchio cannot reduce the model to the chain '
-                               f'{base_frame!r} -> {tip_frame!r}: {exc}') from exc
+                               f'{base_frame!r} -> {tip_frame!r}: {pinocchio_reason(exc)}'
+                               ) from exc
         for j in range(1, self.model.njoints):
             self.model.names[j] = kept_names.get(self.model.names[j], self.model.names[j])
+        for i, frame in enumerate(self.model.frames):
+            if frame.type == pin.FrameType.JOINT and frame.name in kept_names:
+                renamed = self.model.frames[i]
+                renamed.name = kept_names[frame.name]
+                self.model.frames[i] = renamed
         self._full_model = full_model
         self.joint_names = [self.model.names[j] for j in range(1, self.model.njoints)]
         self.lower = np.array(self.model.lowerPositionLimit, dtype=float)
@@ -349,11 +372,10 @@ class Robot:
                                                   pin.GeometryType.COLLISION,
                                                   package_dirs=self._package_dirs)
             except (RuntimeError, ValueError) as exc:
-                reason = ' '.join(str(exc).split())
                 raise InvalidModel(f'{self.name}: cannot load the collision geometry of '
-                                   f'{self._collision_urdf}: {reason} (put the folder holding '
-                                   f'its package on ROS_PACKAGE_PATH, or source its ROS '
-                                   f'workspace)') from exc
+                                   f'{self._collision_urdf}: {pinocchio_reason(exc)} (put the '
+                                   f'folder holding its package on ROS_PACKAGE_PATH, or source '
+                                   f'its ROS workspace)') from exc
             if self._locked:
                 _, geom = pin.buildReducedModel(self._full_model, full_geom, self._locked,
                                                 self._q_ref_full)

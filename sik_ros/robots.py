@@ -186,13 +186,14 @@ def chain_joint_or_none(model: pin.Model, j: int) -> bool:
 def package_dirs(urdf: Path) -> List[str]:
     """Where the ``package://`` meshes of a URDF file may be: the folders that hold packages.
 
-    The URDF's own folder and every folder above it (a URDF in ``src/my_arm_description/urdf``
-    names its meshes ``package://my_arm_description/...``, found from ``src``), then each
-    ``share`` folder of a sourced ROS workspace (``AMENT_PREFIX_PATH``). Pinocchio also reads
-    ``ROS_PACKAGE_PATH`` itself.
+    First ``ROS_PACKAGE_PATH`` (the user's word wins), then the URDF's own folder and every
+    folder above it (a URDF in ``src/my_arm_description/urdf`` names its meshes
+    ``package://my_arm_description/...``, found from ``src``), then each ``share`` folder of a
+    sourced ROS workspace (``AMENT_PREFIX_PATH``).
     """
     path = Path(urdf).resolve()
-    dirs = [str(d) for d in path.parents]
+    dirs = [d for d in os.environ.get('ROS_PACKAGE_PATH', '').split(os.pathsep) if d]
+    dirs += [str(d) for d in path.parents]
     for prefix in os.environ.get('AMENT_PREFIX_PATH', '').split(os.pathsep):
         if prefix and Path(prefix, 'share').is_dir():
             dirs.append(str(Path(prefix, 'share')))

@@ -92,7 +92,9 @@ def test_arm_joints_named_like_their_links_keep_their_names(tmp_path, ur5):
     ValueError; the joints keep their names, the links answer to them as frames.
     """
     text = ur5.urdf_path.read_text()
-    pairs = [('shoulder_pan_joint', 'shoulder_link'), ('elbow_joint', 'forearm_link')]
+    # the third: a joint already called what a renaming would call the second
+    pairs = [('shoulder_pan_joint', 'shoulder_link'), ('elbow_joint', 'forearm_link'),
+             ('wrist_1_joint', 'forearm_link_joint')]
     for joint, link in pairs:
         text = text.replace(f'"{joint}"', f'"{link}"')
     gripper = ('<link name="finger"/><joint name="finger_joint" type="prismatic">'
@@ -102,7 +104,7 @@ def test_arm_joints_named_like_their_links_keep_their_names(tmp_path, ur5):
     urdf.write_text(text.replace('</robot>', gripper))
     robot = load_robot('x', str(urdf), tip='tool0')
     assert robot.dof == 6 and robot.joint_names[0] == 'shoulder_link'
-    assert robot.joint_names[2] == 'forearm_link'
+    assert robot.joint_names[2:4] == ['forearm_link', 'forearm_link_joint']
     frame = robot.model.frames[robot.model.getFrameId('forearm_link', pin.FrameType.BODY)]
     assert robot.model.names[frame.parentJoint] == 'forearm_link'
     q = np.random.default_rng(3).uniform(ur5.lower, ur5.upper, (5, 6))

@@ -46,6 +46,8 @@ def short_names(names: List[str]) -> List[str]:
     ``panda_joint1`` ... gives ``joint1`` ..., ``shoulder_pan_joint`` ... ``shoulder_pan`` ...;
     the names themselves when that would leave an empty or a repeated one.
     """
+    if len(names) < 2:
+        return list(names)
     words = [n.split('_') for n in names]
     start = 0
     while all(len(w) > start + 1 and w[start] == words[0][start] for w in words):
