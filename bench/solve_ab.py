@@ -5,9 +5,12 @@ bundle; target by target the workers take turns, the order flipping every target
 machine's drift falls on both alike. Targets are FK of configurations drawn uniformly in joint
 space (seeded). Prints per checkout: success, distinct exact solutions (mean), branches (mean:
 distinct with angles wrapped to one turn), the median time per call and the median of the
-per-target time ratios to the first checkout.
+per-target time ratios to the first checkout. With ``--busy MS`` each worker first does that many
+milliseconds of other work (a NumPy loop) before each call: a call then finds the caches
+emptied, as a service's requests and the calls in ``bench/arms.py`` (after the peer's) do.
 
     python bench/solve_ab.py old=/path/to/checkout new=. --bundle DIR --goal pose
+    python bench/solve_ab.py old=/path/to/checkout new=. --bundle DIR --busy 90
 """
 
 import argparse
@@ -23,8 +26,16 @@ import numpy as np  # noqa: E402
 from ab import answers_in_turn  # noqa: E402,I100 (bench/ab.py, beside this script)
 
 
+def busy(ms: float) -> None:
+    """``ms`` milliseconds of other work: NumPy on an array the size of a cache's share."""
+    x = np.ones(100_000)
+    t0 = time.perf_counter()
+    while time.perf_counter() - t0 < ms / 1e3:
+        x = np.sin(x) + 1.0
+
+
 def worker(root: str, bundle: str, goal: str, num: int, seeded: bool, seed: int,
-           count: int) -> None:
+           count: int, busy_ms: float) -> None:
     """Answer target numbers read from stdin with one JSON line each (run in a subprocess)."""
     sys.path.insert(0, root)
     sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
@@ -44,6 +55,8 @@ def worker(root: str, bundle: str, goal: str, num: int, seeded: bool, seed: int,
     for line in sys.stdin:
         k = int(line)
         p, quat = targets[k]
+        if busy_ms > 0:
+            busy(busy_ms)
         t0 = time.perf_counter()
         res = ik.solve(p, quat if goal == 'pose' else None, num_solutions=num,
                        seed=seeds[k] if seeded else None)
@@ -64,19 +77,25 @@ def main() -> None:
     parser.add_argument('--seeded', action='store_true', help='a random current state each')
     parser.add_argument('--targets', type=int, default=100)
     parser.add_argument('--seed', type=int, default=2024)
-    parser.add_argument('--worker', nargs=7, help=argparse.SUPPRESS)
+    parser.add_argument('--busy', type=float, default=0.0,
+                        help='milliseconds of other work before each call (cold calls)')
+    parser.add_argument('--worker', nargs=8, help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.worker:
-        root, bundle, goal, num, seeded, seed, count = args.worker
-        worker(root, bundle, goal, int(num), seeded == '1', int(seed), int(count))
+        root, bundle, goal, num, seeded, seed, count, busy_ms = args.worker
+        worker(root, bundle, goal, int(num), seeded == '1', int(seed), int(count),
+               float(busy_ms))
         return
     answers = answers_in_turn(__file__, args.checkouts,
                               [args.bundle, args.goal, str(args.num), str(int(args.seeded)),
-                               str(args.seed), str(args.targets)], args.targets)
+                               str(args.seed), str(args.targets), str(args.busy)],
+                              args.targets)
     first = next(iter(answers))
     ref = answers[first]
     print(f'# bench/solve_ab.py: {args.targets} {args.goal} targets of {args.bundle} (seed '
-          f'{args.seed}), {args.num} solutions{", seeded" if args.seeded else ""}, A B A B')
+          f'{args.seed}), {args.num} solutions{", seeded" if args.seeded else ""}'
+          f'{f", {args.busy:g} ms of other work before each call" if args.busy else ""}, '
+          f'A B A B')
     print(f'| checkout | success | distinct (mean) | branches (mean) | time per call (median) '
           f'| ratio to {first} (median) |')
     print('|---|---|---|---|---|---|')

@@ -67,6 +67,8 @@ LOOKUP_EPS = 0.5
 #: 1.14 solutions (fewer than 8 there lost some: 1.11 with no least).
 START_SPACING = 1.2
 START_LEAST = 8
+#: The KD-tree's layout (scipy's ``cKDTree`` arguments).
+TREE_LAYOUT = dict(leafsize=32, balanced_tree=False, compact_nodes=False)
 #: The turn [rad] of the first joint with which :func:`first_axis` checks an arm.
 BASE_CHECK_ANGLE = 0.7
 
@@ -100,8 +102,14 @@ class SeedTable:
             self._base_q[:, 0] -= azimuth
         # leaves of 32 rows: look-ups 0.86x the time of the default 16's on a UR5 table (the
         # same rows found)
-        self.tree = cKDTree(np.concatenate([p, QUATERNION_SCALE * quat], axis=1),
-                            leafsize=32, balanced_tree=False, compact_nodes=False)
+        keys = np.concatenate([p, QUATERNION_SCALE * quat], axis=1)
+        self.tree = cKDTree(keys, **TREE_LAYOUT)
+        order = self.tree.indices
+        if np.any(order != np.arange(len(order))):
+            # the rows in the tree's leaf order (a table saved after this loads in it): a leaf's
+            # rows lie together in memory, for look-ups after other work has emptied the caches
+            self.q, self._base_q = self.q[order], self._base_q[order]
+            self.tree = cKDTree(keys[order], **TREE_LAYOUT)
 
     def __len__(self) -> int:
         """Number of configurations."""

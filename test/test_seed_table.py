@@ -38,6 +38,18 @@ def test_a_seed_table_keeps_dataset_rows_and_round_trips(ur5, ur5_data, table, t
     assert loaded.manifest['rows'] == 3000 and loaded.manifest['robot'] == ur5.manifest()
 
 
+def test_rows_are_kept_in_the_trees_leaf_order_with_the_same_starts(ur5, table):
+    """A leaf's rows lie together in memory; shuffled rows give the same rows and starts."""
+    np.testing.assert_array_equal(table.tree.indices, np.arange(len(table)))
+    shuffled = SeedTable(ur5, table.q[np.random.default_rng(0).permutation(len(table))],
+                         table.manifest)
+    np.testing.assert_array_equal(shuffled.tree.indices, np.arange(len(table)))
+    np.testing.assert_array_equal(np.unique(shuffled.q, axis=0), np.unique(table.q, axis=0))
+    for q in np.random.default_rng(1).uniform(ur5.lower, ur5.upper, (5, ur5.dof)):
+        p, quat = ur5.fk(q)
+        np.testing.assert_array_equal(shuffled.starts(p, quat, 24), table.starts(p, quat, 24))
+
+
 def test_starts_are_the_nearest_rows_by_tip_pose_and_far_apart(ur5, table):
     """A goal at a row's own tip pose starts from that row; the other starts are far apart."""
     q0 = table.q[123]
