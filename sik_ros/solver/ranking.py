@@ -61,7 +61,7 @@ def distinct_mask(q: np.ndarray, threshold: float, ignore_last: bool = False,
     cols = slice(0, q.shape[1] - 1) if ignore_last else slice(None)
     if periodic is not None and periodic.any():
         d = turn_differences(q[:, cols], periodic[cols])
-        dist = np.sqrt(np.einsum('ijk,ijk->ij', d, d))
+        dist = np.sqrt((d * d).sum(axis=2))
     else:
         dist = cdist(q[:, cols], q[:, cols])
     # earlier[j, i]: row j, before row i, is near it

@@ -100,7 +100,7 @@ def limited_step(ctx: Context, q: np.ndarray, j: np.ndarray, err: np.ndarray, la
     bounded = ~robot.periodic if turns else True
     at_lower, at_upper = (q <= lower + 1e-9) & bounded, (q >= upper - 1e-9) & bounded
     if at_lower.any() or at_upper.any():
-        g = np.einsum('nrj,nr->nj', j, err)
+        g = (j * err[:, :, None]).sum(axis=1)  # J^T e (no einsum: see rotation_log)
         blocked = (at_lower & (g < 0)) | (at_upper & (g > 0))
         j = j * ~blocked[:, None, :]
     dq = dls_step(j, err, lam2, eye)
