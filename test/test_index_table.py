@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 
 from sik_ros.errors import ArtifactMismatch, CorruptArtifact
-from sik_ros.index_table import farthest_point_subset, IndexTable, TableConfig
+from sik_ros.index_table import (farthest_point_subset, IndexTable, pairwise_distances,
+                                 TableConfig)
 from sik_ros.robots import load_robot
 
 
@@ -212,3 +213,16 @@ def test_within_the_data_agrees_with_the_distance_and_mostly_skips_the_tree(monk
     for p in points[3000:]:
         assert table.within(p, 0.15)
     assert len(queries) < 100  # of 1,000 inside the ball
+
+
+def test_pairwise_distances_are_scipys_and_zero_between_equal_rows():
+    """The matrix-product distances match cdist to 1e-9 and give exactly 0 for equal rows."""
+    from scipy.spatial.distance import cdist
+    rng = np.random.default_rng(5)
+    a = rng.uniform(-3, 3, (60, 12))
+    a[7] = a[3]
+    b = rng.uniform(-3, 3, (9, 12))
+    np.testing.assert_allclose(pairwise_distances(a), cdist(a, a), atol=1e-9)
+    np.testing.assert_allclose(pairwise_distances(a, b), cdist(a, b), atol=1e-9)
+    d = pairwise_distances(a)
+    assert d[3, 7] == 0.0 and d[7, 3] == 0.0 and np.all(np.diag(d) == 0.0)

@@ -14,8 +14,8 @@ from typing import Tuple
 import zlib
 
 import numpy as np
-from scipy.spatial.distance import cdist
 
+from sik_ros.index_table import pairwise_distances
 from sik_ros.seed_table import SeedTable
 from sik_ros.solver.batch import Candidates
 from sik_ros.solver.context import Context, Goal
@@ -187,7 +187,8 @@ def walk(ctx: Context, c: Candidates, goal: Goal, deadline, need: int) -> Candid
         step = assess(r.q, unindexed(r.q, c.z.shape[1]), r.perr, r.oerr, goal.kind, cfg)
         pick = np.empty(0, dtype=int)
         if step.exact.any():
-            far_enough = cdist(step.q[step.exact], found).min(axis=1) >= cfg.distinct_threshold
+            far_enough = pairwise_distances(step.q[step.exact], found).min(axis=1) \
+                >= cfg.distinct_threshold
             pick = np.flatnonzero(step.exact)[far_enough]
             pick = pick[distinct_mask(step.q[pick], cfg.distinct_threshold, roll_free)]
         if len(pick) == 0:

@@ -10,9 +10,9 @@ import time
 from typing import List, Optional, Sequence
 
 import numpy as np
-from scipy.spatial.distance import cdist
 
 from sik_ros.collision import Obstacle
+from sik_ros.index_table import pairwise_distances
 from sik_ros.objectives import JointLimitMargin, Objective, SeedDistance
 from sik_ros.solver.batch import Candidates
 from sik_ros.solver.config import SolverConfig
@@ -63,7 +63,7 @@ def distinct_mask(q: np.ndarray, threshold: float, ignore_last: bool = False,
         d = turn_differences(q[:, cols], periodic[cols])
         dist = np.sqrt((d * d).sum(axis=2))
     else:
-        dist = cdist(q[:, cols], q[:, cols])
+        dist = pairwise_distances(q[:, cols])
     # earlier[j, i]: row j, before row i, is near it
     earlier = np.triu(dist < threshold, 1)
     contested = earlier.any(axis=0)
