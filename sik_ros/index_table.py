@@ -187,21 +187,29 @@ class ReachGrid:
 
 #: Rows up to which :func:`farthest_point_subset` computes every pair's distance at once.
 PAIRWISE_ROWS = 1024
-#: Squared distance below which :func:`pairwise_distances` takes two rows as equal.
-SAME_ROW = 1e-12
+#: Rows up to which :func:`pairwise_distances` takes a matrix product, not ``cdist``.
+GRAM_ROWS = 128
+#: Distance below which :func:`farthest_point_subset` takes a row as equal to a chosen one.
+SAME_DISTANCE = 1e-6
 
 
 def pairwise_distances(a: np.ndarray, b: Optional[np.ndarray] = None) -> np.ndarray:
     """Euclidean distances (N, M) between the rows of ``a`` (N, d) and ``b`` (M, d; ``a``).
 
-    By ``|a|^2 + |b|^2 - 2 a.b`` (one matrix product, not scipy's ``cdist``, whose first call
-    costs ~0.1 ms of a solve when the caches are cold); rounding leaves about 1e-8 between
-    equal rows, so squared distances below :data:`SAME_ROW` count as 0.
+    Up to :data:`GRAM_ROWS` rows each, by ``|a|^2 + |b|^2 - 2 a.b`` (one matrix product):
+    scipy's ``cdist``, as fast there, costs ~0.1 ms more in a solve's first call of it when
+    the caches are cold. Rounding leaves up to about 1e-7 between equal rows
+    (:data:`SAME_DISTANCE`). More rows: ``cdist`` (the product's temporaries cost more there).
     """
     a = np.asarray(a, dtype=np.float64)
     b = a if b is None else np.asarray(b, dtype=np.float64)
-    d2 = (a * a).sum(axis=1)[:, None] + (b * b).sum(axis=1)[None, :] - 2.0 * (a @ b.T)
-    d2[d2 < SAME_ROW] = 0.0
+    if max(len(a), len(b)) > GRAM_ROWS:
+        return cdist(a, b)
+    d2 = a @ b.T
+    d2 *= -2.0
+    d2 += (a * a).sum(axis=1)[:, None]
+    d2 += (b * b).sum(axis=1)[None, :]
+    np.maximum(d2, 0.0, out=d2)
     return np.sqrt(d2, out=d2)
 
 
@@ -226,7 +234,8 @@ def farthest_point_subset(points: np.ndarray, k: int, first: int = 0, spacing: f
     dist = row(first).copy()
     for _ in range(min(k, n) - 1):
         i = int(np.argmax(dist))
-        if spacing > 0 and (dist[i] <= 0 or (dist[i] < spacing and len(chosen) >= at_least)):
+        if spacing > 0 and (dist[i] <= SAME_DISTANCE
+                            or (dist[i] < spacing and len(chosen) >= at_least)):
             break
         chosen.append(i)
         np.minimum(dist, row(i), out=dist)
