@@ -108,7 +108,9 @@ class SeedTable:
         if np.any(order != np.arange(len(order))):
             # the rows in the tree's leaf order (a table saved after this loads in it): a leaf's
             # rows lie together in memory, for look-ups after other work has emptied the caches
-            self.q, self._base_q = self.q[order], self._base_q[order]
+            same = self._base_q is self.q  # no first axis: one array, kept one
+            self.q = self.q[order]
+            self._base_q = self.q if same else self._base_q[order]
             self.tree = cKDTree(keys[order], **TREE_LAYOUT)
 
     def __len__(self) -> int:
