@@ -48,6 +48,13 @@ def unused_name(taken: Set[str], name: str) -> str:
     return candidate
 
 
+def rename_frame(model: pin.Model, i: int, name: str) -> None:
+    """Give frame ``i`` of ``model`` a new name (Pinocchio's frames are copied out and back)."""
+    frame = model.frames[i]
+    frame.name = name
+    model.frames[i] = frame
+
+
 def pinocchio_reason(exc: Exception) -> str:
     """A Pinocchio error's message on one line, without the C++ file and function it names."""
     text = ' '.join(str(exc).split())
@@ -145,9 +152,7 @@ class Robot:
             new_name = unused_name(taken, f'{name_j}{"_locked" if j in lock else "_joint"}')
             for i, frame in enumerate(full_model.frames):
                 if frame.name == name_j and frame.type == pin.FrameType.JOINT:
-                    renamed = full_model.frames[i]
-                    renamed.name = new_name
-                    full_model.frames[i] = renamed
+                    rename_frame(full_model, i, new_name)
             full_model.names[j] = new_name
             if j not in lock:
                 kept_names[new_name] = name_j
@@ -163,9 +168,7 @@ class Robot:
             self.model.names[j] = kept_names.get(self.model.names[j], self.model.names[j])
         for i, frame in enumerate(self.model.frames):
             if frame.type == pin.FrameType.JOINT and frame.name in kept_names:
-                renamed = self.model.frames[i]
-                renamed.name = kept_names[frame.name]
-                self.model.frames[i] = renamed
+                rename_frame(self.model, i, kept_names[frame.name])
         self._full_model = full_model
         self.joint_names = [self.model.names[j] for j in range(1, self.model.njoints)]
         self.lower = np.array(self.model.lowerPositionLimit, dtype=float)

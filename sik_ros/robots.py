@@ -31,7 +31,7 @@ import pinocchio as pin
 from sik_ros.artifacts import check_robot_manifest
 from sik_ros.errors import (ArtifactMismatch, CorruptArtifact, FrameNotFound, InvalidArgument,
                             InvalidModel, RobotNotFound)
-from sik_ros.kinematics import chain_joint, find_frame, Robot, sha256_file
+from sik_ros.kinematics import chain_joint, find_frame, rename_frame, Robot, sha256_file
 
 #: Default base and tip frames of robots whose own choice differs from the inferred one.
 KNOWN_FRAMES = {
@@ -107,9 +107,7 @@ def unique_frame_names(model: pin.Model) -> pin.Model:
     for i, frame in enumerate(model.frames):
         kind = str(frame.type).split('.')[-1]
         if count[frame.name] > 1 and kind not in ('BODY', 'JOINT'):
-            renamed = model.frames[i]
-            renamed.name = f'{frame.name}_{kind.lower()}'
-            model.frames[i] = renamed
+            rename_frame(model, i, f'{frame.name}_{kind.lower()}')
     return model
 
 
