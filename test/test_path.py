@@ -192,13 +192,13 @@ def test_tracks_carry_their_evaluations_and_step_once(ik):
     q = np.array([s.q for s in q if s.converged])
     ev = refine.Evaluation.of(ctx, q)
     steps = []
-    original = refine.limited_step
+    original = refine.follow_rows
 
-    def counting(ctx_, qa, *args):
-        steps.append(len(qa))
-        return original(ctx_, qa, *args)
+    def counting(*args):
+        original(*args)
+        steps.append(int(args[-1].sum()))  # the kernel's steps per row (its last argument)
     try:
-        refine.limited_step = counting
+        refine.follow_rows = counting
         for i in range(1, len(positions)):
             goal = Goal(positions[i], rot[i])
             _, q, ev = refine.follow(ctx, q, ev, goal, 10)
@@ -207,7 +207,7 @@ def test_tracks_carry_their_evaluations_and_step_once(ik):
             perr = np.linalg.norm(p - goal.position, axis=1)
             assert (perr <= ik.config.position_tolerance).all()
     finally:
-        refine.limited_step = original
+        refine.follow_rows = original
     assert len(q) >= 4  # the tracks were kept
     # a plain Newton step (the Jacobian where a row is) takes two steps per row here
     assert sum(steps) <= 1.3 * len(q) * (len(positions) - 1)
