@@ -11,6 +11,11 @@ emptied, as a service's requests and the calls in ``bench/arms.py`` (after the p
 
     python bench/solve_ab.py old=/path/to/checkout new=. --bundle DIR --goal pose
     python bench/solve_ab.py old=/path/to/checkout new=. --bundle DIR --busy 90
+
+A checkout spec ``NAME=tracik`` (pose goals) or ``NAME=dls`` (position goals) is a peer in the
+same turns instead: with ``--num 1`` one call from the same seed (the target's random current
+state with ``--seeded``, else a random one); with more, calls from random seeds until as many
+distinct solutions as asked for (or 300 attempts).
 """
 
 import argparse
@@ -37,8 +42,11 @@ def busy(ms: float) -> None:
 def worker(root: str, bundle: str, goal: str, num: int, seeded: bool, seed: int,
            count: int, busy_ms: float) -> None:
     """Answer target numbers read from stdin with one JSON line each (run in a subprocess)."""
-    sys.path.insert(0, root)
-    sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+    here = os.path.dirname(os.path.abspath(__file__))
+    peer = root.rstrip('/').rsplit('/', 1)[-1] if os.path.basename(root) in ('tracik', 'dls') \
+        else None
+    sys.path.insert(0, os.path.dirname(here) if peer else root)
+    sys.path.insert(0, here)
     import torch
     from arms import branches
     from sik_ros import SelectiveIK
@@ -49,20 +57,50 @@ def worker(root: str, bundle: str, goal: str, num: int, seeded: bool, seed: int,
     q = rng.uniform(robot.lower, robot.upper, (count, robot.dof))
     seeds = rng.uniform(robot.lower, robot.upper, (count, robot.dof))
     targets = [robot.fk(qi) for qi in q]
-    ik.solve(targets[0][0], targets[0][1] if goal == 'pose' else None,
-             num_solutions=num)  # warm-up
+    if peer:
+        from peers import DLS, TracIK
+        out = os.dup(1)
+        os.dup2(2, 1)  # TRAC-IK's URDF parser prints to stdout, which carries the answers
+        solver = TracIK(robot) if peer == 'tracik' else DLS(robot)
+        os.dup2(out, 1)
+        draws = np.random.default_rng(seed + 1)
+
+        def call(p, quat, q0):
+            return solver.solve(p, quat, q0) if peer == 'tracik' else solver.solve(p, q0)
+        call(targets[0][0], targets[0][1], seeds[0])  # warm-up
+    else:
+        ik.solve(targets[0][0], targets[0][1] if goal == 'pose' else None,
+                 num_solutions=num)  # warm-up
     print('ready', flush=True)
     for line in sys.stdin:
         k = int(line)
         p, quat = targets[k]
         if busy_ms > 0:
             busy(busy_ms)
-        t0 = time.perf_counter()
-        res = ik.solve(p, quat if goal == 'pose' else None, num_solutions=num,
-                       seed=seeds[k] if seeded else None)
-        t = time.perf_counter() - t0
-        exact = np.array([s.q for s in res.solutions if s.converged]).reshape(-1, robot.dof)
-        print(json.dumps({'ok': bool(res.success), 't': t * 1e3,
+        if peer:
+            found, attempts = [], 0
+            t0 = time.perf_counter()
+            while attempts < (1 if num == 1 else 300):
+                q0 = seeds[k] if seeded and attempts == 0 else \
+                    draws.uniform(robot.lower, robot.upper)
+                ok, qk = call(p, quat, q0)
+                attempts += 1
+                if ok:
+                    found.append(qk)
+                    if len(found) >= num and ik.distinct_mask(np.array(found), goal).sum() \
+                            >= num:
+                        break
+            t = time.perf_counter() - t0
+            exact = np.array(found).reshape(-1, robot.dof)
+            success = bool(len(found))
+        else:
+            t0 = time.perf_counter()
+            res = ik.solve(p, quat if goal == 'pose' else None, num_solutions=num,
+                           seed=seeds[k] if seeded else None)
+            t = time.perf_counter() - t0
+            exact = np.array([s.q for s in res.solutions if s.converged]).reshape(-1, robot.dof)
+            success = bool(res.success)
+        print(json.dumps({'ok': success, 't': t * 1e3,
                           'n': int(ik.distinct_mask(exact, goal).sum()) if len(exact) else 0,
                           'b': branches(exact)}), flush=True)
 
