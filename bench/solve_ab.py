@@ -15,7 +15,8 @@ emptied, as a service's requests and the calls in ``bench/arms.py`` (after the p
 A checkout spec ``NAME=tracik`` (pose goals) or ``NAME=dls`` (position goals) is a peer in the
 same turns instead: with ``--num 1`` one call from the same seed (the target's random current
 state with ``--seeded``, else a random one); with more, calls from random seeds until as many
-distinct solutions as asked for (or 300 attempts).
+distinct solutions as asked for (or 300 attempts); ``--peer-num 1`` times one peer call beside
+calls asking for more (an arm whose poses have one solution: ours returns every branch).
 """
 
 import argparse
@@ -40,7 +41,7 @@ def busy(ms: float) -> None:
 
 
 def worker(root: str, bundle: str, goal: str, num: int, seeded: bool, seed: int,
-           count: int, busy_ms: float) -> None:
+           count: int, busy_ms: float, peer_num: int) -> None:
     """Answer target numbers read from stdin with one JSON line each (run in a subprocess)."""
     here = os.path.dirname(os.path.abspath(__file__))
     peer = root.rstrip('/').rsplit('/', 1)[-1] if os.path.basename(root) in ('tracik', 'dls') \
@@ -58,6 +59,7 @@ def worker(root: str, bundle: str, goal: str, num: int, seeded: bool, seed: int,
     seeds = rng.uniform(robot.lower, robot.upper, (count, robot.dof))
     targets = [robot.fk(qi) for qi in q]
     if peer:
+        num = peer_num or num
         from peers import DLS, TracIK
         out = os.dup(1)
         os.dup2(2, 1)  # TRAC-IK's URDF parser prints to stdout, which carries the answers
@@ -117,16 +119,19 @@ def main() -> None:
     parser.add_argument('--seed', type=int, default=2024)
     parser.add_argument('--busy', type=float, default=0.0,
                         help='milliseconds of other work before each call (cold calls)')
-    parser.add_argument('--worker', nargs=8, help=argparse.SUPPRESS)
+    parser.add_argument('--peer-num', type=int, default=0,
+                        help='solutions a peer looks for (default: --num)')
+    parser.add_argument('--worker', nargs=9, help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.worker:
-        root, bundle, goal, num, seeded, seed, count, busy_ms = args.worker
+        root, bundle, goal, num, seeded, seed, count, busy_ms, peer_num = args.worker
         worker(root, bundle, goal, int(num), seeded == '1', int(seed), int(count),
-               float(busy_ms))
+               float(busy_ms), int(peer_num))
         return
     answers = answers_in_turn(__file__, args.checkouts,
                               [args.bundle, args.goal, str(args.num), str(int(args.seeded)),
-                               str(args.seed), str(args.targets), str(args.busy)],
+                               str(args.seed), str(args.targets), str(args.busy),
+                               str(args.peer_num)],
                               args.targets)
     first = next(iter(answers))
     ref = answers[first]

@@ -10,8 +10,8 @@ placement in scalars (no allocation per joint) and write into arrays the caller 
 
 import math
 
-import numpy as np
 from numba import njit
+import numpy as np
 
 from sik_ros.chain import SerialChain
 

@@ -12,8 +12,8 @@ converged. The kernels release the GIL: threads solve in parallel.
 
 import math
 
-import numpy as np
 from numba import njit
+import numpy as np
 
 from sik_ros.kernels.chain import F1, F2, F3, place, rotation_error
 from sik_ros.kernels.clock import monotonic
