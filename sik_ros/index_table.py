@@ -31,6 +31,7 @@ from scipy.spatial.distance import cdist
 from sik_ros.artifacts import (atomic_write, check_robot_manifest, FORMAT_VERSION, range_codes,
                                range_values)
 from sik_ros.errors import ArtifactMismatch, CorruptArtifact, InvalidArgument
+from sik_ros.kernels.sets import farthest_rows
 
 TABLE_KEYS = ('centers', 'offsets', 'indices', 'manifest')
 
@@ -225,21 +226,20 @@ def farthest_point_subset(points: np.ndarray, k: int, first: int = 0, spacing: f
     n = len(points)
     if n == 0 or k < 1 or (n <= k and spacing <= 0):
         return np.arange(min(n, max(k, 0)))
-    # a few hundred rows (a solve's candidates): every pair's distance at once, instead of
-    # one call per pick; more (a table's cells when built): a row of distances per pick
-    pairs = pairwise_distances(points) if n <= PAIRWISE_ROWS else None
-
-    def row(i: int) -> np.ndarray:
-        return pairs[i] if pairs is not None else cdist(points[i:i + 1], points)[0]
+    if n <= PAIRWISE_ROWS:
+        # a few hundred rows (a solve's candidates, a seed table's neighbours): one compiled
+        # call; more (a table's cells when built): a row of distances per pick
+        return farthest_rows(np.ascontiguousarray(points, dtype=np.float64), int(k),
+                             int(first), float(spacing), int(at_least), SAME_DISTANCE)
     chosen = [first]
-    dist = row(first).copy()
+    dist = cdist(points[first:first + 1], points)[0]
     for _ in range(min(k, n) - 1):
         i = int(np.argmax(dist))
         if spacing > 0 and (dist[i] <= SAME_DISTANCE
                             or (dist[i] < spacing and len(chosen) >= at_least)):
             break
         chosen.append(i)
-        np.minimum(dist, row(i), out=dist)
+        np.minimum(dist, cdist(points[i:i + 1], points)[0], out=dist)
     return np.array(chosen)
 
 
