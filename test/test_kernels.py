@@ -105,3 +105,16 @@ def test_small_network_calls_match_numpy(bundled):
             x = np.random.default_rng(5).normal(size=(3, width)).astype(np.float32)
             plain = NumpyMLP.__call__(NumpyMLP(net.layers), np.repeat(x, 3, axis=0))[::3]
             np.testing.assert_allclose(net(x), plain, rtol=1e-4, atol=1e-5)
+
+
+def test_cache_folder_falls_back_to_a_temporary_one(monkeypatch):
+    """With the package's folder and the user cache read-only, numba caches in the temp dir."""
+    import tempfile
+    from numba.core import config
+    import sik_ros.kernels as kernels
+    monkeypatch.setattr(config, 'CACHE_DIR', '')
+    kernels._cache_folder()
+    assert config.CACHE_DIR == ''  # writable here: numba's own choice is kept
+    monkeypatch.setattr(kernels, '_writable', lambda folder: False)
+    kernels._cache_folder()
+    assert config.CACHE_DIR.startswith(tempfile.gettempdir())

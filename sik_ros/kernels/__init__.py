@@ -4,13 +4,46 @@ The kernels take arrays and scalars, allocate nothing per joint or per step, wri
 the caller owns and release the GIL. Their argument types are declared, so they are compiled
 (or loaded from numba's disk cache) when this package is imported, never inside a request; a
 call with other types is refused instead of compiled. The cache lives in ``__pycache__`` beside
-the sources, or in numba's user cache directory (``NUMBA_CACHE_DIR``, else
-``~/.cache/numba``) when the package's folder is read-only.
+the sources; when the package's folder is read-only, in numba's user cache directory
+(``~/.cache/numba``); when that is not writable either, in the system's temporary directory;
+``NUMBA_CACHE_DIR`` chooses another.
 """
 
-from sik_ros.kernels.chain import chain_frames, fk_many, jac_many
-from sik_ros.kernels.dls import follow_rows, refine_rows
-from sik_ros.kernels.mlp import mlp_rows, pack_layers
+import os
+from pathlib import Path
+import tempfile
+
+from numba.core import config
+from numba.misc.appdirs import AppDirs
+
+
+def _writable(folder: Path) -> bool:
+    """Whether ``folder`` (or the nearest existing folder above it) can be written."""
+    while not folder.exists():
+        folder = folder.parent
+    return os.access(folder, os.W_OK)
+
+
+def _cache_folder() -> None:
+    """A writable cache folder for numba when neither its usual two are writable.
+
+    numba caches beside the sources, else in the user cache directory; with both read-only
+    (an installed package, a user without a home) it would refuse to compile. Then the
+    system's temporary directory is used, one folder per user.
+    """
+    if config.CACHE_DIR:
+        return
+    user = Path(AppDirs(appname='numba', appauthor=False).user_cache_dir)
+    if _writable(Path(__file__).parent / '__pycache__') or _writable(user):
+        return
+    config.CACHE_DIR = os.path.join(tempfile.gettempdir(), f'sik_ros-numba-{os.getuid()}')
+
+
+_cache_folder()
+
+from sik_ros.kernels.chain import chain_frames, fk_many, jac_many  # noqa: E402,I100
+from sik_ros.kernels.dls import follow_rows, refine_rows  # noqa: E402
+from sik_ros.kernels.mlp import mlp_rows, pack_layers  # noqa: E402
 
 __all__ = ['chain_frames', 'fk_many', 'follow_rows', 'jac_many', 'mlp_rows', 'pack_layers',
            'refine_rows']
