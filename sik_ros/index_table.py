@@ -31,6 +31,7 @@ from scipy.spatial.distance import cdist
 from sik_ros.artifacts import (atomic_write, check_robot_manifest, FORMAT_VERSION, range_codes,
                                range_values)
 from sik_ros.errors import ArtifactMismatch, CorruptArtifact, InvalidArgument
+from sik_ros.kernels import as_arg
 from sik_ros.kernels.sets import farthest_rows
 
 TABLE_KEYS = ('centers', 'offsets', 'indices', 'manifest')
@@ -229,7 +230,7 @@ def farthest_point_subset(points: np.ndarray, k: int, first: int = 0, spacing: f
     if n <= PAIRWISE_ROWS:
         # a few hundred rows (a solve's candidates, a seed table's neighbours): one compiled
         # call; more (a table's cells when built): a row of distances per pick
-        return farthest_rows(np.ascontiguousarray(points, dtype=np.float64), int(k),
+        return farthest_rows(as_arg(points), int(k),
                              int(first), float(spacing), int(at_least), SAME_DISTANCE)
     chosen = [first]
     dist = cdist(points[first:first + 1], points)[0]

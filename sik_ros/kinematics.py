@@ -16,7 +16,7 @@ import pinocchio as pin
 
 from sik_ros.chain import SerialChain
 from sik_ros.errors import FrameNotFound, InvalidArgument, InvalidModel
-from sik_ros.kernels import chain_frames, fk_many, jac_many
+from sik_ros.kernels import as_arg, chain_frames, fk_many, jac_many
 from sik_ros.rotations import rotation_to_quaternion, z_to_axis
 
 _REVOLUTE_AXES = {
@@ -261,7 +261,7 @@ class Robot:
 
     def fk_rot(self, q: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
         """Tip positions (N, 3) [m] and rotation matrices (N, 3, 3) of configurations (N, n)."""
-        q = np.ascontiguousarray(self._check_q(q))
+        q = as_arg(self._check_q(q))
         pos, rot = np.empty((len(q), 3)), np.empty((len(q), 3, 3))
         fk_many(self.frames, q, pos, rot)
         return pos, rot
@@ -281,7 +281,7 @@ class Robot:
         Returns:
             positions (N, 3), rotations (N, 3, 3), Jacobians (N, 6, n).
         """
-        q = np.ascontiguousarray(self._check_q(q))
+        q = as_arg(self._check_q(q))
         pos, rot = np.empty((len(q), 3)), np.empty((len(q), 3, 3))
         jac = np.empty((len(q), 6, self.dof))
         jac_many(self.frames, q, pos, rot, jac)

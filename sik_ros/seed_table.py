@@ -140,8 +140,14 @@ class SeedTable:
             quat = -quat if quat[3] < 0 else quat  # as the table's
             key = np.concatenate([np.asarray(position, dtype=float), QUATERNION_SCALE * quat])
         # rows whose first joint cannot take the goal's azimuth within its limits are left
-        # out: look further until ``k`` of them can (a first joint short of a whole turn)
+        # out: look further until ``k`` of them can (a first joint short of a whole turn). The
+        # first look-up asks for as many more as the joint's share of a turn leaves out, and a
+        # quarter more (SO-100, a 4 rad first joint: one look-up in most calls, where starting
+        # from ``k`` took two or more in half of them)
         wanted = k
+        share = (self._upper - self._lower) / (2 * np.pi)
+        if self._axis is not None and share < 1.0:
+            wanted = min(len(self.q), math.ceil(1.25 * k / max(share, 1e-3)))
         while True:
             rows = self._nearest(key, wanted)
             q = self._base_q[rows]

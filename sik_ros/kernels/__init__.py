@@ -15,6 +15,7 @@ import tempfile
 
 from numba.core import config
 from numba.misc.appdirs import AppDirs
+import numpy as np
 
 
 def _writable(folder: Path) -> bool:
@@ -41,9 +42,18 @@ def _cache_folder() -> None:
 
 _cache_folder()
 
+
+def as_arg(a, dtype=np.float64) -> np.ndarray:
+    """``a`` as the kernels take it: C-contiguous, writeable, of ``dtype`` (copied if need be)."""
+    a = np.asarray(a, dtype=dtype)
+    if not (a.flags.c_contiguous and a.flags.writeable):
+        a = np.array(a, dtype=dtype, order='C')
+    return a
+
+
 from sik_ros.kernels.chain import chain_frames, fk_many, jac_many  # noqa: E402,I100
 from sik_ros.kernels.dls import follow_rows, refine_rows  # noqa: E402
 from sik_ros.kernels.mlp import mlp_rows, pack_layers  # noqa: E402
 
-__all__ = ['chain_frames', 'fk_many', 'follow_rows', 'jac_many', 'mlp_rows', 'pack_layers',
+    """``a`` as the kernels take it: C-contiguous, writeable, ``dtype`` (copied if need be)."""
            'refine_rows']

@@ -13,7 +13,7 @@ import weakref
 import numpy as np
 import torch
 
-from sik_ros.kernels.mlp import mlp_rows, pack_layers
+from sik_ros.kernels import as_arg, mlp_rows, pack_layers
 from sik_ros.models import make_goal, SIK
 from sik_ros.solver.context import Context, Goal
 
@@ -46,7 +46,7 @@ class NumpyMLP:
     def __call__(self, x: np.ndarray) -> np.ndarray:
         """The outputs (M, out) of float32 inputs (M, in)."""
         if len(x) <= KERNEL_ROWS:
-            return mlp_rows(np.ascontiguousarray(x, dtype=np.float32), *self._packed)
+            return mlp_rows(as_arg(x, np.float32), *self._packed)
         last = len(self.layers) - 1
         for i, (w, b) in enumerate(self.layers):
             x = x @ w

@@ -12,6 +12,7 @@ from typing import List, Optional, Sequence
 import numpy as np
 
 from sik_ros.collision import Obstacle
+from sik_ros.kernels import as_arg
 from sik_ros.kernels.sets import distinct_rows
 from sik_ros.objectives import JointLimitMargin, Objective, SeedDistance
 from sik_ros.solver.batch import Candidates
@@ -60,7 +61,7 @@ def distinct_mask(q: np.ndarray, threshold: float, ignore_last: bool = False,
         return np.ones(len(q), dtype=bool)
     n = q.shape[1]
     turns = np.zeros(n, dtype=bool) if periodic is None else np.asarray(periodic, dtype=bool)
-    return distinct_rows(np.ascontiguousarray(q, dtype=float), float(threshold),
+    return distinct_rows(as_arg(q), float(threshold),
                          n - 1 if ignore_last else n, turns)
 
 

@@ -14,7 +14,7 @@ from typing import Optional, Tuple
 
 import numpy as np
 
-from sik_ros.kernels import follow_rows, refine_rows
+from sik_ros.kernels import as_arg, follow_rows, refine_rows
 from sik_ros.kernels.dls import INTS, REALS
 from sik_ros.rotations import rotation_angle
 from sik_ros.solver.context import Context, Goal
@@ -128,8 +128,7 @@ def refine(ctx: Context, q: np.ndarray, goal: Goal, deadline: Optional[float] = 
                 'roll_free': int(ctx.ignores_last(goal.kind))}
     pose = goal.rotation is not None
     cut = refine_rows(robot.frames, robot.lower, robot.upper, robot.periodic, q,
-                      np.ascontiguousarray(goal.position, dtype=float),
-                      np.ascontiguousarray(goal.rotation, dtype=float) if pose else NO_ROTATION,
+                      as_arg(goal.position), as_arg(goal.rotation) if pose else NO_ROTATION,
                       pose, np.array([settings[k] for k in REALS], dtype=float),
                       np.array([settings[k] for k in INTS], dtype=np.int64),
                       np.array(cfg.prune_at, dtype=np.int64), perr, oerr, status)
@@ -165,12 +164,11 @@ def follow(ctx: Context, q: np.ndarray, start: Evaluation, goal: Goal, iteration
     q = np.array(q, dtype=float, order='C')
     p, r, jac = (np.array(a, dtype=float, order='C') for a in (start.p, start.r, start.jac))
     pose = goal.rotation is not None
-    pos = np.ascontiguousarray(np.reshape(goal.position, (-1, 3)), dtype=float)
-    rot = np.ascontiguousarray(np.reshape(goal.rotation, (-1, 3, 3)), dtype=float) if pose \
-        else NO_ROTATION[None]
+    pos = as_arg(np.reshape(goal.position, (-1, 3)))
+    rot = as_arg(np.reshape(goal.rotation, (-1, 3, 3))) if pose else NO_ROTATION[None]
     ok, steps = np.empty(m, dtype=bool), np.empty(m, dtype=np.int64)
     follow_rows(robot.frames, robot.lower, robot.upper, q, p, r, jac,
-                np.ascontiguousarray(start.djac, dtype=float), pos, rot, pose,
+                as_arg(start.djac), pos, rot, pose,
                 goal.position.ndim == 2, cfg.position_tolerance ** 2,
                 cfg.orientation_tolerance ** 2, cfg.damping ** 2, cfg.max_step, iterations,
                 np.inf if deadline is None else deadline, ok, steps)
