@@ -55,5 +55,5 @@ from sik_ros.kernels.chain import chain_frames, fk_many, jac_many  # noqa: E402,
 from sik_ros.kernels.dls import follow_rows, refine_rows  # noqa: E402
 from sik_ros.kernels.mlp import mlp_rows, pack_layers  # noqa: E402
 
-    """``a`` as the kernels take it: C-contiguous, writeable, ``dtype`` (copied if need be)."""
-           'refine_rows']
+__all__ = ['as_arg', 'chain_frames', 'fk_many', 'follow_rows', 'jac_many', 'mlp_rows',
+           'pack_layers', 'refine_rows']
