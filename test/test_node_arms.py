@@ -23,7 +23,7 @@ R = SolveIK.Response
 
 def start(bundle, env, log, *params, params_file=None):
     """``sik_node`` with only ``model_dir`` (and ``params``) set: no Panda parameter file."""
-    cmd = [sys.executable, '-m', 'sik_ros.ros.node', '--ros-args']
+    cmd = [sys.executable, '-m', 'sik_ros.ros.run', '--ros-args']
     if params_file:
         cmd += ['--params-file', str(params_file)]
     for item in (f'model_dir:={bundle}',) + params:

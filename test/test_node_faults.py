@@ -25,7 +25,7 @@ R = SolveIK.Response
 def test_bad_start_ups_are_one_fatal_line(graph, args, words):
     """A missing params file, a trailing -p, a bad value: exit 1 with one FATAL line."""
     env, _ = graph
-    run = subprocess.run([sys.executable, '-m', 'sik_ros.ros.node', '--ros-args', *args],
+    run = subprocess.run([sys.executable, '-m', 'sik_ros.ros.run', '--ros-args', *args],
                          env=env, capture_output=True, text=True, timeout=120)
     out = run.stdout + run.stderr
     fatal = [line for line in out.splitlines() if 'FATAL' in line]

@@ -31,6 +31,7 @@ from sik_interfaces.msg import IKSolutionArray
 from sik_interfaces.srv import SolveIK, SolvePath
 from sik_ros.ros.client import SolveIKClient
 from sik_ros.ros.conversions import ERROR_NAMES
+from sik_ros.solver.results import tier_label
 
 NODE = '/sik_node'
 REPO = Path(__file__).resolve().parents[2]
@@ -67,7 +68,7 @@ def ros_env(domain_id: Optional[int] = None) -> Dict[str, str]:
 
 def launch_node(model_dir: Optional[str] = None, params: Sequence[str] = (),
                 env: Optional[Dict[str, str]] = None, **popen) -> subprocess.Popen:
-    """Start ``python -m sik_ros.ros.node`` with ``config/panda.yaml`` and ``-p`` overrides.
+    """Start ``python -m sik_ros.ros.run`` with ``config/panda.yaml`` and ``-p`` overrides.
 
     Args:
         model_dir: a bundle directory (None: the bundled model).
@@ -75,7 +76,7 @@ def launch_node(model_dir: Optional[str] = None, params: Sequence[str] = (),
         env: the process environment (see :func:`ros_env`).
         **popen: passed to :class:`subprocess.Popen` (e.g. ``stdout``).
     """
-    cmd = [sys.executable, '-m', 'sik_ros.ros.node', '--ros-args', '--params-file',
+    cmd = [sys.executable, '-m', 'sik_ros.ros.run', '--ros-args', '--params-file',
            str(params_file())]
     overrides = ([f'model_dir:={model_dir}'] if model_dir else []) + list(params)
     for item in overrides:
@@ -146,12 +147,14 @@ def format_answer(title: str, answer, seconds: Optional[float] = None, rows: int
         return '\n'.join(lines)
     names = [n.split('_')[-1] for n in answer.solutions[0].joint_state.name]
     lines.append(f"   {'rank':>4} {'pos err [mm]':>12} {'rot err [deg]':>13} "
-                 f"{'clearance [m]':>13} {'score':>8}  joints [rad] ({' '.join(names)})")
+                 f"{'clearance [m]':>13} {'tier':>10} {'score':>8}  "
+                 f"joints [rad] ({' '.join(names)})")
     for rank, s in enumerate(answer.solutions[:rows], 1):
         clear = '-' if not np.isfinite(s.min_obstacle_distance) else \
             f'{s.min_obstacle_distance:.3f}'
         lines.append(f'   {rank:>4} {s.position_error * 1e3:>12.4f} '
-                     f'{np.degrees(s.orientation_error):>13.4f} {clear:>13} {s.score:>8.3f}  '
+                     f'{np.degrees(s.orientation_error):>13.4f} {clear:>13} '
+                     f'{tier_label(s.tier, s.self_collision):>10} {s.score:>8.3f}  '
                      + ' '.join(f'{v:+.3f}' for v in s.joint_state.position))
     if len(answer.solutions) > rows:
         lines.append(f'   ... and {len(answer.solutions) - rows} more')
