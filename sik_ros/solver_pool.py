@@ -98,8 +98,10 @@ def single_threaded() -> None:
 
 
 def _serve(conn: Connection, bundle: str, config: Dict[str, Any]) -> None:
-    """Body of a solver process: load the bundle, then answer ``(method, settings, args,
-    kwargs)`` messages."""
+    """Body of a solver process: load the bundle, then answer ``(method, settings, ...)``.
+
+    Each message is ``(method, settings, args, kwargs)``; None or a closed pipe ends it.
+    """
     # the parent owns SIGINT/SIGTERM and closes the pipe to stop us
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     single_threaded()
