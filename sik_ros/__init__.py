@@ -22,7 +22,7 @@ _EXPORTS = {
     'InvalidModel': 'sik_ros.errors', 'InvalidSeed': 'sik_ros.errors',
     'JointLimitViolation': 'sik_ros.errors', 'Obstacle': 'sik_ros.collision',
     'Robot': 'sik_ros.kinematics', 'RobotNotFound': 'sik_ros.errors',
-    'SelectiveIK': 'sik_ros.solver', 'SikError': 'sik_ros.errors',
+    'SelectiveIK': 'sik_ros.solver.selective_ik', 'SikError': 'sik_ros.errors',
     'Solution': 'sik_ros.solver.results', 'SolverConfig': 'sik_ros.solver.config',
     'TrainingDiverged': 'sik_ros.errors', 'load_robot': 'sik_ros.robots',
 }
