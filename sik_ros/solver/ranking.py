@@ -59,7 +59,7 @@ def distinct_mask(q: np.ndarray, threshold: float, ignore_last: bool = False,
     if len(q) < 2:
         return np.ones(len(q), dtype=bool)
     n = q.shape[1]
-    turns = np.zeros(n, dtype=bool) if periodic is None else np.asarray(periodic, dtype=bool)
+    turns = np.zeros(n, dtype=bool) if periodic is None else as_arg(periodic, bool)
     return distinct_rows(as_arg(q), float(threshold),
                          n - 1 if ignore_last else n, turns)
 
