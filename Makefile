@@ -13,12 +13,13 @@ PYTEST_ARGS ?=
 
 export VENV PYTHON
 
-.PHONY: setup run test lint clean distclean help
+.PHONY: setup run test test-fast lint clean distclean help
 
 help:
 	@echo "make setup   create $(VENV), install the pinned requirements, build sik_interfaces"
 	@echo "make run     the demo: sik_node on the bundled Panda model answering IK requests"
 	@echo "make test    the test suite (pytest)"
+	@echo "make test-fast  unit tests only (no node, nothing slow)"
 	@echo "make lint    flake8 and pydocstyle only"
 	@echo "make clean   remove build products and caches (keeps the venv)"
 	@echo "make distclean  also remove the venv"
@@ -31,6 +32,9 @@ run: setup
 
 test: setup
 	$(RUN_ENV) $(PY) -m pytest -q $(PYTEST_ARGS) test
+
+test-fast: setup
+	$(RUN_ENV) $(PY) -m pytest -q -m "not e2e and not slow" $(PYTEST_ARGS) test
 
 lint: setup
 	$(PY) -m pytest -q test/test_lint.py
