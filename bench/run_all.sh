@@ -1,0 +1,44 @@
+#!/usr/bin/env bash
+# Every benchmark behind docs/benchmarks.md and the README's table, then the tables rendered.
+#
+#   bash bench/run_all.sh                 # everything (about 40 minutes on 2 cores, plus the
+#                                         # two 600 s arm builds the first time)
+#   ONLY="solve paths" bash bench/run_all.sh   # some of them
+#
+# Each benchmark writes docs/results/<name>.json (figures, command, date, commit, machine) and
+# its printed output to docs/results/<name>.txt; bench/render.py then rewrites the tables.
+# Run it from the repository's root in the set-up venv (make bench does both). Commit first:
+# figures measured on uncommitted code are marked as such in the tables.
+set -euo pipefail
+cd "$(dirname "${BASH_SOURCE[0]}")/.."
+PY=${PY:-python}
+OUT=docs/results
+mkdir -p "$OUT"
+export OMP_NUM_THREADS=1
+
+run() {  # run NAME ARGS...: python bench/<script> ARGS, printed output kept in $OUT/NAME.txt
+  local name=$1; shift
+  if [[ -n "${ONLY:-}" && " $ONLY " != *" ${name%%-*} "* && " $ONLY " != *" $name "* ]]; then
+    return 0
+  fi
+  echo "== $name: $*" >&2
+  "$PY" "$@" --json "$OUT/$name.json" | tee "$OUT/$name.txt" || echo "!! $name failed" >&2
+}
+
+run collect bench/collect.py --runs 3
+run solve bench/solve.py --targets 1000
+run solve_ab-panda-pose bench/solve_ab.py a=. b=. --goal pose --targets 300
+run solve_ab-panda-position bench/solve_ab.py a=. b=. --goal position --targets 300
+run arms bench/arms.py --arms panda,ur5,xarm7 --targets 300 --time 600
+run solve_ab-ur5-pose-busy bench/solve_ab.py a=. b=. --goal pose --targets 300 \
+  --bundle bundles_bench/ur5 --busy 90
+run paths bench/paths.py --paths 200
+run paths_ab bench/paths_ab.py a=. b=. --paths 60
+run service bench/service.py --requests 2000
+run service-mixed bench/service.py --requests 2000 --goals mixed
+run service-processes2 bench/service.py --requests 1000 --duration 10 -p solver_processes:=2
+run service_probe bench/service_probe.py --requests 300
+run soak bench/soak.py --requests 10000 --clients 16
+run sweep bench/sweep.py --arms z1,ur10,so101
+run train_step bench/train_step.py
+"$PY" bench/render.py
