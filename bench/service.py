@@ -1,4 +1,4 @@
-"""Benchmark of sik_node's ``~/solve_ik`` over loopback DDS (issue 5's targets).
+"""Benchmark of sik_node's ``~/solve_ik`` over loopback DDS: latency, throughput, memory.
 
 Measures, for goals at FK of random configurations (position goals, pose goals, or both
 alternating: ``--goals mixed``) and 16 ranked refined solutions:
