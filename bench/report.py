@@ -70,18 +70,20 @@ def machine() -> Dict[str, Any]:
 def git_commit(root: Optional[str] = None) -> Dict[str, Any]:
     """The commit of a checkout (default: this one) and whether its code differs from it.
 
-    ``dirty`` is true when tracked files under ``sik_ros/`` or ``bench/`` have changes that are
-    not committed: the figures then belong to no commit.
+    ``dirty`` is true when tracked files under ``sik_ros/`` (the code measured) or the running
+    benchmark script have changes that are not committed: the figures then belong to no commit.
     """
     cwd = str(root or REPO)
+    script = Path(sys.argv[0]).resolve()
+    paths = ['sik_ros'] + ([str(script.relative_to(REPO))] if root is None and
+                           script.is_relative_to(REPO) else [])
 
     def git(*args: str) -> str:
         run = subprocess.run(['git', *args], cwd=cwd, capture_output=True, text=True)
         return run.stdout.strip() if run.returncode == 0 else ''
 
     return {'commit': git('rev-parse', '--short=10', 'HEAD') or 'unknown',
-            'dirty': bool(git('status', '--porcelain', '--untracked-files=no', '--',
-                              'sik_ros', 'bench'))}
+            'dirty': bool(git('status', '--porcelain', '--untracked-files=no', '--', *paths))}
 
 
 def command(argv: Optional[list] = None) -> str:
