@@ -5,7 +5,7 @@ solutions. The ROS layer (the node, message conversions, a client and the demo) 
 :mod:`sik_ros.ros`; the public contract is docs/interfaces.md.
 """
 
-__version__ = '0.1.0'
+__version__ = '0.2.0'
 
 from sik_ros.collision import Obstacle  # noqa: E402
 from sik_ros.errors import (  # noqa: E402
