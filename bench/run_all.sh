@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
 # Every benchmark behind docs/benchmarks.md and the README's table, then the tables rendered.
 #
-#   bash bench/run_all.sh                 # everything (about 40 minutes on 2 cores, plus the
-#                                         # two 600 s arm builds the first time)
+#   bash bench/run_all.sh                 # everything (about 40 minutes on 2 idle cores, plus
+#                                         # the UR5's 30-minute sik-build the first time)
 #   ONLY="solve paths" bash bench/run_all.sh   # some of them
 #
 # Each benchmark writes docs/results/<name>.json (figures, command, date, commit, machine) and
@@ -26,11 +26,11 @@ run() {  # run NAME ARGS...: python bench/<script> ARGS, printed output kept in 
 }
 
 run collect bench/collect.py --runs 3
-run solve bench/solve.py --targets 1000
-run solve_ab-panda-pose bench/solve_ab.py a=. b=. --goal pose --targets 300
-run solve_ab-panda-position bench/solve_ab.py a=. b=. --goal position --targets 300
-run arms bench/arms.py --arms panda,ur5,xarm7 --targets 300 --time 600
-run solve_ab-ur5-pose-busy bench/solve_ab.py a=. b=. --goal pose --targets 300 \
+run solve bench/solve.py --targets 300
+run solve_ab-panda-pose bench/solve_ab.py a=. b=. --goal pose --targets 200
+run solve_ab-panda-position bench/solve_ab.py a=. b=. --goal position --targets 200
+run arms bench/arms.py --arms panda,ur5 --targets 300
+run solve_ab-ur5-pose-busy bench/solve_ab.py a=. b=. --goal pose --targets 200 \
   --bundle bundles_bench/ur5 --busy 90
 run paths bench/paths.py --paths 200
 run paths_ab bench/paths_ab.py a=. b=. --paths 60
@@ -38,7 +38,7 @@ run service bench/service.py --requests 2000
 run service-mixed bench/service.py --requests 2000 --goals mixed
 run service-processes2 bench/service.py --requests 1000 --duration 10 -p solver_processes:=2
 run service_probe bench/service_probe.py --requests 300
-run soak bench/soak.py --requests 10000 --clients 16
-run sweep bench/sweep.py --arms z1,ur10,so101
+run soak bench/soak.py --requests 5000 --clients 16
+run sweep bench/sweep.py --arms z1,so101
 run train_step bench/train_step.py
 "$PY" bench/render.py
