@@ -64,7 +64,10 @@ def machine(data: dict) -> str:
     parts = [f'Python {m["python"]}'] + [f'{name} {libs[key]}' for key, name in (
         ('numpy', 'NumPy'), ('torch', 'torch'), ('pin', 'Pinocchio'), ('numba', 'numba'))
         if key in libs]
-    return (f'{m["cpu"]}, {m["cores"]} cores, {m["memory_gb"]:.0f} GB, {m["os"]}; '
+    load = m.get('load_average') or {}
+    busy = (f' (load average {load["start"]:.1f} at the start, {load["end"]:.1f} at the end)'
+            if load.get('start') is not None and load.get('end') is not None else '')
+    return (f'{m["cpu"]}, {m["cores"]} cores, {m["memory_gb"]:.0f} GB{busy}, {m["os"]}; '
             + ', '.join(parts))
 
 

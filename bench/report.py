@@ -30,6 +30,10 @@ SCHEMA = 1
 REPO = Path(__file__).resolve().parents[1]
 #: Distributions whose versions are recorded with every result.
 LIBRARIES = ('numpy', 'scipy', 'torch', 'pin', 'numba', 'pytracik')
+#: The load average when the benchmark started (this module is imported at its start): on a
+#: shared machine, how busy the cores were says how far the absolute times are from an idle
+#: machine's.
+LOAD_AT_START = os.getloadavg() if hasattr(os, 'getloadavg') else None
 
 
 def add_json_argument(parser: argparse.ArgumentParser) -> None:
@@ -47,7 +51,10 @@ def _read(path: str) -> str:
 
 
 def machine() -> Dict[str, Any]:
-    """The machine the figures come from: CPU model, cores, memory [GB], OS, Python, libraries."""
+    """The machine the figures come from: CPU, cores, memory [GB], OS, libraries, load average.
+
+    The load average is the 1-minute one, at the benchmark's start and when it is written.
+    """
     cpu = next((line.split(':', 1)[1].strip() for line in _read('/proc/cpuinfo').splitlines()
                 if line.startswith('model name')), platform.processor() or platform.machine())
     mem_kb = next((int(line.split()[1]) for line in _read('/proc/meminfo').splitlines()
@@ -62,9 +69,12 @@ def machine() -> Dict[str, Any]:
         except metadata.PackageNotFoundError:
             pass
     cores = len(os.sched_getaffinity(0)) if hasattr(os, 'sched_getaffinity') else os.cpu_count()
+    load = os.getloadavg() if hasattr(os, 'getloadavg') else None
     return {'cpu': cpu, 'cores': cores, 'memory_gb': round(mem_kb / 2 ** 20, 1),
             'arch': platform.machine(), 'os': os_name, 'python': platform.python_version(),
-            'libraries': versions}
+            'libraries': versions,
+            'load_average': {'start': LOAD_AT_START and round(LOAD_AT_START[0], 2),
+                             'end': load and round(load[0], 2)}}
 
 
 def git_commit(root: Optional[str] = None) -> Dict[str, Any]:
