@@ -57,16 +57,22 @@ def table(header: List[str], rows: List[List[str]]) -> str:
     return '\n'.join(lines)
 
 
-def machine(data: dict) -> str:
+def load_note(data: dict) -> str:
+    """The 1-minute load average at a benchmark's start and end, or nothing when unknown."""
+    avg = data['machine'].get('load_average') or {}
+    if avg.get('start') is None or avg.get('end') is None:
+        return ''
+    return f'load average {avg["start"]:.1f} at the start, {avg["end"]:.1f} at the end'
+
+
+def machine(data: dict, with_load: bool = True) -> str:
     """The machine of a result file, in one phrase."""
     m = data['machine']
     libs = m.get('libraries', {})
     parts = [f'Python {m["python"]}'] + [f'{name} {libs[key]}' for key, name in (
         ('numpy', 'NumPy'), ('torch', 'torch'), ('pin', 'Pinocchio'), ('numba', 'numba'))
         if key in libs]
-    load = m.get('load_average') or {}
-    busy = (f' (load average {load["start"]:.1f} at the start, {load["end"]:.1f} at the end)'
-            if load.get('start') is not None and load.get('end') is not None else '')
+    busy = f' ({load_note(data)})' if with_load and load_note(data) else ''
     return (f'{m["cpu"]}, {m["cores"]} cores, {m["memory_gb"]:.0f} GB{busy}, {m["os"]}; '
             + ', '.join(parts))
 
@@ -419,11 +425,12 @@ def render_summary(results: Dict[str, List[dict]]) -> str:
                      f'{num(s["round_trip"]["p50_ms"])} / {num(s["round_trip"]["p99_ms"])} ms; '
                      f'{s["throughput_rps"]:.0f} requests/s', NA, NA])
         sources.append(service)
-    src = '; '.join(f'`{d["command"].split()[1]}` {d["date"][:10]} at `{d["commit"]}`'
+    src = '; '.join(f'`{d["command"].split()[1]}` on {d["date"][:10]} at commit '
+                    f'`{d["commit"]}`' + (f' ({load_note(d)})' if load_note(d) else '')
                     for d in sources)
-    where = machine(sources[0]) if sources else ''
+    where = machine(sources[0], with_load=False) if sources else ''
     return (table(['', 'sik_ros', 'peer, same run', 'time ratio ours / peer'], rows)
-            + f'\n\nMeasured {src}, on {where}. Each row\'s command and the full tables: '
+            + f'\n\nMeasured on {where}: {src}. Each row\'s command and the full tables: '
             '[docs/benchmarks.md](docs/benchmarks.md).')
 
 
