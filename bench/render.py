@@ -290,7 +290,7 @@ def render_service(files: List[dict]) -> str:
 def render_service_probe(data: dict) -> str:
     """bench/service_probe.py: three client loops against one node."""
     r = data['results']
-    names = {'demo.call': '`rclpy.spin_until_future_complete(node, future)`',
+    names = {'spin_call': '`rclpy.spin_until_future_complete(node, future)`',
              'executor loop': '`executor.spin_until_future_complete(future)`',
              'SolveIKClient': '`SolveIKClient` (executor spun in a background thread)'}
     rows = [[names.get(x['loop'], x['loop']),
