@@ -360,8 +360,8 @@ def render_train_step(data: dict) -> str:
 
 # the README's one table ---------------------------------------------------------------------
 
-def render_summary(results: Dict[str, List[dict]]) -> str:
-    """Today's headline figures beside the peers, from several benchmarks."""
+def render_summary(results: Dict[str, List[dict]]) -> Optional[str]:
+    """Today's headline figures beside the peers, from several benchmarks (None without)."""
     rows, sources = [], []
     solve = results.get('solve', [None])[0]
     if solve:
@@ -425,6 +425,8 @@ def render_summary(results: Dict[str, List[dict]]) -> str:
                      f'{num(s["round_trip"]["p50_ms"])} / {num(s["round_trip"]["p99_ms"])} ms; '
                      f'{s["throughput_rps"]:.0f} requests/s', NA, NA])
         sources.append(service)
+    if not sources:
+        return None
     src = '; '.join(f'`{d["command"].split()[1]}` on {d["date"][:10]} at commit '
                     f'`{d["commit"]}`' + (f' ({load_note(d)})' if load_note(d) else '')
                     for d in sources)
@@ -454,7 +456,7 @@ def load() -> Dict[str, List[dict]]:
 def block(name: str, results: Dict[str, List[dict]]) -> Optional[str]:
     """The generated text of marker ``name``, or None when it has no results."""
     if name == 'summary':
-        return render_summary(results) if results else None
+        return render_summary(results)
     files = results.get(name)
     if not files:
         return None
