@@ -30,6 +30,7 @@ import numpy as np  # noqa: E402
 import torch  # noqa: E402
 
 from sik_ros import SelectiveIK  # noqa: E402
+from sik_ros.checkpoints import load_checkpoint  # noqa: E402
 
 from peers import DLS, TracIK  # noqa: E402,I100 (bench/peers.py, beside this script)
 from report import add_json_argument, write_json  # noqa: E402 (bench/report.py)
@@ -79,6 +80,18 @@ def build(arm, bundles, budget):
     return str(out), time.perf_counter() - t0
 
 
+def training(bundle: Path) -> dict:
+    """Each model's training: steps, training time [s], last validation distance error [m]."""
+    out = {}
+    for goal, files in json.loads((bundle / 'bundle.json').read_text())['models'].items():
+        ckpt = load_checkpoint(bundle / files['model'])
+        last = ckpt['history'][-1] if ckpt.get('history') else {}
+        out[goal] = {'steps': int(ckpt.get('step', 0)),
+                     'train_s': float(ckpt.get('elapsed_s', 0.0)),
+                     'val_dist_m': last.get('val_dist_mean_m')}
+    return out
+
+
 def bench_arm(arm, args):
     """One arm: bundle, then both goal kinds against the peers; a dict of figures."""
     bundle, wall = build(arm, args.bundles, args.time)
@@ -90,7 +103,7 @@ def bench_arm(arm, args):
     poses = [robot.fk(qi) for qi in q]
     check = json.loads((Path(ik.bundle) / 'bundle.json').read_text()).get('self_check')
     row = {'arm': arm, 'dof': robot.dof, 'build_s': wall, 'bundle_mb': size / 1e6,
-           'self_check': check}
+           'self_check': check, 'training': training(Path(ik.bundle))}
     dls, tracik = DLS(robot), TracIK(robot)
     for goal in ('position', 'pose'):
         ok, n, t, ratio, reached = [], [], [], [], []

@@ -209,12 +209,22 @@ def render_arms(data: dict) -> str:
                          f'{num(f["time_median_ms"])} ms',
                          f'**{num(f["ratio_median"], 3)}** {peer} ({pct(f["peer_reached"], 0)})',
                          br])
+    trained = []
+    for a in r['arms']:
+        t = a.get('training') or {}
+        if t:
+            trained.append(f'{a["arm"]}: ' + ', '.join(
+                f'{goal} model {m["steps"]:,} steps in {m["train_s"] / 60:.0f} min, validation '
+                f'{cm(m["val_dist_m"], 1)}' for goal, m in sorted(t.items())))
+    note = ('\n\nThe models (steps of training, validation distance error decoded from the true '
+            'index): ' + '; '.join(trained) + '.') if trained else ''
     return (f'{r["targets"]} targets uniform in joint space per goal kind (seed {r["seed"]}); '
             f'peers from random seeds until as many distinct solutions as ours (at most '
             f'{r["max_attempts"]} attempts).\n\n' + table(
                 ['arm', 'joints', 'bundle [MB]', 'goal', 'success', 'distinct median (p10)',
                  'time/call', 'ratio ours / peer (peer reached)',
-                 'branches ours / TRAC-IK (mean; free of self-collision; ours ≥ peer)'], rows))
+                 'branches ours / TRAC-IK (mean; free of self-collision; ours ≥ peer)'], rows)
+            + note)
 
 
 def render_paths(data: dict) -> str:
