@@ -238,7 +238,7 @@ def main():
     dls = PinocchioDLS(robot)
     print(f'# bench/solve.py: {platform.processor() or platform.machine()}, '
           f'{os.cpu_count()} cores, torch threads 1, {args.targets} targets uniform in joint '
-          f'space (seed 2024), bundle {ik.bundle}, solver config changes {args.config}')
+          f'space (seed 2024), bundle {args.bundle}, solver config changes {args.config}')
     results = {'targets': args.targets, 'seed': 2024, 'bundle': args.bundle,
                'config': json.loads(args.config), 'max_attempts': args.max_attempts}
     if 'pose' in ik.goals:
