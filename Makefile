@@ -20,7 +20,7 @@ help:
 	@echo "make run     the demo: sik_node on the bundled Panda model answering IK requests"
 	@echo "make test    the test suite (pytest)"
 	@echo "make lint    flake8 and pydocstyle only"
-	@echo "make bench   every benchmark (about 40 min), then the tables of docs/benchmarks.md"
+	@echo "make bench   every benchmark (about an hour), then the tables of docs/benchmarks.md"
 	@echo "make docs-tables  the tables of docs/benchmarks.md and README.md from docs/results/"
 	@echo "make clean   remove build products and caches (keeps the venv)"
 	@echo "make distclean  also remove the venv"
