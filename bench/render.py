@@ -58,11 +58,19 @@ def table(header: List[str], rows: List[List[str]]) -> str:
 
 
 def load_note(data: dict) -> str:
-    """The 1-minute load average at a benchmark's start and end, or nothing when unknown."""
+    """The 1-minute load average at a benchmark's start and end, or nothing when unknown.
+
+    Above the machine's cores, the note says so: every time is then inflated, and the peers
+    (TRAC-IK's budget is wall time; DLS runs longer per call than ours) lose more than we do.
+    """
     avg = data['machine'].get('load_average') or {}
     if avg.get('start') is None or avg.get('end') is None:
         return ''
-    return f'load average {avg["start"]:.1f} at the start, {avg["end"]:.1f} at the end'
+    note = f'load average {avg["start"]:.1f} at the start, {avg["end"]:.1f} at the end'
+    if max(avg['start'], avg['end']) > data['machine']['cores']:
+        note += (': **a busy machine**, times inflated and ratios to the peers not comparable '
+                 'with a quiet run\'s')
+    return note
 
 
 def machine(data: dict, with_load: bool = True) -> str:
