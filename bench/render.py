@@ -445,12 +445,22 @@ def render_summary(results: Dict[str, List[dict]]) -> Optional[str]:
         sources.append(service)
     if not sources:
         return None
+
+    def short(d: dict) -> str:
+        avg = d['machine'].get('load_average') or {}
+        if avg.get('start') is None or avg.get('end') is None:
+            return ''
+        return f' (load average {avg["start"]:.1f} → {avg["end"]:.1f})'
+
     src = '; '.join(f'`{d["command"].split()[1]}` on {d["date"][:10]} at commit '
-                    f'`{d["commit"]}`' + (f' ({load_note(d)})' if load_note(d) else '')
-                    for d in sources)
+                    f'`{d["commit"]}`{short(d)}' for d in sources)
+    busy = [d for d in sources if 'busy machine' in load_note(d)]
     where = machine(sources[0], with_load=False) if sources else ''
     return (table(['', 'sik_ros', 'peer, same run', 'time ratio ours / peer'], rows)
-            + f'\n\nMeasured on {where}: {src}. Each row\'s command and the full tables: '
+            + f'\n\nMeasured on {where}: {src}.'
+            + (' **A busy machine** (load average above its cores): times inflated, ratios to '
+               'the peers not comparable with a quiet run\'s.' if busy else '')
+            + ' Each row\'s command and the full tables: '
             '[docs/benchmarks.md](docs/benchmarks.md).')
 
 
