@@ -472,12 +472,14 @@ RENDER: Dict[str, Callable] = {
 
 
 def load() -> Dict[str, List[dict]]:
-    """Every result file under docs/results, grouped by benchmark, sorted by file name."""
+    """Every result file under docs/results, grouped by benchmark (``NAME.json`` first)."""
     out: Dict[str, List[dict]] = {}
     for path in sorted(RESULTS.glob('*.json')):
         data = json.loads(path.read_text())
         data['file'] = path.stem
         out.setdefault(data['benchmark'], []).append(data)
+    for files in out.values():  # the plain NAME.json first, then its variants by name
+        files.sort(key=lambda d: (d['file'] != d['benchmark'], d['file']))
     return out
 
 
