@@ -320,11 +320,17 @@ def render_service_probe(data: dict) -> str:
                      'client CPU per request'], rows))
 
 
+#: SolveIK's error codes by value (sik_interfaces/srv/SolveIK.srv).
+CODES = {'1': 'SUCCESS', '-1': 'NO_SOLUTION', '-2': 'INVALID_GOAL', '-3': 'INVALID_FRAME',
+         '-4': 'INVALID_SEED', '-5': 'TIMEOUT', '-6': 'ROBOT_MISMATCH', '-99': 'INTERNAL_ERROR'}
+
+
 def render_soak(data: dict) -> str:
     """bench/soak.py: many clients, mixed requests and parameter churn."""
     r = data['results']
     rows = [[str(i), f'{x["answered"]:,}', str(x['lost']),
-             ', '.join(f'{k}: {v:,}' for k, v in sorted(x['codes'].items())),
+             ', '.join(f'{CODES.get(k, k)} {v:,}' for k, v in
+                       sorted(x['codes'].items(), key=lambda kv: -kv[1])),
              f'{x["rate_rps"]:.0f}', f'{num(x["p50_ms"], 1)} / {num(x["p99_ms"], 1)} / '
              f'{num(x["max_ms"], 0)} ms', f'{x["rss_growth_mb"]:+.1f} MB',
              f'{x["rss_growth_connected_mb"]:+.1f} MB'] for i, x in enumerate(r['rounds'], 1)]
