@@ -13,7 +13,7 @@ PYTEST_ARGS ?=
 
 export VENV PYTHON
 
-.PHONY: setup run test test-fast lint clean distclean help
+.PHONY: setup run test test-fast lint bench docs-tables clean distclean help
 
 help:
 	@echo "make setup   create $(VENV), install the pinned requirements, build sik_interfaces"
@@ -21,6 +21,8 @@ help:
 	@echo "make test    the test suite (pytest)"
 	@echo "make test-fast  unit tests only (no node, nothing slow)"
 	@echo "make lint    flake8 and pydocstyle only"
+	@echo "make bench   every benchmark (about an hour), then the tables of docs/benchmarks.md"
+	@echo "make docs-tables  the tables of docs/benchmarks.md and README.md from docs/results/"
 	@echo "make clean   remove build products and caches (keeps the venv)"
 	@echo "make distclean  also remove the venv"
 
@@ -38,6 +40,12 @@ test-fast: setup
 
 lint: setup
 	$(PY) -m pytest -q test/test_lint.py
+
+bench: setup
+	$(RUN_ENV) PY=$(PY) bash bench/run_all.sh
+
+docs-tables:
+	$(PY) bench/render.py
 
 clean:
 	rm -rf build install log $(VENV)/.sik-build *.egg-info .pytest_cache

@@ -51,26 +51,15 @@ TRACK_ITERATIONS = 10
 #: Table postures nearest the seed among which a position path's starts are chosen.
 NEAR_POOL = 48
 
-#: Most refinement steps of a position path's starts onto the first waypoint. Followed from the
-#: current state, 137 of 150 Panda seeds reached it, in 8 steps (median), 15 (p90), 27 (most);
-#: the others ran to the solver's 40 (measured with steps of at most 0.4 rad; now 0.6). With
-#: 25: 0.96-0.97x the time on 2 x 150 position paths, the same paths (success, travel, start).
+#: Most refinement steps of a position path's starts onto the first waypoint (docs/design.md).
 START_ITERATIONS = 25
 
-#: The beam of pose paths (see :class:`PathSettings`). Measured (paired, Panda): 12 starts
-#: instead of 16 with 12 tracks, 0.95-0.97x the time on 240 paths; then 10 and 10, another
-#: 0.93-0.96x on 440 paths, with the same success and travel within 2 %; 8 and 8 were faster
-#: still but made the short pose paths longer than the seeded TRAC-IK's. A ladder waypoint every
-#: 64 instead of 16 made them 4 % longer (``docs/benchmarks.md``).
+#: The beam of pose paths (see :class:`PathSettings`; the choice in docs/design.md).
 POSE_BEAM = {'starts': 10, 'tracks': 10, 'ladder': 16}
 
 #: The beam of position paths. A position waypoint leaves a redundant arm ``n - 3`` dimensions
-#: of self-motion, so a track is seldom lost and a narrow beam keeps the paths as short.
-#: Measured (paired, Panda, 100 position paths each): 4 starts and 4 tracks instead of 10 and
-#: 10, 0.71x the time; then a ladder waypoint every 64 instead of 16, 0.77x; the same success
-#: and travel. The first batch from the starts themselves: 0.92x. Batches cut at 10 cm of path
-#: (their predicted steps drift from the path as about the cube of its length) were tried:
-#: 0.96x in one run, 1.13x in another (300 paths), so left out.
+#: of self-motion, so a track is seldom lost and a narrow beam keeps the paths as short
+#: (docs/design.md).
 POSITION_BEAM = {'starts': 4, 'tracks': 4, 'ladder': 64}
 
 
@@ -156,19 +145,8 @@ def _starts(ctx: Context, goal: Goal, q_seed, obstacles, count: int, deadline,
     seed. Without ``near_seed`` (or postures in the table, or with ``cached_postures`` off),
     for starts spread over the postures (a wider beam's second try), the seed followed and
     the solver's first distinct exact solutions. Without a seed (new starts where every track
-    was lost) the solver's first distinct exact solutions, as for any goal.
-
-    Measured (paired, against the solver's first distinct exact solutions and the seed
-    followed alone): 300 Panda position paths, 0.69x the time, the same success, travel
-    0.809 against 0.853 rad and starts 2.28 against 2.55 rad from the current state
-    (medians); 150 paths each on the UR5, xArm7 and Kinova, 0.56x, 0.62x and 0.64x the time,
-    the same success and start distance, travel +1 %, +1 % and +5 %. Then the table
-    postures' periodic joints turned nearest the seed and their last joint set to the seed's
-    (a review found both): 0.95x on the Panda, starting 2.14 against 2.28 rad away (Kinova
-    2.37 against 2.52), travel within 2 %. Before that, the solver's first solutions without
-    the seed followed on its own started Panda paths 3.2 rad from the current state instead
-    of 2.0 (median of 88 paths); pose paths took 1.14x the time with the first solutions
-    instead of all.
+    was lost) the solver's first distinct exact solutions, as for any goal. Why these starts:
+    docs/design.md.
     """
     if goal.rotation is not None or q_seed is None:
         return _solver_starts(ctx, goal, q_seed, obstacles, count, deadline, False)
@@ -487,8 +465,7 @@ def solve_path(ctx: Context, goals: Sequence[Goal], q_seed: Optional[np.ndarray]
     again with it, and the answer that reaches further is returned: a narrow beam of position
     paths seldom loses every track, but when it does, the tracks of a wider one, from starts
     spread over the postures (``wider.near_seed`` False), may be on a branch that gets
-    through (measured: 6 of 600 Panda position paths, 1 when the narrow beam too started
-    from the solver's solutions; each solved again).
+    through.
     """
     result = _plan(ctx, goals, q_seed, obstacles, s, deadline)
     if result.success or result.timed_out or wider is None:
