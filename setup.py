@@ -8,7 +8,7 @@ PACKAGE_NAME = 'sik_ros'
 
 setup(
     name=PACKAGE_NAME,
-    version='0.1.0',
+    version='0.2.0',
     packages=find_packages(exclude=['test', 'test.*']),
     package_data={
         PACKAGE_NAME: [
