@@ -36,13 +36,14 @@ from sik_ros.artifacts import (atomic_write, check_robot_manifest, FORMAT_VERSIO
                                range_values)
 from sik_ros.chain import chain_forward
 from sik_ros.dataset import Dataset
+from sik_ros.defaults import SEED_TABLE_ROWS
 from sik_ros.errors import ArtifactMismatch, CorruptArtifact, InvalidArgument
 from sik_ros.index_table import farthest_point_subset
 from sik_ros.kinematics import Robot
 from sik_ros.rotations import rotation_to_quaternion, z_to_axis
 
 #: Configurations a seed table keeps by default (6 MB for 6 joints).
-DEFAULT_ROWS = 500_000
+DEFAULT_ROWS = SEED_TABLE_ROWS
 #: Metres that one unit of quaternion distance counts as in the look-up (about 0.15 m per
 #: radian of tip rotation) [m].
 QUATERNION_SCALE = 0.3
