@@ -38,7 +38,7 @@ run soak bench/soak.py --requests 3000 --clients 16
 run service_probe bench/service_probe.py --requests 200
 run sweep bench/sweep.py --arms z1,so101 --targets 20 --attempts 100
 run collect bench/collect.py --runs 3
-run train_step bench/train_step.py --batches 2048,8192 --threads 1,2
+run train_step bench/train_step.py --batches 2048 --threads 1,2 --steps 5 --repeats 2
 run solve_ab-ur5-pose-busy bench/solve_ab.py a=. b=. --goal pose --targets 100 \
   --bundle bundles_bench/ur5 --busy 90
 run solve_ab-panda-position bench/solve_ab.py a=. b=. --goal position --targets 100
