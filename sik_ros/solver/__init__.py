@@ -31,7 +31,7 @@ from sik_ros.kinematics import Robot
 from sik_ros.objectives import Objective
 from sik_ros.solver import candidates as _candidates, codec, path as _path, pipeline
 from sik_ros.solver.adjust import adjust_index
-from sik_ros.solver.config import SolverConfig
+from sik_ros.solver.config import PATH_DEFAULTS, SolverConfig
 from sik_ros.solver.context import Context, Goal
 from sik_ros.solver.inputs import (check_arrays, check_goal, check_num_solutions,
                                    check_objective, check_obstacles, check_path, check_seed)
@@ -199,10 +199,11 @@ class SelectiveIK:
         return [self.solve(p, None if orientations is None else orientations[i], **kw)
                 for i, p in enumerate(positions)]
 
-    def solve_path(self, positions, orientations=None, seed=None, num_paths: int = 4,
-                   max_joint_step: float = 0.3, obstacles: Sequence[Obstacle] = (),
-                   timeout: Optional[float] = None, path_tolerance: float = 0.005
-                   ) -> PathResult:
+    def solve_path(self, positions, orientations=None, seed=None,
+                   num_paths: int = PATH_DEFAULTS.num_paths,
+                   max_joint_step: float = PATH_DEFAULTS.max_joint_step,
+                   obstacles: Sequence[Obstacle] = (), timeout: Optional[float] = None,
+                   path_tolerance: float = PATH_DEFAULTS.path_tolerance) -> PathResult:
         """Ranked joint paths through Cartesian waypoints, without flips.
 
         Args:
@@ -223,7 +224,8 @@ class SelectiveIK:
         goals = check_path(positions, orientations, self.goals, self.config.max_waypoints)
         q_seed = None if seed is None else check_seed(self.robot, seed)
         obstacles = check_obstacles(obstacles, self.config.max_obstacles)
-        given = dict(num_paths=check_num_solutions(num_paths, self.config.max_solutions_cap),
+        given = dict(num_paths=check_num_solutions(num_paths, self.config.max_solutions_cap,
+                                                   'num_paths'),
                      max_joint_step=positive(max_joint_step, 'max_joint_step'),
                      path_tolerance=positive(path_tolerance, 'path_tolerance'))
         pose = orientations is not None
