@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 
 from sik_interfaces.srv import SolveIK
-from sik_ros.ros import demo
+from sik_ros.ros import launch
 
 pytestmark = pytest.mark.timeout(600)
 
@@ -25,6 +25,8 @@ REPO = Path(__file__).resolve().parents[1]
 #: What the two packages are made of (everything else in the repository is not installed).
 PACKAGE_FILES = ('package.xml', 'setup.py', 'setup.cfg', 'resource', 'config', 'sik_ros',
                  'sik_interfaces')
+#: The Panda's ready posture [rad]: its tip is the node's target.
+READY = (0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785)
 PYTHON_DIR = f'python{sys.version_info[0]}.{sys.version_info[1]}'
 NEEDED = """Build both packages:
     colcon build --paths src/sik_ros src/sik_ros/sik_interfaces"""
@@ -121,7 +123,7 @@ CLIENT = """
 import json, sys
 import rclpy
 from sik_ros.ros.client import SolveIKClient
-from sik_ros.ros.demo import pose_request
+from sik_ros.ros.client import pose_request
 rclpy.init()
 with SolveIKClient() as client:
     if not client.wait_for_service(120.0):
@@ -138,7 +140,7 @@ print(json.dumps({'code': answer.error_code, 'message': answer.message,
 def test_installed_node_answers(built, panda, tmp_path):
     """The installed sik_node (as ``ros2 run sik_ros sik_node`` starts it) answers SolveIK."""
     ws, env = built
-    graph = demo.ros_env()
+    graph = launch.ros_env()
     env = dict(env, **{k: graph[k] for k in ('ROS_DOMAIN_ID', 'ROS_AUTOMATIC_DISCOVERY_RANGE')})
     params = ws / 'install' / 'sik_ros' / 'share' / 'sik_ros' / 'config' / 'panda.yaml'
     log_path = tmp_path / 'node.log'
@@ -148,7 +150,7 @@ def test_installed_node_answers(built, panda, tmp_path):
              f' --ros-args --params-file {params}'], cwd=ws, env=env, stdout=log,
             stderr=subprocess.STDOUT)
     try:
-        position, _ = panda.fk(np.array(demo.READY))
+        position, _ = panda.fk(np.array(READY))
         (tmp_path / 'client.py').write_text(CLIENT)
         run = sourced(ws, f"cd / && python {tmp_path / 'client.py'} "
                           f"'{json.dumps(position.tolist())}'", env)
@@ -158,7 +160,7 @@ def test_installed_node_answers(built, panda, tmp_path):
         reached, _ = panda.fk(np.array(answer['q'][0]))
         assert np.linalg.norm(reached - position) <= 1e-4
     finally:
-        assert demo.stop_node(proc) == 0, log_path.read_text()
+        assert launch.stop_node(proc) == 0, log_path.read_text()
 
 
 @pytest.mark.parametrize('case', ['unsourced', 'stale'])
