@@ -375,8 +375,10 @@ class Robot:
         return self._collision
 
     def visual_model(self) -> pin.GeometryModel:
-        """The arm's visual geometry (the URDF's ``<visual>`` meshes and shapes), reduced like
-        the kinematic model (locked joints at their reference); loaded at each call.
+        """The arm's visual geometry: the URDF's ``<visual>`` meshes and shapes.
+
+        Reduced like the kinematic model (locked joints at their reference); loaded at each
+        call.
 
         Raises:
             InvalidModel: a mesh that cannot be found or read.

@@ -72,8 +72,11 @@ def solve(node, client, timeout: float = 20.0):
 
 
 def test_transitions_over_ros(graph, tmp_path, tiny_bundle):
-    """unconfigured -> (failed configure) -> inactive -> active -> inactive -> cleanup ->
-    active again -> shutdown: requests are refused unless active, never left unanswered."""
+    """Transitions over ROS: requests are refused unless active, never left unanswered.
+
+    unconfigured -> (a failed configure) -> inactive -> active -> inactive -> cleanup ->
+    active again -> shutdown (the process exits 0).
+    """
     env, node = graph
     later = tmp_path / 'bundle'                # absent at first: the first configure fails
     proc = start(env, tmp_path, str(later), 'lifecycle:=true')
@@ -126,8 +129,10 @@ def test_transitions_over_ros(graph, tmp_path, tiny_bundle):
 
 
 def test_diagnostics(graph, tmp_path, tiny_bundle):
-    """/diagnostics: one sik_node status with the bundle, rate, latency and failures by code;
-    the same figures in the log at shutdown."""
+    """/diagnostics: one sik_node status with the bundle, rate, latency, failures by code.
+
+    The same figures are in the node's log at shutdown.
+    """
     env, node = graph
     proc = start(env, tmp_path, str(tiny_bundle))
     statuses = []

@@ -107,7 +107,8 @@ def lifecycle_requested(**kwargs) -> bool:
 
     Read by a short-lived node of the same name, which sees the same parameter overrides.
     """
-    probe = Node(NODE_NAME, automatically_declare_parameters_from_overrides=True, **kwargs)
+    probe = Node(NODE_NAME, automatically_declare_parameters_from_overrides=True,
+                 start_parameter_services=False, enable_rosout=False, **kwargs)
     try:
         if not probe.has_parameter('lifecycle'):
             return False

@@ -28,13 +28,13 @@ PLAY_STEP = 0.08
 
 
 def xyzw(wxyz) -> np.ndarray:
-    """viser's w x y z quaternion as the solver's x y z w."""
+    """Turn viser's w x y z quaternion into the solver's x y z w."""
     w, x, y, z = (float(v) for v in wxyz)
     return np.array([x, y, z, w])
 
 
 def wxyz(xyzw_) -> tuple:
-    """The solver's x y z w quaternion as viser's w x y z."""
+    """Turn the solver's x y z w quaternion into viser's w x y z."""
     x, y, z, w = (float(v) for v in xyzw_)
     return (w, x, y, z)
 

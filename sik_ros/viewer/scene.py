@@ -53,8 +53,10 @@ def solution_colors(result: IKResult) -> np.ndarray:
 
 
 def grid_offsets(count: int, spacing: float) -> np.ndarray:
-    """(count, 3) offsets [m] that lay postures side by side, ``COLUMNS`` to a row (the first at
-    the origin, rows along -x, columns along +y)."""
+    """Offsets (count, 3) [m] that lay postures side by side, ``COLUMNS`` to a row.
+
+    The first is at the origin; rows go along -x, columns along +y.
+    """
     k = np.arange(count)
     return np.stack([-(k // COLUMNS) * spacing, (k % COLUMNS) * spacing, np.zeros(count)], 1)
 
