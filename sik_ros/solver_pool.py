@@ -98,8 +98,10 @@ def single_threaded() -> None:
 
 
 def _serve(conn: Connection, bundle: str, config: Dict[str, Any]) -> None:
-    """Body of a solver process: load the bundle, then answer ``(method, settings, args,
-    kwargs)`` messages."""
+    """Body of a solver process: load the bundle, then answer ``(method, settings, ...)``.
+
+    Each message is ``(method, settings, args, kwargs)``; None or a closed pipe ends it.
+    """
     # the parent owns SIGINT/SIGTERM and closes the pipe to stop us
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     single_threaded()
@@ -163,7 +165,7 @@ class _Worker:
         """Ask the process to exit, then make sure it has."""
         try:
             self.conn.send(None)
-        except (BrokenPipeError, OSError):
+        except (BrokenPipeError, OSError, ValueError):
             pass
         self.process.join(timeout)
         if self.process.is_alive():
@@ -323,21 +325,23 @@ class SolverPool:
         wait = RESTART_BACKOFF
         tries = 0
         while True:
-            with self._lock:
-                if self._closed:
-                    return
-                fresh = _Worker(self._ctx, self._bundle, self._config, index)
-                self._all[index] = fresh
-                self._restarts += 1
-            tries += 1
+            fresh = None
             try:
+                with self._lock:
+                    if self._closed:
+                        return
+                    fresh = _Worker(self._ctx, self._bundle, self._config, index)
+                    self._all[index] = fresh
+                    self._restarts += 1
+                tries += 1
                 fresh.wait_ready(START_TIMEOUT)
-            except SikError as exc:
+            except Exception as exc:  # whatever stopped this start, the next one may work
                 with self._lock:
                     self._failed_starts += 1
                 self._log(logging.WARNING, f'solver process {index} failed to start (try '
                           f'{tries}: {exc}); next try in {wait:g} s')
-                fresh.stop(timeout=0.5)
+                if fresh is not None:
+                    fresh.stop(timeout=0.5)
                 time.sleep(wait)
                 wait = min(2 * wait, RESTART_BACKOFF_MAX)
                 continue

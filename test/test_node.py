@@ -209,12 +209,12 @@ def test_pose_goal_verified_by_fk(ros, panda, goals):
 
 
 def test_solutions_are_ranked(ros, panda):
-    """Scores are non-decreasing, at most max_solutions are returned, none repeated."""
+    """(tier, score) are non-decreasing, at most max_solutions are returned, none repeated."""
     _, p, _ = target(panda, 1)
     answer = solve(ros, request(p, max_solutions=5))
-    scores = [s.score for s in answer.solutions]
-    assert 1 <= len(scores) <= 5
-    assert scores == sorted(scores)
+    ranks = [(s.tier, s.score) for s in answer.solutions]
+    assert 1 <= len(ranks) <= 5
+    assert ranks == sorted(ranks)
     q = np.array([s.joint_state.position for s in answer.solutions])
     assert len({tuple(np.round(row, 9)) for row in q}) == len(q)
     assert all(np.isinf(s.min_obstacle_distance) for s in answer.solutions)

@@ -142,3 +142,79 @@ def test_parameter_churn_does_not_grow_the_solver_process(tiny_bundle, graph, tm
         node.destroy_client(client)
         node.destroy_client(params)
         harness.stop_node(proc)
+
+
+def _solver_children(pid):
+    """Process ids of a node's solver processes (multiprocessing spawn children).
+
+    Every thread's children: replacements are started from the pool's restart threads.
+    """
+    import glob
+    out, children = [], []
+    for path in glob.glob(f'/proc/{pid}/task/*/children'):
+        try:
+            with open(path) as f:
+                children += f.read().split()
+        except OSError:
+            pass
+    for c in children:
+        try:
+            with open(f'/proc/{c}/cmdline') as f:
+                if 'spawn_main' in f.read():
+                    out.append(int(c))
+        except OSError:
+            pass
+    return out
+
+
+def test_solver_pool_heals_while_requests_fall_back(tiny_bundle, graph, tmp_path):
+    """Kill every solver process as it starts: solves still succeed, then the pool heals."""
+    import os
+    import signal
+    env, node = graph
+    log_path = tmp_path / 'node.log'
+    with open(log_path, 'wb') as log:
+        proc = harness.launch_node(str(tiny_bundle), ['solver_processes:=2'], env=env,
+                                   stdout=log, stderr=subprocess.STDOUT)
+    client = node.create_client(SolveIK, '/sik_node/solve_ik')
+    try:
+        assert harness.wait_for_service(node, client, proc, 120.0), log_path.read_text()
+        stop = threading.Event()
+        killed = []
+
+        def killer():
+            while not stop.is_set():
+                for c in _solver_children(proc.pid):
+                    try:
+                        os.kill(c, signal.SIGKILL)
+                        killed.append(c)
+                    except ProcessLookupError:
+                        pass
+                time.sleep(0.02)
+        thread = threading.Thread(target=killer, daemon=True)
+        thread.start()
+        codes = []
+        t_end = time.monotonic() + 8.0
+        while time.monotonic() < t_end:
+            request = harness.pose_request((0.4, 0.1, 0.4), None, 4)
+            request.timeout.sec = 2
+            answer = harness.call(node, client, request, 10.0)
+            codes.append(None if answer is None else answer.error_code)
+        stop.set()
+        thread.join()
+        assert len(set(killed)) >= 4, killed  # the first two and replacements as they started
+        assert codes and set(codes) <= {R.SUCCESS, R.NO_SOLUTION}, codes
+        # the pool heals: both processes back, serving
+        deadline = time.monotonic() + 90.0
+        while time.monotonic() < deadline and log_path.read_text().count('restarted') < 2:
+            time.sleep(0.5)
+        log = log_path.read_text()
+        assert 'lost' in log and 'failed to start' in log and 'restarted' in log, log[-3000:]
+        assert 'Traceback' not in log
+        alive = _solver_children(proc.pid)
+        assert len(alive) == 2, (alive, log[-2000:])
+        answer = harness.call(node, client, harness.pose_request((0.4, 0.1, 0.4), None, 4), 20.0)
+        assert answer.error_code in (R.SUCCESS, R.NO_SOLUTION), answer.message
+    finally:
+        node.destroy_client(client)
+        harness.stop_node(proc)

@@ -6,6 +6,7 @@ pure: they turn messages into arrays and :class:`~sik_ros.collision.Obstacle` ob
 back into ``sik_interfaces`` messages and RViz markers. Units are SI: metres, radians, seconds.
 """
 
+import math
 from typing import Dict, List, Optional, Sequence, Tuple
 
 from builtin_interfaces.msg import Duration
@@ -149,13 +150,17 @@ def seed_from_joint_state(msg: JointState, joint_names: Sequence[str],
     return np.array([by_name[n] for n in joint_names], dtype=float)
 
 
-def obstacles_from_msgs(primitives: Sequence[SolidPrimitive],
-                        poses: Sequence[Pose]) -> List[Obstacle]:
-    """Obstacles in the base frame from SolidPrimitives and one Pose each.
+def obstacles_from_msgs(primitives: Sequence[SolidPrimitive], poses: Sequence[Pose],
+                        cap: Optional[int] = None) -> List[Obstacle]:
+    """Obstacles in the base frame from SolidPrimitives and one Pose each, at most ``cap``.
 
     Raises:
-        InvalidGoal: counts that differ, an unsupported shape (cone) or bad dimensions.
+        InvalidGoal: more than ``cap``, counts that differ, an unsupported shape (cone) or bad
+            dimensions.
     """
+    if cap is not None and len(primitives) > cap:
+        raise InvalidGoal(f'{len(primitives)} obstacles; at most {cap} are accepted '
+                          f'(parameter max_obstacles)')
     if len(primitives) != len(poses):
         raise InvalidGoal(f'{len(primitives)} obstacles but {len(poses)} obstacle_poses: give '
                           f'one pose per obstacle')
@@ -173,6 +178,11 @@ def obstacles_from_msgs(primitives: Sequence[SolidPrimitive],
     return out
 
 
+def known_clearance(distance: float) -> float:
+    """A clearance for a message [m]: NaN (a check the deadline cut short) becomes 0, touching."""
+    return 0.0 if math.isnan(distance) else float(distance)
+
+
 def solution_to_msg(solution: Solution, joint_names: Sequence[str], header: Header
                     ) -> IKSolution:
     """One ranked library solution as an ``IKSolution`` (joint state stamped with ``header``)."""
@@ -183,7 +193,7 @@ def solution_to_msg(solution: Solution, joint_names: Sequence[str], header: Head
     msg.posture_index = solution.posture_index.tolist()
     msg.position_error = float(solution.position_error)
     msg.orientation_error = float(solution.orientation_error)
-    msg.min_obstacle_distance = float(solution.min_obstacle_distance)
+    msg.min_obstacle_distance = known_clearance(solution.min_obstacle_distance)
     msg.self_collision = bool(solution.self_collision)
     msg.score = float(solution.score)
     msg.tier = int(solution.tier)

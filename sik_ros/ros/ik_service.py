@@ -74,7 +74,8 @@ def solve_request(solvers: NodeSolvers, arm: Arm, request: SolveIK.Request, p: N
     seed = conv.seed_from_joint_state(request.seed, arm.joint_names)
     if seed is None and p.use_joint_states:
         seed = state_seed()
-    obstacles = conv.obstacles_from_msgs(request.obstacles, request.obstacle_poses)
+    obstacles = conv.obstacles_from_msgs(request.obstacles, request.obstacle_poses,
+                                         p.max_obstacles)
     timeout = conv.seconds_from_duration(request.timeout) or p.timeout
     result = solvers.solve(solver_settings(p), position, orientation, num, seed=seed,
                            obstacles=obstacles, refine=p.refine, timeout=timeout)

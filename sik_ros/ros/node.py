@@ -58,8 +58,6 @@ WORKERS = 4
 #: Longest time the main thread waits in the executor before it checks for signals [s].
 SPIN_PERIOD = 0.1
 Response = SolveIK.Response
-_LEVELS = {logging.DEBUG: 'debug', logging.INFO: 'info', logging.WARNING: 'warning',
-           logging.ERROR: 'error'}
 
 
 class StartupError(SikError):
@@ -158,8 +156,19 @@ class SikNode(Node):
                                  latched, callback_group=group)
 
     def _log(self, level: int, message: str) -> None:
-        """Log at a :mod:`logging` level (the solver pool's reports)."""
-        getattr(self.get_logger(), _LEVELS.get(level, 'info'))(message)
+        """Log at a :mod:`logging` level (the solver pool's reports).
+
+        One call site per severity: rclpy refuses a call site whose severity changes.
+        """
+        logger = self.get_logger()
+        if level >= logging.ERROR:
+            logger.error(message)
+        elif level >= logging.WARNING:
+            logger.warning(message)
+        elif level >= logging.INFO:
+            logger.info(message)
+        else:
+            logger.debug(message)
 
     # -- parameters ------------------------------------------------------------------------------
 

@@ -59,6 +59,9 @@ def solve_path_request(solvers: NodeSolvers, arm: Arm, request: SolvePath.Reques
     Raises:
         SikError: bad input (turned into its code by the guard), or no solver free in time.
     """
+    if len(request.waypoints) > p.max_waypoints:
+        raise InvalidGoal(f'{len(request.waypoints)} waypoints; at most {p.max_waypoints} are '
+                          f'accepted (parameter max_waypoints)')
     positions, quats, frames = waypoints_from_msgs(request.waypoints, request.use_orientation)
     for i, frame in enumerate(frames):
         arm.check_frame(frame, f'waypoint {i}')
@@ -67,7 +70,8 @@ def solve_path_request(solvers: NodeSolvers, arm: Arm, request: SolvePath.Reques
         raise InvalidGoal(f'velocity_scaling must be in (0, 1]; got {request.velocity_scaling}')
     timeout = conv.seconds_from_duration(request.timeout) or p.path_timeout
     seed = conv.seed_from_joint_state(request.seed, arm.joint_names)
-    obstacles = conv.obstacles_from_msgs(request.obstacles, request.obstacle_poses)
+    obstacles = conv.obstacles_from_msgs(request.obstacles, request.obstacle_poses,
+                                         p.max_obstacles)
     step = request.max_joint_step if request.max_joint_step != 0 else PATH_DEFAULTS.max_joint_step
     result = solvers.solve_path(solver_settings(p), positions, quats, seed=seed,
                                 num_paths=request.max_paths or PATH_DEFAULTS.num_paths,

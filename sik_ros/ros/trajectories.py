@@ -9,7 +9,7 @@ from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from sik_interfaces.msg import PathMetrics
 from sik_ros.errors import InvalidGoal
-from sik_ros.ros.conversions import duration_from_seconds, MAX_DURATION
+from sik_ros.ros.conversions import duration_from_seconds, known_clearance, MAX_DURATION
 from sik_ros.solver import JointPath
 
 #: Shortest time between two trajectory points [s].
@@ -59,7 +59,7 @@ def trajectory_msg(path: JointPath, joint_names: Sequence[str], velocity: np.nda
                                         time_from_start=duration_from_seconds(t))
                    for q, t in zip(path.q, times)]
     metrics = PathMetrics(max_step=path.max_step, travel=path.travel,
-                          min_obstacle_distance=path.min_obstacle_distance,
+                          min_obstacle_distance=known_clearance(path.min_obstacle_distance),
                           max_position_error=float(path.position_errors.max()),
                           max_orientation_error=float(path.orientation_errors.max()),
                           duration=float(times[-1]), cost=path.cost)
