@@ -55,6 +55,7 @@ class Viewer:
         self.server = viser.ViserServer(host=host, port=port, verbose=False)
         self.server.gui.configure_theme(control_width='large')
         self._lock = threading.Lock()
+        self._draw_lock = threading.RLock()  # GUI callbacks draw from viser's threads
         self._dirty = False
         self.result: Optional[IKResult] = None
         #: the goal position [m] that ``result`` answers
@@ -181,6 +182,10 @@ class Viewer:
 
     def draw(self) -> None:
         """Draw the arm at the current answer in the chosen layout, with its table."""
+        with self._draw_lock:
+            self._draw()
+
+    def _draw(self) -> None:
         result = self.result
         solutions = result.solutions if result is not None else []
         k = len(solutions)
