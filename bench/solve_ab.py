@@ -11,6 +11,7 @@ emptied, as a service's requests and the calls in ``bench/arms.py`` (after the p
 
     python bench/solve_ab.py old=/path/to/checkout new=. --bundle DIR --goal pose
     python bench/solve_ab.py old=/path/to/checkout new=. --bundle DIR --busy 90
+    python bench/solve_ab.py a=. b=. --goal pose --json docs/results/solve_ab-panda-pose.json
 """
 
 import argparse
@@ -24,6 +25,7 @@ os.environ.setdefault('OMP_NUM_THREADS', '1')
 import numpy as np  # noqa: E402
 
 from ab import answers_in_turn  # noqa: E402,I100 (bench/ab.py, beside this script)
+from report import add_json_argument, git_commit, write_json  # noqa: E402 (bench/report.py)
 
 
 def busy(ms: float) -> None:
@@ -80,6 +82,7 @@ def main() -> None:
     parser.add_argument('--busy', type=float, default=0.0,
                         help='milliseconds of other work before each call (cold calls)')
     parser.add_argument('--worker', nargs=8, help=argparse.SUPPRESS)
+    add_json_argument(parser)
     args = parser.parse_args()
     if args.worker:
         root, bundle, goal, num, seeded, seed, count, busy_ms = args.worker
@@ -99,12 +102,23 @@ def main() -> None:
     print(f'| checkout | success | distinct (mean) | branches (mean) | time per call (median) '
           f'| ratio to {first} (median) |')
     print('|---|---|---|---|---|---|')
-    for name in answers:
+    figures = []
+    for spec, name in zip(args.checkouts, answers):
         rows = answers[name]
-        print(f'| {name} | {100 * np.mean([a["ok"] for a in rows]):.1f} % '
-              f'| {np.mean([a["n"] for a in rows]):.2f} | {np.mean([a["b"] for a in rows]):.2f} '
-              f'| {np.median([a["t"] for a in rows]):.2f} ms '
-              f'| {np.median([a["t"] / b["t"] for a, b in zip(rows, ref)]):.3f} |')
+        f = {'name': name, **git_commit(spec.partition('=')[2]),
+             'success': float(np.mean([a['ok'] for a in rows])),
+             'distinct_mean': float(np.mean([a['n'] for a in rows])),
+             'branches_mean': float(np.mean([a['b'] for a in rows])),
+             'time_median_ms': float(np.median([a['t'] for a in rows])),
+             'ratio_median': float(np.median([a['t'] / b['t'] for a, b in zip(rows, ref)]))}
+        figures.append(f)
+        print(f'| {name} | {100 * f["success"]:.1f} % | {f["distinct_mean"]:.2f} '
+              f'| {f["branches_mean"]:.2f} | {f["time_median_ms"]:.2f} ms '
+              f'| {f["ratio_median"]:.3f} |')
+    write_json(args.json, 'solve_ab', {
+        'bundle': args.bundle, 'goal': args.goal, 'num': args.num, 'seeded': args.seeded,
+        'targets': args.targets, 'seed': args.seed, 'busy_ms': args.busy,
+        'checkouts': figures})
 
 
 if __name__ == '__main__':

@@ -16,7 +16,6 @@ call: a goal is at most half a cell from the centre, which costs the refinement 
 iteration and saves the decoder's forward pass (see docs/benchmarks.md).
 """
 
-from dataclasses import dataclass
 import functools
 import json
 import math
@@ -30,29 +29,10 @@ from scipy.spatial.distance import cdist
 
 from sik_ros.artifacts import (atomic_write, check_robot_manifest, FORMAT_VERSION, range_codes,
                                range_values)
+from sik_ros.defaults import TableConfig  # noqa: F401 (part of this module's API)
 from sik_ros.errors import ArtifactMismatch, CorruptArtifact, InvalidArgument
 
 TABLE_KEYS = ('centers', 'offsets', 'indices', 'manifest')
-
-
-@dataclass(frozen=True)
-class TableConfig:
-    """How a table is built.
-
-    Attributes:
-        cell: edge of the position cells [m].
-        dedup: indices closer than this (per element, in index units) count as one.
-        max_per_cell: most indices kept per cell (a far-apart subset).
-    """
-
-    cell: float = 0.05
-    dedup: float = 0.05
-    max_per_cell: int = 24
-
-    def __post_init__(self):
-        """Validate the fields."""
-        if not (self.cell > 0 and self.dedup > 0 and self.max_per_cell >= 1):
-            raise InvalidArgument(f'invalid table config {self}')
 
 
 class PostureTable(Protocol):

@@ -238,14 +238,14 @@ def test_position_path_starts_take_the_turns_nearest_the_seed(ur5_bundle, ur5):
 
     Each periodic joint within its limits, as a brute force over the turns finds.
     """
-    import sik_ros.solver.path as path_mod
     from sik_ros.solver.context import Goal
     from sik_ros.solver.explore import nearest_turns
+    from sik_ros.solver.path import starts
     ik = SelectiveIK.load(ur5_bundle[0])
     rng = np.random.default_rng(3)
     for q in rng.uniform(ur5.lower, ur5.upper, (5, 6)):
         seed = rng.uniform(ur5.lower, ur5.upper)
-        near = path_mod._near_seed(ik._ctx, Goal(ur5.fk(q)[0]), seed, 4)
+        near = starts._near_seed(ik._ctx, Goal(ur5.fk(q)[0]), seed, 4)
         assert len(near)
         for row in near:
             for j in range(6):

@@ -41,9 +41,8 @@ ORIENTED_MIN = 8
 
 #: Perturbed copies (and as many random configurations) refined when every exact solution
 #: found collides with the arm itself, in at most ``FREE_ROUNDS`` rounds of fresh draws for
-#: position goals (one for pose goals, none for those the seed table gave starts) (a Panda
-#: position goal 14 cm from the base axis had 3 free solutions of 32 and none after one round
-#: for 4 or 16 solutions; one after two).
+#: position goals (one for pose goals, none for those the seed table gave starts); goals near
+#: the base axis may need more than one round (docs/design.md).
 FREE_RESTARTS = 16
 FREE_ROUNDS = 3
 
@@ -60,9 +59,8 @@ def initial_postures(ctx: Context, goal: Goal, num: int, q_seed: Optional[np.nda
     Order: the seed itself, the seed's own posture (its index decoded), then the oriented ones
     (pose goals), then the table's. The seed and the oriented postures have no index of the
     goal's model yet: NaN, encoded once ranked. With ``seeded`` (isolated pose solutions whose
-    starts come from the seed table) only the seed and its own posture: measured on a UR5
-    bundle, the oriented and table postures found no branch the seed table's starts missed,
-    and cost 15 % of a call.
+    starts come from the seed table) only the seed and its own posture: the oriented and
+    table postures find no branch the seed table's starts miss (docs/design.md).
     """
     extra = oriented_postures(ctx, goal, oriented_count(ctx.config, num)) \
         if goal.kind == POSE and refined and not seeded else np.empty((0, ctx.robot.dof))
@@ -145,9 +143,7 @@ def solve(ctx: Context, goal: Goal, num: int, q_seed: Optional[np.ndarray],
     With ``first_found`` (a path's starts) refinement stops at the first ``num`` distinct
     exact solutions even with a seed (then ranked by it): the seed's own row may be left
     unfinished (a path's starts follow the seed onto the goal on their own). Their posture
-    indices are left unknown (NaN) unless obstacles need them (Algorithm 2). Paired on 300
-    Panda position paths, the ``num`` without the usual spare ones and no indices: 0.94x the
-    time, the same paths.
+    indices are left unknown (NaN) unless obstacles need them (Algorithm 2).
     """
     cfg = ctx.config
     # a goal far from every position in the data is out of reach: answer quickly
