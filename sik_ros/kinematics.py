@@ -329,22 +329,37 @@ class Robot:
     def collision_model(self) -> pin.GeometryModel:
         """The arm's collision geometry (coal), reduced like the kinematic model; loaded lazily."""
         if self._collision is None:
-            try:
-                full_geom = pin.buildGeomFromUrdf(self._full_model, str(self._collision_urdf),
-                                                  pin.GeometryType.COLLISION,
-                                                  package_dirs=self._package_dirs)
-            except (RuntimeError, ValueError) as exc:
-                raise InvalidModel(f'{self.name}: cannot load the collision geometry of '
-                                   f'{self._collision_urdf}: {pinocchio_reason(exc)} (put the '
-                                   f'folder holding its package on ROS_PACKAGE_PATH, or source '
-                                   f'its ROS workspace)') from exc
-            if self._locked:
-                _, geom = pin.buildReducedModel(self._full_model, full_geom, self._locked,
-                                                self._q_ref_full)
-            else:
-                geom = full_geom
-            self._collision = geom
+            self._collision = self._reduced_geometry(self._collision_urdf,
+                                                     pin.GeometryType.COLLISION)
         return self._collision
+
+    def visual_model(self) -> pin.GeometryModel:
+        """The arm's visual geometry: the URDF's ``<visual>`` meshes and shapes.
+
+        Reduced like the kinematic model (locked joints at their reference); loaded at each
+        call.
+
+        Raises:
+            InvalidModel: a mesh that cannot be found or read.
+        """
+        return self._reduced_geometry(self.urdf_path, pin.GeometryType.VISUAL)
+
+    def _reduced_geometry(self, urdf: Path, kind: pin.GeometryType) -> pin.GeometryModel:
+        """A geometry model of ``urdf`` on the reduced model."""
+        what = 'collision' if kind == pin.GeometryType.COLLISION else 'visual'
+        try:
+            full_geom = pin.buildGeomFromUrdf(self._full_model, str(urdf), kind,
+                                              package_dirs=self._package_dirs)
+        except (RuntimeError, ValueError) as exc:
+            raise InvalidModel(f'{self.name}: cannot load the {what} geometry of '
+                               f'{urdf}: {pinocchio_reason(exc)} (put the '
+                               f'folder holding its package on ROS_PACKAGE_PATH, or source '
+                               f'its ROS workspace)') from exc
+        if not self._locked:
+            return full_geom
+        _, geom = pin.buildReducedModel(self._full_model, full_geom, self._locked,
+                                        self._q_ref_full)
+        return geom
 
     @property
     def srdf_path(self) -> Optional[Path]:
