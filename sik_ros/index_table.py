@@ -18,21 +18,19 @@ iteration and saves the decoder's forward pass (see docs/benchmarks.md).
 
 import functools
 import json
-import math
 from pathlib import Path
 from typing import Dict, Optional, Protocol, Tuple
 import zipfile
 
 import numpy as np
 from scipy.spatial import cKDTree
-from scipy.spatial.distance import cdist
 
 from sik_ros.artifacts import (atomic_write, check_robot_manifest, FORMAT_VERSION, range_codes,
                                range_values)
 from sik_ros.defaults import TableConfig  # noqa: F401 (part of this module's API)
 from sik_ros.errors import ArtifactMismatch, CorruptArtifact, InvalidArgument
-from sik_ros.kernels import as_arg
-from sik_ros.kernels.sets import farthest_rows
+from sik_ros.point_sets import farthest_point_subset, pairwise_distances  # noqa: F401
+from sik_ros.reach_grid import ReachGrid
 
 TABLE_KEYS = ('centers', 'offsets', 'indices', 'manifest')
 
@@ -115,113 +113,6 @@ class PriorTable:
             InvalidArgument: always.
         """
         raise InvalidArgument('a prior table keeps no orientations')
-
-
-#: Edge of the reach grid's voxels [m], how far past the cells it reaches [m], and its most
-#: voxels (a larger workspace gets none: every question goes to the KD-tree).
-REACH_VOXEL = 0.05
-REACH_PAD = 0.3
-REACH_MAX_VOXELS = 2_000_000
-
-
-class ReachGrid:
-    """How far each voxel's centre is from the nearest cell centre, on a grid over the cells.
-
-    A point in a voxel is within the voxel's half diagonal of its centre, so the voxel's
-    distance bounds the point's both ways: most questions "within d of the data?" are answered
-    by one array read, and only points within a half diagonal of the answer's edge (or off the
-    grid) need the KD-tree. A solve asks once per call, where the KD look-up cost 10 us when
-    warm and 40-120 us between a node's requests, when out of the caches.
-    """
-
-    def __init__(self, tree: cKDTree, centers: np.ndarray):
-        self.dist = None
-        if len(centers) == 0:
-            return
-        lo = centers.min(axis=0) - REACH_PAD
-        shape = np.ceil((centers.max(axis=0) + REACH_PAD - lo) / REACH_VOXEL).astype(int)
-        if int(np.prod(shape)) > REACH_MAX_VOXELS:
-            return
-        axes = [lo[i] + (np.arange(shape[i]) + 0.5) * REACH_VOXEL for i in range(3)]
-        points = np.stack(np.meshgrid(*axes, indexing='ij'), axis=-1).reshape(-1, 3)
-        self.dist = tree.query(points, k=1)[0].reshape(tuple(shape))
-        self.lo = tuple(float(v) for v in lo)
-        self.shape = tuple(int(v) for v in shape)
-        # the half diagonal, and a margin for the rounding of the distances
-        self.slack = REACH_VOXEL * math.sqrt(3) / 2 + 1e-9
-
-    def bounds(self, position: np.ndarray) -> Optional[Tuple[float, float]]:
-        """Least and most distance [m] from ``position`` to the nearest cell centre.
-
-        None off the grid.
-        """
-        if self.dist is None:
-            return None
-        index = []
-        for value, lo, size in zip(position, self.lo, self.shape):
-            i = math.floor((float(value) - lo) / REACH_VOXEL)
-            if not 0 <= i < size:
-                return None
-            index.append(i)
-        d = float(self.dist[index[0], index[1], index[2]])
-        return d - self.slack, d + self.slack
-
-
-#: Rows up to which :func:`farthest_point_subset` computes every pair's distance at once.
-PAIRWISE_ROWS = 1024
-#: Rows up to which :func:`pairwise_distances` takes a matrix product, not ``cdist``.
-GRAM_ROWS = 128
-#: Distance below which :func:`farthest_point_subset` takes a row as equal to a chosen one.
-SAME_DISTANCE = 1e-6
-
-
-def pairwise_distances(a: np.ndarray, b: Optional[np.ndarray] = None) -> np.ndarray:
-    """Euclidean distances (N, M) between the rows of ``a`` (N, d) and ``b`` (M, d; ``a``).
-
-    Up to :data:`GRAM_ROWS` rows each, by ``|a|^2 + |b|^2 - 2 a.b`` (one matrix product):
-    scipy's ``cdist``, as fast there, costs ~0.1 ms more in a solve's first call of it when
-    the caches are cold. Rounding leaves about 1.5e-8 times the rows' norm between equal rows
-    (4e-8 for the cosines and sines of 6 joints, 3e-7 for 7 angles within 2 pi; below
-    :data:`SAME_DISTANCE`). More rows: ``cdist`` (the product's temporaries cost more there).
-    """
-    a = np.asarray(a, dtype=np.float64)
-    b = a if b is None else np.asarray(b, dtype=np.float64)
-    if max(len(a), len(b)) > GRAM_ROWS:
-        return cdist(a, b)
-    d2 = a @ b.T
-    d2 *= -2.0
-    d2 += (a * a).sum(axis=1)[:, None]
-    d2 += (b * b).sum(axis=1)[None, :]
-    np.maximum(d2, 0.0, out=d2)
-    return np.sqrt(d2, out=d2)
-
-
-def farthest_point_subset(points: np.ndarray, k: int, first: int = 0, spacing: float = 0.0,
-                          at_least: int = 1) -> np.ndarray:
-    """Indices of ``k`` rows of ``points`` chosen greedily far apart (farthest-point sampling).
-
-    With ``spacing`` > 0, fewer: once ``at_least`` rows are chosen, the choice stops when the
-    farthest row left is within ``spacing`` of a chosen one (every row left is then as near
-    one); a row equal to a chosen one is never chosen then.
-    """
-    n = len(points)
-    if n == 0 or k < 1 or (n <= k and spacing <= 0):
-        return np.arange(min(n, max(k, 0)))
-    if n <= PAIRWISE_ROWS:
-        # a few hundred rows (a solve's candidates, a seed table's neighbours): one compiled
-        # call; more (a table's cells when built): a row of distances per pick
-        return farthest_rows(as_arg(points), int(k),
-                             int(first), float(spacing), int(at_least), SAME_DISTANCE)
-    chosen = [first]
-    dist = cdist(points[first:first + 1], points)[0]
-    for _ in range(min(k, n) - 1):
-        i = int(np.argmax(dist))
-        if spacing > 0 and (dist[i] <= SAME_DISTANCE
-                            or (dist[i] < spacing and len(chosen) >= at_least)):
-            break
-        chosen.append(i)
-        np.minimum(dist, cdist(points[i:i + 1], points)[0], out=dist)
-    return np.array(chosen)
 
 
 class IndexTable:

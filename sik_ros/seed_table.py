@@ -38,8 +38,8 @@ from sik_ros.chain import chain_forward
 from sik_ros.dataset import Dataset
 from sik_ros.defaults import SEED_TABLE_ROWS
 from sik_ros.errors import ArtifactMismatch, CorruptArtifact, InvalidArgument
-from sik_ros.index_table import farthest_point_subset
 from sik_ros.kinematics import Robot
+from sik_ros.point_sets import farthest_point_subset
 from sik_ros.rotations import rotation_to_quaternion, z_to_axis
 
 #: Configurations a seed table keeps by default (6 MB for 6 joints).

@@ -7,8 +7,9 @@ import numpy as np
 import pytest
 
 from sik_ros.errors import ArtifactMismatch, CorruptArtifact
-from sik_ros.index_table import (farthest_point_subset, GRAM_ROWS, IndexTable,
-                                 pairwise_distances, SAME_DISTANCE, TableConfig)
+from sik_ros.index_table import IndexTable, TableConfig
+from sik_ros.point_sets import (farthest_point_subset, GRAM_ROWS, pairwise_distances,
+                                SAME_DISTANCE)
 from sik_ros.robots import load_robot
 
 

@@ -12,7 +12,7 @@ from typing import Optional, Tuple
 
 import numpy as np
 
-from sik_ros.index_table import farthest_point_subset
+from sik_ros.point_sets import farthest_point_subset
 from sik_ros.solver.codec import decode, encode
 from sik_ros.solver.context import Context, Goal, POSITION
 

@@ -15,7 +15,7 @@ import zlib
 
 import numpy as np
 
-from sik_ros.index_table import pairwise_distances
+from sik_ros.point_sets import pairwise_distances
 from sik_ros.seed_table import SeedTable
 from sik_ros.solver.batch import Candidates
 from sik_ros.solver.context import Context, Goal

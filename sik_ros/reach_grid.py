@@ -1,0 +1,56 @@
+"""A voxel grid of distances to a table's cells: "is this goal near the data?" in one read."""
+
+import math
+from typing import Optional, Tuple
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+#: Edge of the reach grid's voxels [m], how far past the cells it reaches [m], and its most
+#: voxels (a larger workspace gets none: every question goes to the KD-tree).
+REACH_VOXEL = 0.05
+REACH_PAD = 0.3
+REACH_MAX_VOXELS = 2_000_000
+
+
+class ReachGrid:
+    """How far each voxel's centre is from the nearest cell centre, on a grid over the cells.
+
+    A point in a voxel is within the voxel's half diagonal of its centre, so the voxel's
+    distance bounds the point's both ways: most questions "within d of the data?" are answered
+    by one array read, and only points within a half diagonal of the answer's edge (or off the
+    grid) need the KD-tree. A solve asks once per call, where the KD look-up cost 10 us when
+    warm and 40-120 us between a node's requests, when out of the caches.
+    """
+
+    def __init__(self, tree: cKDTree, centers: np.ndarray):
+        self.dist = None
+        if len(centers) == 0:
+            return
+        lo = centers.min(axis=0) - REACH_PAD
+        shape = np.ceil((centers.max(axis=0) + REACH_PAD - lo) / REACH_VOXEL).astype(int)
+        if int(np.prod(shape)) > REACH_MAX_VOXELS:
+            return
+        axes = [lo[i] + (np.arange(shape[i]) + 0.5) * REACH_VOXEL for i in range(3)]
+        points = np.stack(np.meshgrid(*axes, indexing='ij'), axis=-1).reshape(-1, 3)
+        self.dist = tree.query(points, k=1)[0].reshape(tuple(shape))
+        self.lo = tuple(float(v) for v in lo)
+        self.shape = tuple(int(v) for v in shape)
+        # the half diagonal, and a margin for the rounding of the distances
+        self.slack = REACH_VOXEL * math.sqrt(3) / 2 + 1e-9
+
+    def bounds(self, position: np.ndarray) -> Optional[Tuple[float, float]]:
+        """Least and most distance [m] from ``position`` to the nearest cell centre.
+
+        None off the grid.
+        """
+        if self.dist is None:
+            return None
+        index = []
+        for value, lo, size in zip(position, self.lo, self.shape):
+            i = math.floor((float(value) - lo) / REACH_VOXEL)
+            if not 0 <= i < size:
+                return None
+            index.append(i)
+        d = float(self.dist[index[0], index[1], index[2]])
+        return d - self.slack, d + self.slack
