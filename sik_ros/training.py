@@ -461,12 +461,18 @@ class Trainer:
         """Start from the weights of another checkpoint or exported model (a warm start).
 
         The model config, the robot and the normaliser must match; the optimiser, the step
-        count and the schedule start afresh.
+        count and the schedule start afresh. A SIK model with a smaller posture index (fewer
+        learned elements, no branch code) also serves: its weights are copied in, the new
+        index elements' decoder inputs start at zero weight (the decoder starts as the old
+        one) and the encoder's new outputs at a tenth of their initial weights.
         """
         found = ModelConfig.from_dict(ckpt['model_config'])
+        state = ckpt['model_state']
         if found != self.model_cfg:
-            raise ArtifactMismatch(f'--init {source} model config', asdict(self.model_cfg),
-                                   ckpt['model_config'])
+            if not widens(found, self.model_cfg):
+                raise ArtifactMismatch(f'--init {source} model config', asdict(self.model_cfg),
+                                       ckpt['model_config'])
+            state = widened_state(self.model.state_dict(), state, found, self.model_cfg)
         check_robot_manifest(f'--init {source}', self.robot.manifest(), ckpt['robot'])
         norm = normalizer_from_dict(ckpt['normalizer'])
         mine = np.concatenate([self.norm.lower, self.norm.upper, self.norm.position_center,
@@ -477,7 +483,7 @@ class Trainer:
             raise ArtifactMismatch(f'--init {source} normaliser (another dataset)',
                                    asdict(self.norm), ckpt['normalizer'])
         self.norm = norm  # bit for bit the one the weights were trained with
-        self.model.load_state_dict(ckpt['model_state'])
+        self.model.load_state_dict(state)
 
     def restore(self, ckpt: Dict) -> None:
         """Continue from a checkpoint of the same model on the same robot and dataset."""
@@ -500,6 +506,45 @@ class Trainer:
             self.gen.manual_seed(self.cfg.seed + 1 + 7919 * self.rank + self.step)
         if 'pso' in ckpt:
             self._pso = {k: v.clone() for k, v in ckpt['pso'].items()}
+
+
+def widens(old: ModelConfig, new: ModelConfig) -> bool:
+    """Whether ``new`` is ``old`` with a wider posture index (more learned elements or bits)."""
+    same = replace(new, latent_dim=old.latent_dim, branches=old.branches) == old
+    return (same and old.kind == 'sik' and new.latent_dim >= old.latent_dim
+            and tuple(new.branches[:len(old.branches)]) == tuple(old.branches))
+
+
+def widened_state(fresh: Dict, old: Dict, old_cfg: ModelConfig, cfg: ModelConfig) -> Dict:
+    """``old`` weights in a model with a wider index (``fresh``: its initial state dict).
+
+    The decoder's first layer keeps its goal and old index columns; the new learned elements'
+    and bits' columns are zero. The encoder's last layer keeps its old outputs; new outputs
+    take a tenth of their initial weights.
+    """
+    out = {k: v.clone() for k, v in fresh.items()}
+    enc_last = 'encoder.%d.' % max(int(k.split('.')[1]) for k in old if k.startswith('encoder.'))
+    for key, value in old.items():
+        target = out[key]
+        if target.shape == value.shape:
+            out[key] = value.clone()
+        elif key == 'decoder.0.weight':
+            w = torch.zeros_like(target)
+            g = cfg.goal_dim
+            w[:, :g + old_cfg.latent_dim] = value[:, :g + old_cfg.latent_dim]
+            bits = len(old_cfg.branches)
+            if bits:  # the old bits keep theirs, after the wider learned part
+                w[:, g + cfg.latent_dim:g + cfg.latent_dim + bits] = \
+                    value[:, g + old_cfg.latent_dim:]
+            out[key] = w
+        elif key.startswith(enc_last):
+            w = target * 0.1
+            w[:value.shape[0]] = value
+            out[key] = w
+        else:
+            raise ArtifactMismatch(f'weights {key} of the smaller model', tuple(target.shape),
+                                   tuple(value.shape))
+    return out
 
 
 def with_overrides(cfg: TrainConfig, **kw) -> TrainConfig:

@@ -1,6 +1,7 @@
 """``sik-train``: train a SIK, PSIK, FCN or ANFIS model on a dataset, resumably."""
 
 import argparse
+from dataclasses import replace
 import json
 from pathlib import Path
 import signal
@@ -15,7 +16,7 @@ from sik_ros.checkpoints import export_model, load_checkpoint, model_signature
 from sik_ros.cli import argv_or_default, Parser, run_cli
 from sik_ros.dataset import Dataset
 from sik_ros.errors import ArtifactExists, InvalidArgument
-from sik_ros.models import DEFAULT_LATENT, ModelConfig, PRESETS
+from sik_ros.models import branch_bits, DEFAULT_LATENT, ModelConfig, PRESETS
 from sik_ros.robots import robot_from_manifest
 from sik_ros.training import TrainConfig, Trainer, with_overrides
 
@@ -30,6 +31,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument('--goal', choices=('position', 'pose'), default='position')
     p.add_argument('--latent-dim', type=int, help='posture index size (default: 4 position, '
                    '1 pose)')
+    p.add_argument('--branches', action='store_true',
+                   help='a branch code beside the learned index (SIK): the signs that tell '
+                   'the arm\'s shoulder and wrist flips apart (pose goals: the separate '
+                   'pieces of the self-motion)')
     p.add_argument('--preset', choices=sorted(PRESETS), default='default',
                    help='layer widths (paper: the paper\'s sizes)')
     p.add_argument('--steps', type=int, help='optimiser steps (PSO iterations for ANFIS)')
@@ -114,6 +119,11 @@ def main(argv: Optional[List[str]] = None) -> int:
                                     f'dataset {args.dataset}')
         if model_cfg.dof != robot.dof:
             model_cfg = ModelConfig(**{**model_cfg.__dict__, 'dof': robot.dof})
+        if args.branches and not args.resume:
+            if args.model != 'sik':
+                raise InvalidArgument('--branches needs --model sik')
+            model_cfg = replace(model_cfg, branches=branch_bits(robot.chain, robot.lower,
+                                                                robot.upper))
         ds = Dataset.load(args.dataset, robot)
         trainer = Trainer(robot, ds, model_cfg, train_cfg, out)
         if ckpt is not None:

@@ -13,7 +13,7 @@ from typing import Optional, Tuple
 import numpy as np
 
 from sik_ros.index_table import farthest_point_subset
-from sik_ros.solver.codec import decode, encode
+from sik_ros.solver.codec import branch_codes, decode, encode
 from sik_ros.solver.context import Context, Goal, POSITION
 
 
@@ -44,17 +44,28 @@ def table_candidates(ctx: Context, goal: Goal, q_seed: Optional[np.ndarray],
         return own_index(ctx, goal, q_seed)
     rows = table.rows_near(goal.position, cfg.k_cells)
     pool = table.indices[rows]
-    if pool.shape[1] == 1:
-        # a 1-d index is a line: also sweep it over the range the table holds
-        lo, hi = table.index_bounds
-        pool = np.concatenate([pool, np.linspace(lo, hi, count)])
-        rows = np.concatenate([rows, np.full(count, -1)])
+    mcfg = ctx.models[goal.kind].model.cfg
+    if getattr(mcfg, 'latent_dim', pool.shape[1]) == 1:
+        # a 1-d index is a line (one per branch code): also sweep it over the range the table
+        # holds, on every branch
+        sweep = index_sweep(table, getattr(mcfg, 'branches', ()), count)
+        pool = np.concatenate([pool, sweep])
+        rows = np.concatenate([rows, np.full(len(sweep), -1)])
     if q_seed is not None:
         z_seed = encode(ctx, goal, q_seed[None])[0]
         pool = np.concatenate([z_seed[None], pool])
         rows = np.concatenate([[-1], rows])
     pick = farthest_point_subset(pool, count)
     return pool[pick], rows[pick]
+
+
+def index_sweep(table, branches, count: int) -> np.ndarray:
+    """About ``count`` indices (M, 1 + bits) along a 1-d index's range, on every branch code."""
+    codes = branch_codes(branches)
+    lo, hi = table.index_bounds
+    line = np.linspace(lo[:1], hi[:1], max(2, math.ceil(count / len(codes))))
+    return np.concatenate([np.concatenate([line, np.repeat(c[None], len(line), 0)], axis=1)
+                           for c in codes])
 
 
 def own_index(ctx: Context, goal: Goal, q_seed: Optional[np.ndarray]
