@@ -357,7 +357,13 @@ def orientation_study(ik: SelectiveIK, targets: int = 4, postures: int = 5,
     out = []
     for pos, rot in zip(pos_all, rot_all):
         pool = table_pool(ik.models['pose'].table, pos, ik.config.k_cells).astype(np.float64)
-        z = np.quantile(pool, np.linspace(0, 1, postures), axis=0)
+        if getattr(ik.models['pose'].cfg, 'branches', ()):
+            # a branch code is a sign, not a quantity: the table's own indices at the
+            # quantiles of the first learned element, each with its code
+            order = np.argsort(pool[:, 0], kind='stable')
+            z = pool[order[np.round(np.linspace(0, len(pool) - 1, postures)).astype(int)]]
+        else:
+            z = np.quantile(pool, np.linspace(0, 1, postures), axis=0)
         q_raw = ik.decode('pose', pos, rot, z)
         q_ref, _, _ = ik.refine(q_raw, pos, rot)
         rec = {}
