@@ -1,4 +1,4 @@
-"""What the learned model contributes: the solver with its starts from one source at a time.
+r"""What the learned model contributes: the solver with its starts from one source at a time.
 
 For each arm (a bundle) and goal kind, targets uniform in joint space (FK of seeded random
 configurations); for every target each source gives the same number of starting postures
@@ -96,7 +96,8 @@ class Starts:
 
 
 def run_arm(name: str, bundle: str, data: str, targets: int, num: int, starts: int,
-            seed: int, seed_rows: int, pose_candidates: int = 0) -> dict:
+            seed: int, seed_rows: int, pose_candidates: int = 0,
+            goals=('position', 'pose')) -> dict:
     """Every goal kind and source of one arm: the figures."""
     torch.set_num_threads(1)
     shipped = SelectiveIK.load(bundle)
@@ -116,7 +117,7 @@ def run_arm(name: str, bundle: str, data: str, targets: int, num: int, starts: i
     q = rng.uniform(robot.lower, robot.upper, (targets, robot.dof))
     out = {}
     try:
-        for kind in [k for k in ('position', 'pose') if k in shipped.goals]:
+        for kind in [k for k in goals if k in shipped.goals]:
             names = SOURCES[kind]
             if kind == 'pose' and pose_candidates:
                 names = names + (f'shipped + pose model {pose_candidates}',)
@@ -182,6 +183,7 @@ def main() -> int:
     ap.add_argument('--seed', type=int, default=0)
     ap.add_argument('--pose-candidates', type=int, default=0,
                     help='also the shipped solver with this many pose-model candidates')
+    ap.add_argument('--goals', default='position,pose', help='goal kinds, comma-separated')
     ap.add_argument('--json', help='write the figures here')
     a = ap.parse_args()
     results = {}
@@ -193,7 +195,7 @@ def main() -> int:
             return 2
         t0 = time.perf_counter()
         results[name] = run_arm(name, bundle, data, a.targets, a.num, a.starts, a.seed,
-                                a.seed_rows, a.pose_candidates)
+                                a.seed_rows, a.pose_candidates, a.goals.split(','))
         print(f'{name}: {time.perf_counter() - t0:.0f} s', flush=True)
     print(table(results, a.starts, a.num))
     if a.json:

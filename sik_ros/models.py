@@ -254,9 +254,9 @@ def branch_bits(chain: SerialChain, lower: np.ndarray, upper: np.ndarray,
         lo, hi = float(lower[j]), float(upper[j])
         margin = edge * (hi - lo)
         # the multiples of pi from s strictly inside the limits, where the sign changes
-        k = np.arange(math.ceil((lo + margin - s) / math.pi), math.floor((hi - margin - s)
-                                                                          / math.pi) + 1)
-        if not len(k):
+        first = math.ceil((lo + margin - s) / math.pi)
+        last = math.floor((hi - margin - s) / math.pi)
+        if last < first:
             continue
         mid, half = (lo + hi) / 2, (hi - lo) / 2
         bits.append((j, half, mid - s))

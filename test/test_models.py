@@ -163,7 +163,7 @@ def test_the_branch_code_follows_the_learned_index(panda):
     np.testing.assert_allclose(h[:, 0], z[:, 0].numpy(), rtol=1e-5, atol=1e-5)
     np.testing.assert_array_equal(branch_code(bits, x.numpy()), z[:, 1:].numpy())
     assert out.shape == (9, 7)
-    assert sorted(map(tuple, branch_codes(bits).tolist())) == [(-1, -1), (-1, 1), (1, -1),
-                                                                (1, 1)]
+    codes = sorted(map(tuple, branch_codes(bits).tolist()))
+    assert codes == [(-1, -1), (-1, 1), (1, -1), (1, 1)]
     with pytest.raises(InvalidArgument):
         ModelConfig(kind='psik', branches=bits)

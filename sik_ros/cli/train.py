@@ -51,6 +51,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument('--cycle-weight', type=float,
                    help='cycle term: another index decoded at each goal must re-encode to it '
                    'and reach the goal (keeps an FK-trained decoder from ignoring the index)')
+    p.add_argument('--cycle-turn', type=float,
+                   help='pose goals: the cycle term also turns the goal orientation by about '
+                   'this angle [rad]')
     p.add_argument('--init', help='start from the weights of this checkpoint or model file '
                    '(same model config, robot and dataset normaliser)')
     p.add_argument('--uni-position', action='store_true',
@@ -97,7 +100,8 @@ def main(argv: Optional[List[str]] = None) -> int:
             # a resumed run may extend its schedule or switch the FK term on later
             train_cfg = with_overrides(train_cfg, steps=args.steps, fk_weight=args.fk_weight,
                                        fk_start=args.fk_start, rot_weight=args.rot_weight,
-                                       cycle_weight=args.cycle_weight)
+                                       cycle_weight=args.cycle_weight,
+                                       cycle_turn=args.cycle_turn)
         else:
             if (out / 'last.pt').exists():
                 raise ArtifactExists(f'{out}/last.pt exists: use --resume, or another --out')
@@ -112,7 +116,8 @@ def main(argv: Optional[List[str]] = None) -> int:
                 eval_every=args.eval_every, checkpoint_every=args.checkpoint_every,
                 seed=args.seed, threads=args.threads, device=args.device,
                 uni_position=args.uni_position or None, bf16=args.bf16,
-                sampler=args.sampler, cycle_weight=args.cycle_weight, init=args.init)
+                sampler=args.sampler, cycle_weight=args.cycle_weight,
+                cycle_turn=args.cycle_turn, init=args.init)
             if args.model in ('fcn', 'anfis') and args.fk_weight is None:
                 train_cfg = with_overrides(train_cfg, fk_weight=0.0)
         robot = robot_from_manifest(Dataset.load(args.dataset).manifest['robot'],

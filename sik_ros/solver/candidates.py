@@ -42,10 +42,18 @@ def table_candidates(ctx: Context, goal: Goal, q_seed: Optional[np.ndarray],
     table = ctx.models[goal.kind].table
     if count <= 0:  # none from the table: only the seed's own index (its posture kept)
         return own_index(ctx, goal, q_seed)
-    rows = table.rows_near(goal.position, cfg.k_cells)
-    pool = table.indices[rows]
     mcfg = ctx.models[goal.kind].model.cfg
-    if getattr(mcfg, 'latent_dim', pool.shape[1]) == 1:
+    line = getattr(mcfg, 'latent_dim', table.indices.shape[1]) == 1
+    if goal.kind != POSITION and not line and table.orientations is not None:
+        # a pose model's index of more than one element holds the posture of a whole
+        # position's self-motion: only those of rows whose tips had nearly the goal's
+        # orientation stand for postures that reach it (the paper's look-up over positions
+        # and orientations), the nearest first
+        rows = table.oriented_rows(goal.position, goal.quaternion, count, cfg.oriented_cells)
+    else:
+        rows = table.rows_near(goal.position, cfg.k_cells)
+    pool = table.indices[rows]
+    if line:
         # a 1-d index is a line (one per branch code): also sweep it over the range the table
         # holds, on every branch
         sweep = index_sweep(table, getattr(mcfg, 'branches', ()), count)
