@@ -32,7 +32,7 @@ import torch
 
 from sik_interfaces.srv import SolveIK
 from sik_ros.robots import load_robot
-from sik_ros.ros import demo
+from sik_ros.ros import client as ros_client, launch
 from sik_ros.ros.client import SolveIKClient
 from sik_ros.solver import SelectiveIK
 
@@ -84,7 +84,7 @@ def sequential(client: SolveIKClient, goals: List[tuple]):
     """
     times, inside, codes = [], [], []
     for p, quat in goals:
-        req = demo.pose_request(p, quat, max_solutions=NUM_SOLUTIONS)
+        req = ros_client.pose_request(p, quat, max_solutions=NUM_SOLUTIONS)
         t0 = time.perf_counter()
         answer = client.call(req)
         times.append(time.perf_counter() - t0)
@@ -107,7 +107,7 @@ def concurrent(goals: List[tuple], clients: int, duration: float):
             i = k
             while not stop.is_set():
                 p, quat = goals[i % len(goals)]
-                answer = cli.call(demo.pose_request(p, quat, max_solutions=NUM_SOLUTIONS))
+                answer = cli.call(ros_client.pose_request(p, quat, max_solutions=NUM_SOLUTIONS))
                 counts[k] += answer is not None
                 i += clients
 
@@ -154,14 +154,14 @@ def main(argv: Optional[List[str]] = None) -> int:
     bundle = args.model_dir or 'panda'
     goals = targets(n, kinds=args.goals)
 
-    env = demo.ros_env()
-    proc = demo.launch_node(args.model_dir, args.param, env=env, stdout=subprocess.DEVNULL,
-                            stderr=subprocess.STDOUT)
+    env = launch.ros_env()
+    proc = launch.launch_node(args.model_dir, args.param, env=env, stdout=subprocess.DEVNULL,
+                              stderr=subprocess.STDOUT)
     rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
     try:
         node = rclpy.create_node('sik_bench_probe')
         probe = node.create_client(SolveIK, SERVICE)
-        up = demo.wait_for_service(node, probe, proc, 90.0)
+        up = launch.wait_for_service(node, probe, proc, 90.0)
         node.destroy_node()
         if not up:
             print(f'sik_node did not come up (exit code {proc.poll()})')
@@ -174,7 +174,7 @@ def main(argv: Optional[List[str]] = None) -> int:
         answered, wall = concurrent(goals, args.clients, duration)
         rss1 = vm_rss_mb(proc.pid)
     finally:
-        demo.stop_node(proc)
+        launch.stop_node(proc)
         rclpy.try_shutdown()
     solver = in_process(bundle, goals)
     ok = sum(c == SolveIK.Response.SUCCESS for c in codes)

@@ -2,7 +2,7 @@
 
 Starts the node and sends the same position goals (16 solutions) with
 
-- ``demo.call`` (``rclpy.spin_until_future_complete`` on the node, as the rclpy tutorials do),
+- ``spin_call`` (``rclpy.spin_until_future_complete`` on the node, as the rclpy tutorials do),
 - a ``SingleThreadedExecutor`` loop (``executor.spin_until_future_complete``),
 - :class:`sik_ros.ros.client.SolveIKClient` (an executor spun in a background thread, each call
   waiting on a ``threading.Event``),
@@ -25,10 +25,20 @@ from rclpy.signals import SignalHandlerOptions
 
 from sik_interfaces.srv import SolveIK
 from sik_ros.robots import load_robot
-from sik_ros.ros import demo
+from sik_ros.ros import client as ros_client, launch
 from sik_ros.ros.client import SolveIKClient
 
 SOLVER_MS = re.compile(r'goal, ([0-9.]+) ms')
+
+
+def spin_call(node, client, request, timeout: float = 10.0):
+    """A call as the rclpy tutorials make it: ``spin_until_future_complete`` on the node."""
+    future = client.call_async(request)
+    rclpy.spin_until_future_complete(node, future, timeout_sec=timeout)
+    if not future.done():
+        client.remove_pending_request(future)
+        return None
+    return future.result()
 
 
 def main() -> None:
@@ -39,15 +49,15 @@ def main() -> None:
     robot = load_robot('panda')
     q = np.random.default_rng(0).uniform(robot.lower, robot.upper, (args.requests, robot.dof))
     goals = robot.fk_batch(q)[0]
-    env = demo.ros_env()
-    proc = demo.launch_node(None, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.STDOUT)
+    env = launch.ros_env()
+    proc = launch.launch_node(None, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.STDOUT)
     rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
     node = rclpy.create_node('sik_probe')
     client = node.create_client(SolveIK, '/sik_node/solve_ik')
     try:
-        if not demo.wait_for_service(node, client, proc, 90.0):
+        if not launch.wait_for_service(node, client, proc, 90.0):
             raise SystemExit('sik_node did not come up')
-        for mode in ('demo.call', 'executor loop', 'SolveIKClient'):
+        for mode in ('spin_call', 'executor loop', 'SolveIKClient'):
             executor, fast = None, None
             if mode == 'executor loop':
                 executor = SingleThreadedExecutor()
@@ -58,7 +68,7 @@ def main() -> None:
             rtt, inside = [], []
             cpu0 = time.process_time()
             for p in goals:
-                req = demo.pose_request(p, max_solutions=16)
+                req = ros_client.pose_request(p, max_solutions=16)
                 t0 = time.perf_counter()
                 if executor:
                     future = client.call_async(req)
@@ -67,7 +77,7 @@ def main() -> None:
                 elif fast:
                     answer = fast.call(req)
                 else:
-                    answer = demo.call(node, client, req)
+                    answer = spin_call(node, client, req)
                 rtt.append(time.perf_counter() - t0)
                 took = SOLVER_MS.search(answer.message)
                 inside.append(float(took.group(1)) * 1e-3 if took else np.nan)
@@ -84,7 +94,7 @@ def main() -> None:
                   f'{cpu:.2f} ms/request')
     finally:
         node.destroy_node()
-        demo.stop_node(proc)
+        launch.stop_node(proc)
         rclpy.try_shutdown()
 
 

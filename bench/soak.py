@@ -24,7 +24,7 @@ import rclpy
 from shape_msgs.msg import SolidPrimitive
 
 from sik_ros.robots import load_robot
-from sik_ros.ros import demo
+from sik_ros.ros import client as ros_client, launch
 from sik_ros.ros.client import SolveIKClient
 
 
@@ -50,11 +50,12 @@ def make_request(rng, robot, timeout):
     """A random request: position or pose goal, maybe obstacles, maybe a seed."""
     q = rng.uniform(robot.lower, robot.upper)
     p, quat = robot.fk(q)
-    req = demo.pose_request(p, quat if rng.random() < 0.5 else None, 16)
+    req = ros_client.pose_request(p, quat if rng.random() < 0.5 else None, 16)
     if rng.random() < 0.2:
         for _ in range(int(rng.integers(1, 8))):
             req.obstacles.append(SolidPrimitive(type=SolidPrimitive.SPHERE, dimensions=[0.05]))
-            req.obstacle_poses.append(demo.pose_request(rng.uniform(-0.8, 0.8, 3)).target.pose)
+            pose = ros_client.pose_request(rng.uniform(-0.8, 0.8, 3)).target.pose
+            req.obstacle_poses.append(pose)
     if rng.random() < 0.3:
         req.seed.name = list(robot.joint_names)
         req.seed.position = rng.uniform(robot.lower, robot.upper).tolist()
@@ -73,8 +74,8 @@ def main() -> None:
     parser.add_argument('--rounds', type=int, default=1,
                         help='rounds of --requests on the same node (RSS after each)')
     args = parser.parse_args()
-    env = demo.ros_env()
-    proc = demo.launch_node(None, [f'solver_processes:={args.processes}'], env=env)
+    env = launch.ros_env()
+    proc = launch.launch_node(None, [f'solver_processes:={args.processes}'], env=env)
     rclpy.init()
     robot = load_robot('panda')
     admin = SolveIKClient(node_name='soak_admin')
@@ -147,7 +148,7 @@ def main() -> None:
               f'and answered once, at {rss_c:.1f} MB)', flush=True)
     admin.close()
     rclpy.shutdown()
-    demo.stop_node(proc)
+    launch.stop_node(proc)
 
 
 if __name__ == '__main__':

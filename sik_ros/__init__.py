@@ -3,22 +3,43 @@
 The library needs no ROS: ``SelectiveIK.load("panda").solve(position)`` gives ranked joint
 solutions. The ROS layer (the node, message conversions, a client and the demo) lives in
 :mod:`sik_ros.ros`; the public contract is docs/interfaces.md.
+
+The public names below are loaded on first use (PEP 562), so that importing a light module
+(``sik_ros.errors``, a CLI's ``--help``, the ROS client) does not load torch or Pinocchio.
 """
 
-__version__ = '0.1.0'
+from importlib import import_module
+from typing import Any
 
-from sik_ros.collision import Obstacle  # noqa: E402
-from sik_ros.errors import (  # noqa: E402
-    ArtifactError, ArtifactExists, ArtifactMismatch, CorruptArtifact, FrameNotFound,
-    InvalidArgument, InvalidGoal, InvalidModel, InvalidSeed, JointLimitViolation,
-    RobotNotFound, SikError, TrainingDiverged)
-from sik_ros.kinematics import Robot
-from sik_ros.robots import load_robot  # noqa: E402
-from sik_ros.solver import IKResult, SelectiveIK, Solution, SolverConfig  # noqa: E402
+__version__ = '0.2.0'
 
-__all__ = [
-    'ArtifactError', 'ArtifactExists', 'ArtifactMismatch', 'CorruptArtifact', 'FrameNotFound',
-    'IKResult', 'InvalidArgument', 'InvalidGoal', 'InvalidModel', 'InvalidSeed',
-    'JointLimitViolation', 'Obstacle', 'Robot', 'RobotNotFound', 'SelectiveIK', 'SikError',
-    'Solution', 'SolverConfig', 'TrainingDiverged', 'load_robot',
-]
+#: Where each public name lives.
+_EXPORTS = {
+    'ArtifactError': 'sik_ros.errors', 'ArtifactExists': 'sik_ros.errors',
+    'ArtifactMismatch': 'sik_ros.errors', 'CorruptArtifact': 'sik_ros.errors',
+    'FrameNotFound': 'sik_ros.errors', 'IKResult': 'sik_ros.solver.results',
+    'InvalidArgument': 'sik_ros.errors', 'InvalidGoal': 'sik_ros.errors',
+    'InvalidModel': 'sik_ros.errors', 'InvalidSeed': 'sik_ros.errors',
+    'JointLimitViolation': 'sik_ros.errors', 'Obstacle': 'sik_ros.collision',
+    'Robot': 'sik_ros.kinematics', 'RobotNotFound': 'sik_ros.errors',
+    'SelectiveIK': 'sik_ros.solver.selective_ik', 'SikError': 'sik_ros.errors',
+    'Solution': 'sik_ros.solver.results', 'SolverConfig': 'sik_ros.solver.config',
+    'TrainingDiverged': 'sik_ros.errors', 'load_robot': 'sik_ros.robots',
+}
+
+__all__ = sorted(_EXPORTS)
+
+
+def __getattr__(name: str) -> Any:
+    """Load a public name from its module on first use."""
+    module = _EXPORTS.get(name)
+    if module is None:
+        raise AttributeError(f'module {__name__!r} has no attribute {name!r}')
+    value = getattr(import_module(module), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__():
+    """The module's names, the lazy public ones included."""
+    return sorted(set(globals()) | set(__all__))

@@ -39,6 +39,10 @@ class InvalidGoal(InvalidArgument):
     """A target position or orientation that is not a valid goal."""
 
 
+class InvalidFrame(InvalidGoal):
+    """A goal given in a frame other than the base frame (sik_ros does not transform frames)."""
+
+
 class InvalidSeed(InvalidArgument):
     """A seed configuration of the wrong length, non-finite, or outside the joint limits."""
 
@@ -75,3 +79,15 @@ class CorruptArtifact(ArtifactError):
 
 class TrainingDiverged(SikError):
     """A training run whose loss stopped being finite."""
+
+
+class SolverUnavailable(SikError):
+    """No solver could take a request (every solver process busy or being restarted)."""
+
+
+class SolverTimeout(SolverUnavailable):
+    """No solver answered within the request's deadline."""
+
+
+class SolverCrashed(SikError):
+    """A solver process died while it served a request (it is being replaced)."""

@@ -1,4 +1,4 @@
-"""Solver processes: :meth:`SelectiveIK.solve` in parallel beyond Python's GIL.
+"""Solver processes: :class:`SelectiveIK` solves and paths in parallel beyond Python's GIL.
 
 The solver is NumPy, Pinocchio and torch code driven from Python, so threads of one process
 take turns on the GIL and a second core stays idle. sik_node therefore hands each request to one
@@ -6,40 +6,72 @@ of a few solver processes (``multiprocessing`` with the *spawn* start method, so
 state is inherited), each holding its own :class:`SelectiveIK`; the executor thread that serves
 the request waits on a pipe, without the GIL, while it solves.
 
-A worker that dies is replaced in the background; the request it was serving is retried once on
-another (:class:`SolverCrashed` if that fails too), and one that does not answer within the
-request's deadline is killed and replaced (:class:`SolverTimeout`).
-Library errors (:class:`~sik_ros.errors.SikError` subclasses) come back with their own type and
-message.
+The pool heals: a process that dies, or is killed by the watchdog (no answer within a request's
+deadline), is replaced in the background, and a replacement that fails to start is retried with
+a growing back-off until one starts or the pool closes, each step logged. While a process is
+missing, a request that finds none idle gets :class:`~sik_ros.errors.SolverUnavailable` at once
+(the node then solves it itself) instead of waiting for a process that may never come; the
+request a dying process was serving is retried once on another (:class:`SolverCrashed` if none
+can take it). :meth:`SolverPool.health` tells the capacity. Library errors
+(:class:`~sik_ros.errors.SikError` subclasses) come back with their own type and message.
 """
 
-from dataclasses import asdict
+from dataclasses import asdict, dataclass
+import logging
 import multiprocessing
 from multiprocessing.connection import Connection
 import queue
 import signal
 import threading
 import time
-from typing import Any, Dict, List, Optional
+from typing import Any, Callable, Dict, List, Optional
 
 from threadpoolctl import threadpool_limits
 
 from sik_ros import errors
-from sik_ros.errors import SikError
-from sik_ros.solver import IKResult, SelectiveIK, SolverConfig
+from sik_ros.errors import SikError, SolverCrashed, SolverTimeout, SolverUnavailable
+from sik_ros.solver import IKResult, PathResult, SelectiveIK, SolverConfig
+
+__all__ = ['PoolHealth', 'SolverCrashed', 'SolverPool', 'SolverTimeout', 'SolverUnavailable',
+           'single_threaded']
 
 #: Seconds a new solver process may take to import its modules and load the bundle.
 START_TIMEOUT = 120.0
 #: Time a process may take beyond a request's timeout before the watchdog replaces it [s].
 WATCHDOG_MARGIN = 0.5
+#: Waits before the next try to start a replacement that failed [s]: doubling, capped.
+RESTART_BACKOFF, RESTART_BACKOFF_MAX = 0.25, 8.0
+#: The :class:`SelectiveIK` methods a solver process serves.
+METHODS = ('solve', 'solve_path')
+
+#: ``log(level, message)``: where the pool reports lost and restored capacity.
+Log = Callable[[int, str], None]
 
 
-class SolverCrashed(SikError):
-    """A solver process died while it served a request (it has been replaced)."""
+def _default_log(level: int, message: str) -> None:
+    logging.getLogger('sik_ros.solver_pool').log(level, message)
 
 
-class SolverTimeout(SikError):
-    """No solver process answered within the request's deadline."""
+@dataclass(frozen=True)
+class PoolHealth:
+    """The solver processes' capacity.
+
+    Attributes:
+        processes: processes the pool is meant to have.
+        ready: processes started and serving (idle or busy).
+        restarts: replacements started since the pool began.
+        failed_starts: replacements that failed to start (each retried after a back-off).
+    """
+
+    processes: int
+    ready: int
+    restarts: int
+    failed_starts: int
+
+    @property
+    def degraded(self) -> bool:
+        """Whether some processes are missing (being restarted)."""
+        return self.ready < self.processes
 
 
 def rebuild_error(name: str, message: str) -> SikError:
@@ -66,7 +98,10 @@ def single_threaded() -> None:
 
 
 def _serve(conn: Connection, bundle: str, config: Dict[str, Any]) -> None:
-    """Body of a solver process: load the bundle, then answer ``(settings, args, kwargs)``."""
+    """Body of a solver process: load the bundle, then answer ``(method, settings, ...)``.
+
+    Each message is ``(method, settings, args, kwargs)``; None or a closed pipe ends it.
+    """
     # the parent owns SIGINT/SIGTERM and closes the pipe to stop us
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     single_threaded()
@@ -84,12 +119,14 @@ def _serve(conn: Connection, bundle: str, config: Dict[str, Any]) -> None:
             return
         if message is None:
             return
-        settings, args, kwargs = message
+        method, settings, args, kwargs = message
         try:
             # one instance follows the settings (in place: no memory grows with their churn)
             if any(getattr(base.config, k) != v for k, v in settings.items()):
                 base.configure(**settings)
-            reply = ('ok', base.solve(*args, **kwargs), None)
+            if method not in METHODS:
+                raise errors.InvalidArgument(f'solver processes serve {METHODS}; got {method!r}')
+            reply = ('ok', getattr(base, method)(*args, **kwargs), None)
         except SikError as exc:
             reply = ('error', type(exc).__name__, str(exc))
         except Exception as exc:  # any other failure is the request's, not the process's
@@ -128,7 +165,7 @@ class _Worker:
         """Ask the process to exit, then make sure it has."""
         try:
             self.conn.send(None)
-        except (BrokenPipeError, OSError):
+        except (BrokenPipeError, OSError, ValueError):
             pass
         self.process.join(timeout)
         if self.process.is_alive():
@@ -140,8 +177,16 @@ class _Worker:
 class SolverPool:
     """``processes`` solver processes, each serving one request at a time, for many threads."""
 
-    def __init__(self, bundle: str, config: SolverConfig, processes: int):
+    def __init__(self, bundle: str, config: SolverConfig, processes: int,
+                 log: Optional[Log] = None):
         """Start the processes and wait until every one has loaded ``bundle``.
+
+        Args:
+            bundle: the bundle directory or name each process loads.
+            config: the solver settings each process starts with.
+            processes: how many processes.
+            log: ``log(level, message)`` (``logging`` levels) for lost and restored capacity;
+                default: the ``sik_ros.solver_pool`` logger.
 
         Raises:
             SikError: a process could not load the bundle or did not start in time.
@@ -150,10 +195,13 @@ class SolverPool:
             raise errors.InvalidArgument(f'processes must be at least 1; got {processes}')
         self._ctx = multiprocessing.get_context('spawn')
         self._bundle, self._config = str(bundle), asdict(config)
+        self._log = log or _default_log
         self._idle: 'queue.Queue[_Worker]' = queue.Queue()
         self._all: List[_Worker] = []
         self._lock = threading.Lock()
         self._closed = False
+        self._missing = 0
+        self._restarts = self._failed_starts = 0
         try:
             for i in range(processes):
                 self._all.append(_Worker(self._ctx, self._bundle, self._config, i))
@@ -171,8 +219,28 @@ class SolverPool:
         with self._lock:
             return [w.process.pid for w in self._all]
 
+    def health(self) -> PoolHealth:
+        """How many processes serve, of how many, and the restarts so far."""
+        with self._lock:
+            return PoolHealth(len(self._all), len(self._all) - self._missing, self._restarts,
+                              self._failed_starts)
+
     def solve(self, settings: Dict[str, Any], *args, **kwargs) -> IKResult:
         """:meth:`SelectiveIK.solve` with the config fields ``settings`` changed, in a process.
+
+        See :meth:`call`.
+        """
+        return self.call('solve', settings, *args, **kwargs)
+
+    def solve_path(self, settings: Dict[str, Any], *args, **kwargs) -> PathResult:
+        """:meth:`SelectiveIK.solve_path` with the config fields ``settings`` changed.
+
+        See :meth:`call`.
+        """
+        return self.call('solve_path', settings, *args, **kwargs)
+
+    def call(self, method: str, settings: Dict[str, Any], *args, **kwargs):
+        """``SelectiveIK.<method>(*args, **kwargs)`` in a solver process.
 
         The request's ``timeout`` bounds the whole call (plus :data:`WATCHDOG_MARGIN`): waiting
         for a free process, the solve, and a retry. A process found dead while idle is
@@ -181,29 +249,29 @@ class SolverPool:
         does not answer in time is killed and replaced (a watchdog).
 
         Raises:
-            SikError: what the solver raised (same type and message), SolverCrashed, or
-                SolverTimeout.
+            SikError: what the solver raised (same type and message); SolverUnavailable when
+                a process is missing and none is idle; SolverCrashed; SolverTimeout.
         """
         timeout = kwargs.get('timeout')
         deadline = None if timeout is None else time.monotonic() + timeout + WATCHDOG_MARGIN
         for attempt in range(2):
             worker = self._take(deadline)
             try:
-                worker.conn.send((settings, args, kwargs))
+                worker.conn.send((method, settings, args, kwargs))
                 left = None if deadline is None else max(0.0, deadline - time.monotonic())
                 if not worker.conn.poll(left):
-                    self._replace_later(worker)
+                    self._replace_later(worker, 'it did not answer within a request\'s deadline')
                     worker = None
                     raise SolverTimeout('the solver process did not answer within the '
-                                        'request\'s deadline; it has been replaced')
+                                        'request\'s deadline; it is being replaced')
                 kind, payload, message = worker.conn.recv()
             except (EOFError, OSError) as exc:
-                self._replace_later(worker)
+                self._replace_later(worker, 'it died while serving a request')
                 worker = None
                 if attempt == 0 and (deadline is None or time.monotonic() < deadline):
                     continue  # once more, on another process
-                raise SolverCrashed('the solver process serving this request died; it has '
-                                    'been replaced') from exc
+                raise SolverCrashed('the solver process serving this request died; it is '
+                                    'being replaced') from exc
             finally:
                 if worker is not None:
                     self._idle.put(worker)
@@ -216,45 +284,77 @@ class SolverPool:
         """An idle, living process; dead ones met on the way are replaced in the background.
 
         Raises:
+            SolverUnavailable: none is idle while some are missing (being restarted).
             SolverTimeout: none is free before ``deadline``.
         """
         while True:
-            left = None if deadline is None else max(0.0, deadline - time.monotonic())
             try:
-                worker = self._idle.get(timeout=left)
+                worker = self._idle.get_nowait()
             except queue.Empty:
-                raise SolverTimeout('no solver process was free within the request\'s '
-                                    'deadline') from None
+                if self._missing:
+                    raise SolverUnavailable(
+                        f'{self._missing} of {len(self._all)} solver processes are being '
+                        f'restarted and the others are busy') from None
+                left = None if deadline is None else max(0.0, deadline - time.monotonic())
+                try:
+                    worker = self._idle.get(timeout=left)
+                except queue.Empty:
+                    raise SolverTimeout('no solver process was free within the request\'s '
+                                        'deadline') from None
             if worker.process.is_alive():
                 return worker
-            self._replace_later(worker)
+            self._replace_later(worker, f'it exited (code {worker.process.exitcode})')
 
-    def _replace_later(self, dead: '_Worker') -> None:
-        """Start a process in place of ``dead``; it joins the idle ones once it has loaded."""
-        def start() -> None:
-            fresh = self._replace(dead)
-            if fresh is not None:
-                self._idle.put(fresh)
-        threading.Thread(target=start, name='sik_solver_restart', daemon=True).start()
-
-    def _replace(self, dead: _Worker) -> Optional[_Worker]:
-        """A new process in place of a dead one (None if the pool is closing or it fails)."""
+    def _replace_later(self, dead: '_Worker', why: str) -> None:
+        """Replace ``dead`` in the background, retrying failed starts with a back-off."""
         with self._lock:
             if self._closed or dead not in self._all:
-                return None
+                return
+            self._missing += 1
             index = self._all.index(dead)
-            dead.stop(timeout=0.5)
-            fresh = _Worker(self._ctx, self._bundle, self._config, index)
-            self._all[index] = fresh
-        try:
-            fresh.wait_ready(START_TIMEOUT)
-        except SikError:
-            return None
-        with self._lock:
-            if self._closed:
-                fresh.stop(timeout=1.0)
-                return None
-        return fresh
+            ready = len(self._all) - self._missing
+            total = len(self._all)
+        self._log(logging.WARNING, f'solver process {index} lost: {why}; {ready} of {total} '
+                  f'serving while it restarts (requests beyond them are solved in the node)')
+        threading.Thread(target=self._restart, args=(dead, index), name='sik_solver_restart',
+                         daemon=True).start()
+
+    def _restart(self, dead: '_Worker', index: int) -> None:
+        """Start processes in place of ``dead`` until one loads the bundle or the pool closes."""
+        dead.stop(timeout=0.5)
+        wait = RESTART_BACKOFF
+        tries = 0
+        while True:
+            fresh = None
+            try:
+                with self._lock:
+                    if self._closed:
+                        return
+                    fresh = _Worker(self._ctx, self._bundle, self._config, index)
+                    self._all[index] = fresh
+                    self._restarts += 1
+                tries += 1
+                fresh.wait_ready(START_TIMEOUT)
+            except Exception as exc:  # whatever stopped this start, the next one may work
+                with self._lock:
+                    self._failed_starts += 1
+                self._log(logging.WARNING, f'solver process {index} failed to start (try '
+                          f'{tries}: {exc}); next try in {wait:g} s')
+                if fresh is not None:
+                    fresh.stop(timeout=0.5)
+                time.sleep(wait)
+                wait = min(2 * wait, RESTART_BACKOFF_MAX)
+                continue
+            with self._lock:
+                if self._closed:
+                    fresh.stop(timeout=1.0)
+                    return
+                self._missing -= 1
+                ready, total = len(self._all) - self._missing, len(self._all)
+            self._idle.put(fresh)
+            self._log(logging.INFO, f'solver process {index} restarted (try {tries}): {ready} '
+                      f'of {total} serving')
+            return
 
     def close(self) -> None:
         """Stop every process (idempotent)."""

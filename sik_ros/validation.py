@@ -16,13 +16,28 @@ from sik_ros.errors import InvalidArgument
 MAX_DISTANCE = 100.0
 
 
+def real_array(value, what: str, error: Type[InvalidArgument] = InvalidArgument,
+               expected: str = 'numbers') -> np.ndarray:
+    """``value`` as a float array; complex values are refused, not cast to their real parts.
+
+    Raises:
+        error: not convertible to floats, or complex (``what`` must be ``expected``).
+    """
+    try:
+        raw = np.asarray(value)
+        if np.iscomplexobj(raw):
+            raise error(f'{what} must be real, not complex; got {value!r}')
+        return np.asarray(raw if raw.dtype != object else value, dtype=float)
+    except (TypeError, ValueError, OverflowError) as exc:
+        if isinstance(exc, InvalidArgument):
+            raise
+        raise error(f'{what} must be {expected}; got {value!r}') from exc
+
+
 def vector(value, size: int, what: str, error: Type[InvalidArgument] = InvalidArgument,
            limit: Optional[float] = None) -> np.ndarray:
     """``value`` as ``size`` finite floats (each within +-``limit`` when given)."""
-    try:
-        arr = np.asarray(value, dtype=float)
-    except (TypeError, ValueError, OverflowError) as exc:
-        raise error(f'{what} must be {size} numbers; got {value!r}') from exc
+    arr = real_array(value, what, error, f'{size} numbers')
     if arr.shape != (size,):
         raise error(f'{what} must have {size} elements; got shape {arr.shape}')
     # a few numbers: checked as Python floats (NumPy's checks cost 10 us each when its code

@@ -81,8 +81,8 @@ def graph(request):
     """An isolated ROS graph on a random domain, and an rclpy node in this process."""
     import rclpy
     from rclpy.signals import SignalHandlerOptions
-    from sik_ros.ros import demo
-    env = demo.ros_env()
+    import harness
+    env = harness.ros_env()
     rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
     node = rclpy.create_node(request.module.__name__.split('.')[-1])
     yield env, node

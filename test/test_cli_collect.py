@@ -1,7 +1,9 @@
 """sik-collect from the shell: output, and one-line errors with a non-zero exit."""
 
+import signal
 import subprocess
 import sys
+import time
 
 import pytest
 
@@ -41,3 +43,30 @@ def test_existing_output_needs_force(tmp_path):
     (tmp_path / 'ds').mkdir()
     r = run('--interval', '90', '--out', str(tmp_path / 'ds'), '--quiet')
     assert r.returncode == 2 and '--force' in r.stderr
+
+
+@pytest.mark.parametrize('sig, code, word', [(signal.SIGTERM, 143, 'SIGTERM'),
+                                             (signal.SIGINT, 130, 'SIGINT')])
+def test_a_signal_mid_write_leaves_no_partial_files(tmp_path, sig, code, word):
+    """SIGTERM or SIGINT while the dataset is written: exit 143/130, one line, nothing left."""
+    out = tmp_path / 'ds'
+    proc = subprocess.Popen([sys.executable, '-m', 'sik_ros.cli.collect', '--interval', '30',
+                             '--out', str(out), '--quiet'], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+    try:
+        deadline = time.monotonic() + 90.0
+        while time.monotonic() < deadline and proc.poll() is None:
+            partial = list(tmp_path.glob('.ds.*.partial'))
+            if partial and any(p.stat().st_size for p in partial[0].rglob('*') if p.is_file()):
+                break  # writing has begun
+            time.sleep(0.05)
+        assert proc.poll() is None, 'the collection ended before it could be interrupted'
+        proc.send_signal(sig)
+        _, err = proc.communicate(timeout=60)
+    finally:
+        proc.kill()
+    assert proc.returncode == code, err
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and word in lines[0] and 'removed' in lines[0], err
+    assert 'Traceback' not in err
+    assert list(tmp_path.iterdir()) == [], list(tmp_path.iterdir())

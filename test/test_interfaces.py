@@ -35,6 +35,7 @@ IK_SOLUTION_FIELDS = {
     'min_obstacle_distance': 'double',
     'self_collision': 'boolean',
     'score': 'double',
+    'tier': 'uint8',
 }
 IK_SOLUTION_ARRAY_FIELDS = {
     'header': 'std_msgs/Header',

@@ -25,9 +25,9 @@ from rclpy.signals import SignalHandlerOptions
 from sensor_msgs.msg import JointState
 from visualization_msgs.msg import Marker, MarkerArray
 
+import harness
 from sik_interfaces.msg import IKSolutionArray
 from sik_interfaces.srv import SolveIK
-from sik_ros.ros import demo
 
 pytestmark = pytest.mark.timeout(120)
 
@@ -56,7 +56,7 @@ def bundle_dir(request):
 def ros_domain():
     """A random ROS_DOMAIN_ID for this module, for the node and this process alike."""
     saved = {k: os.environ.get(k) for k in ('ROS_DOMAIN_ID', 'ROS_AUTOMATIC_DISCOVERY_RANGE')}
-    env = demo.ros_env()
+    env = harness.ros_env()
     yield env
     for key, value in saved.items():
         if value is None:
@@ -70,11 +70,11 @@ def node_proc(bundle_dir, ros_domain, tmp_path_factory):
     """The sik_node subprocess; its combined output goes to ``node_proc.log_path``."""
     log_path = tmp_path_factory.mktemp('sik_node') / 'node.log'
     with open(log_path, 'wb') as log:
-        proc = demo.launch_node(bundle_dir, env=ros_domain, stdout=log,
-                                stderr=subprocess.STDOUT)
+        proc = harness.launch_node(bundle_dir, env=ros_domain, stdout=log,
+                                   stderr=subprocess.STDOUT)
     proc.log_path = log_path
     yield proc
-    demo.stop_node(proc)
+    harness.stop_node(proc)
 
 
 @pytest.fixture(scope='module')
@@ -83,7 +83,7 @@ def ros(node_proc):
     rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
     node = rclpy.create_node('sik_node_test')
     client = node.create_client(SolveIK, '/sik_node/solve_ik')
-    if not demo.wait_for_service(node, client, node_proc, 90.0):
+    if not harness.wait_for_service(node, client, node_proc, 90.0):
         log = node_proc.log_path.read_text()
         node.destroy_node()
         rclpy.shutdown()
@@ -97,13 +97,13 @@ def ros(node_proc):
 @pytest.fixture(scope='module')
 def goals(bundle_dir):
     """Goal kinds the bundle has models for."""
-    return demo.bundle_goals(bundle_dir)
+    return harness.bundle_goals(bundle_dir)
 
 
 # -- helpers ------------------------------------------------------------------------------------
 
 def solve(node, request, timeout=20.0):
-    answer = demo.call(node, node.solve_client, request, timeout)
+    answer = harness.call(node, node.solve_client, request, timeout)
     assert answer is not None, 'no answer from sik_node'
     return answer
 
@@ -116,7 +116,7 @@ def target(panda, seed):
 
 
 def request(position, orientation=None, max_solutions=0, timeout=LONG, frame_id=''):
-    req = demo.pose_request(position, orientation, max_solutions, frame_id)
+    req = harness.pose_request(position, orientation, max_solutions, frame_id)
     req.timeout.sec, req.timeout.nanosec = int(timeout), int((timeout % 1) * 1e9)
     return req
 
@@ -209,12 +209,12 @@ def test_pose_goal_verified_by_fk(ros, panda, goals):
 
 
 def test_solutions_are_ranked(ros, panda):
-    """Scores are non-decreasing, at most max_solutions are returned, none repeated."""
+    """(tier, score) are non-decreasing, at most max_solutions are returned, none repeated."""
     _, p, _ = target(panda, 1)
     answer = solve(ros, request(p, max_solutions=5))
-    scores = [s.score for s in answer.solutions]
-    assert 1 <= len(scores) <= 5
-    assert scores == sorted(scores)
+    ranks = [(s.tier, s.score) for s in answer.solutions]
+    assert 1 <= len(ranks) <= 5
+    assert ranks == sorted(ranks)
     q = np.array([s.joint_state.position for s in answer.solutions])
     assert len({tuple(np.round(row, 9)) for row in q}) == len(q)
     assert all(np.isinf(s.min_obstacle_distance) for s in answer.solutions)
@@ -241,7 +241,7 @@ def test_obstacles_report_clearance(ros, panda):
     """With a box obstacle every solution reports a finite clearance and is verified by FK."""
     _, p, _ = target(panda, 3)
     req = request(p)
-    shape, pose = demo.box((0.5, 0.0, 0.3), (0.1, 0.1, 0.1))
+    shape, pose = harness.box((0.5, 0.0, 0.3), (0.1, 0.1, 0.1))
     req.obstacles, req.obstacle_poses = [shape], [pose]
     answer = solve(ros, req)
     check_answer(panda, answer, p)
@@ -328,7 +328,7 @@ def _bad_requests(panda):
     req.seed.position = [float(v) for v in q_mid]
     cases['seed with an unknown joint'] = (req, R.INVALID_SEED)
     req = request(p)
-    shape, _ = demo.box((0.5, 0, 0.3), (0.1, 0.1, 0.1))
+    shape, _ = harness.box((0.5, 0, 0.3), (0.1, 0.1, 0.1))
     req.obstacles = [shape]
     cases['obstacle without pose'] = (req, R.INVALID_GOAL)
     return cases
@@ -485,8 +485,8 @@ def test_unusable_model_dir_exits_with_one_line(ros_domain, tmp_path, kind):
     if kind == 'corrupt':
         bundle.mkdir()
         (bundle / 'bundle.json').write_text('{"kind": "sik_bundle", "models": ')
-    proc = demo.launch_node(str(bundle), env=ros_domain, stdout=subprocess.PIPE,
-                            stderr=subprocess.STDOUT, text=True)
+    proc = harness.launch_node(str(bundle), env=ros_domain, stdout=subprocess.PIPE,
+                               stderr=subprocess.STDOUT, text=True)
     out, _ = proc.communicate(timeout=90)
     assert proc.returncode != 0
     lines = [line for line in out.splitlines() if line.strip()]
@@ -497,7 +497,7 @@ def test_sigint_exits_cleanly(ros, node_proc):
     """SIGINT stops the node with exit code 0, and its log holds no traceback or error."""
     assert node_proc.poll() is None
     # generous wait: a loaded CI machine may take a while to tear down DDS
-    assert demo.stop_node(node_proc, timeout=60.0) == 0
+    assert harness.stop_node(node_proc, timeout=60.0) == 0
     log = node_proc.log_path.read_text()
     assert 'Traceback' not in log and '[ERROR]' not in log, log
 
@@ -505,14 +505,14 @@ def test_sigint_exits_cleanly(ros, node_proc):
 def test_sigterm_exits_cleanly(ros, node_proc, bundle_dir, ros_domain):
     """SIGTERM stops a running node with exit code 0 (after the module's node has stopped)."""
     assert node_proc.poll() is not None, 'runs after test_sigint_exits_cleanly'
-    proc = demo.launch_node(bundle_dir, env=ros_domain, stdout=subprocess.DEVNULL,
-                            stderr=subprocess.STDOUT)
+    proc = harness.launch_node(bundle_dir, env=ros_domain, stdout=subprocess.DEVNULL,
+                               stderr=subprocess.STDOUT)
     try:
-        assert demo.wait_for_service(ros, ros.solve_client, proc, 90.0)
+        assert harness.wait_for_service(ros, ros.solve_client, proc, 90.0)
         proc.send_signal(signal.SIGTERM)
         assert proc.wait(60.0) == 0
     finally:
-        demo.stop_node(proc)
+        harness.stop_node(proc)
 
 
 def _solver_children(pid):
@@ -542,8 +542,8 @@ def test_solver_processes_answer_and_a_dead_one_is_replaced(ros, panda, node_pro
     assert node_proc.poll() is not None, 'runs after test_sigint_exits_cleanly'
     log_path = tmp_path / 'node.log'
     log = open(log_path, 'w')
-    proc = demo.launch_node(bundle_dir, ['solver_processes:=2'], env=ros_domain,
-                            stdout=log, stderr=subprocess.STDOUT)
+    proc = harness.launch_node(bundle_dir, ['solver_processes:=2'], env=ros_domain,
+                               stdout=log, stderr=subprocess.STDOUT)
 
     def node_log():
         return log_path.read_text()[-3000:]
@@ -559,7 +559,7 @@ def test_solver_processes_answer_and_a_dead_one_is_replaced(ros, panda, node_pro
 
     try:
         started = time.monotonic()
-        assert demo.wait_for_service(ros, ros.solve_client, proc, 90.0)
+        assert harness.wait_for_service(ros, ros.solve_client, proc, 90.0)
         load_time = time.monotonic() - started  # a process's start-up, at most
         workers = children(2)
         assert len(workers) == 2, workers
@@ -600,7 +600,7 @@ def test_solver_processes_answer_and_a_dead_one_is_replaced(ros, panda, node_pro
             time.sleep(0.1)
         assert not any(os.path.exists(f'/proc/{c}') for c in last), 'a solver outlived the node'
     finally:
-        demo.stop_node(proc)
+        harness.stop_node(proc)
         log.close()
 
 

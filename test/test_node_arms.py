@@ -14,8 +14,8 @@ import pytest
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from std_msgs.msg import String
 
+import harness
 from sik_interfaces.srv import SolveIK
-from sik_ros.ros import demo
 
 pytestmark = pytest.mark.timeout(180)
 R = SolveIK.Response
@@ -23,7 +23,7 @@ R = SolveIK.Response
 
 def start(bundle, env, log, *params, params_file=None):
     """``sik_node`` with only ``model_dir`` (and ``params``) set: no Panda parameter file."""
-    cmd = [sys.executable, '-m', 'sik_ros.ros.node', '--ros-args']
+    cmd = [sys.executable, '-m', 'sik_ros.ros.run', '--ros-args']
     if params_file:
         cmd += ['--params-file', str(params_file)]
     for item in (f'model_dir:={bundle}',) + params:
@@ -39,19 +39,20 @@ def test_any_bundle_is_served_by_model_dir_alone(ur5_bundle, ur5, graph, tmp_pat
         proc = start(bundle, env, log)
     try:
         client = node.create_client(SolveIK, '/sik_node/solve_ik')
-        assert demo.wait_for_service(node, client, proc, 90.0), (tmp_path / 'node.log').read_text()
+        assert harness.wait_for_service(node, client, proc, 90.0), \
+            (tmp_path / 'node.log').read_text()
         q = np.random.default_rng(3).uniform(ur5.lower, ur5.upper)
         p, quat = ur5.fk(q)
-        answer = demo.call(node, client, demo.pose_request(p, quat, 8, 'base_link'), 20.0)
+        answer = harness.call(node, client, harness.pose_request(p, quat, 8, 'base_link'), 20.0)
         assert answer.error_code == R.SUCCESS, answer.message
         assert list(answer.solutions[0].joint_state.name) == ur5.joint_names
         for s in answer.solutions:
             reached, _ = ur5.fk(np.array(s.joint_state.position))
             assert np.linalg.norm(reached - p) <= 1e-4
-        wrong = demo.call(node, client, demo.pose_request(p, quat, 8, 'panda_link0'), 20.0)
+        wrong = harness.call(node, client, harness.pose_request(p, quat, 8, 'panda_link0'), 20.0)
         assert wrong.error_code == R.INVALID_FRAME and 'base_link' in wrong.message
     finally:
-        demo.stop_node(proc)
+        harness.stop_node(proc)
 
 
 def test_a_robot_description_that_differs_is_refused(ur5_bundle, ur5, graph, tmp_path):
@@ -76,20 +77,21 @@ def test_a_robot_description_that_differs_is_refused(ur5_bundle, ur5, graph, tmp
     pub = node.create_publisher(String, 'robot_description', latched)
     try:
         client = node.create_client(SolveIK, '/sik_node/solve_ik')
-        assert demo.wait_for_service(node, client, proc, 90.0), (tmp_path / 'node.log').read_text()
+        assert harness.wait_for_service(node, client, proc, 90.0), \
+            (tmp_path / 'node.log').read_text()
         p, quat = ur5.fk(np.zeros(6))
         pub.publish(String(data=text))  # the same chain: served
         time.sleep(1.0)
-        ok = demo.call(node, client, demo.pose_request(p, None, 4), 20.0)
+        ok = harness.call(node, client, harness.pose_request(p, None, 4), 20.0)
         assert ok.error_code == R.SUCCESS, ok.message
         pub.publish(String(data=moved))
         deadline = time.monotonic() + 10
         answer = ok
         while time.monotonic() < deadline and answer.error_code != R.ROBOT_MISMATCH:
             time.sleep(0.2)
-            answer = demo.call(node, client, demo.pose_request(p, None, 4), 20.0)
+            answer = harness.call(node, client, harness.pose_request(p, None, 4), 20.0)
         assert answer.error_code == R.ROBOT_MISMATCH, answer.message
         assert 'shoulder_pan_joint' in answer.message and not answer.solutions
     finally:
         node.destroy_publisher(pub)
-        demo.stop_node(proc)
+        harness.stop_node(proc)

@@ -10,8 +10,8 @@ import pytest
 from rclpy.executors import SingleThreadedExecutor
 from shape_msgs.msg import SolidPrimitive
 
+import harness
 from sik_interfaces.srv import SolveIK
-from sik_ros.ros import demo
 
 pytestmark = pytest.mark.timeout(240)
 R = SolveIK.Response
@@ -25,7 +25,7 @@ R = SolveIK.Response
 def test_bad_start_ups_are_one_fatal_line(graph, args, words):
     """A missing params file, a trailing -p, a bad value: exit 1 with one FATAL line."""
     env, _ = graph
-    run = subprocess.run([sys.executable, '-m', 'sik_ros.ros.node', '--ros-args', *args],
+    run = subprocess.run([sys.executable, '-m', 'sik_ros.ros.run', '--ros-args', *args],
                          env=env, capture_output=True, text=True, timeout=120)
     out = run.stdout + run.stderr
     fatal = [line for line in out.splitlines() if 'FATAL' in line]
@@ -34,12 +34,12 @@ def test_bad_start_ups_are_one_fatal_line(graph, args, words):
 
 
 def _box_request(position, count, timeout):
-    req = demo.pose_request(position, None, 16)
+    req = harness.pose_request(position, None, 16)
     rng = np.random.default_rng(0)
     for _ in range(count):
         box = SolidPrimitive(type=SolidPrimitive.BOX, dimensions=[0.05, 0.05, 0.05])
         req.obstacles.append(box)
-        pose = demo.pose_request(tuple(rng.uniform(-1.5, 1.5, 3))).target.pose
+        pose = harness.pose_request(tuple(rng.uniform(-1.5, 1.5, 3))).target.pose
         req.obstacle_poses.append(pose)
     req.timeout.sec, req.timeout.nanosec = int(timeout), int((timeout % 1) * 1e9)
     return req
@@ -51,19 +51,19 @@ def test_hostile_requests_get_codes_in_time_and_shutdown_under_load_is_clean(
     env, node = graph
     log_path = tmp_path / 'node.log'
     with open(log_path, 'wb') as log:
-        proc = demo.launch_node(str(tiny_bundle), env=env, stdout=log, stderr=subprocess.STDOUT)
+        proc = harness.launch_node(str(tiny_bundle), env=env, stdout=log, stderr=subprocess.STDOUT)
     client = node.create_client(SolveIK, '/sik_node/solve_ik')
     try:
-        assert demo.wait_for_service(node, client, proc, 90.0), log_path.read_text()
-        huge = demo.call(node, client, demo.pose_request((1e300, 0.0, 0.4)), 20.0)
+        assert harness.wait_for_service(node, client, proc, 90.0), log_path.read_text()
+        huge = harness.call(node, client, harness.pose_request((1e300, 0.0, 0.4)), 20.0)
         assert huge.error_code == R.INVALID_GOAL and '100 m' in huge.message, huge.message
-        quat = demo.call(node, client, demo.pose_request((0.4, 0.0, 0.4),
-                                                         (1e200, 0, 0, 1e200)), 20.0)
+        quat = harness.call(node, client, harness.pose_request((0.4, 0.0, 0.4),
+                                                               (1e200, 0, 0, 1e200)), 20.0)
         assert quat.error_code in (R.SUCCESS, R.NO_SOLUTION), quat.message
-        many = demo.call(node, client, _box_request((0.4, 0.0, 0.4), 2000, 0.05), 20.0)
+        many = harness.call(node, client, _box_request((0.4, 0.0, 0.4), 2000, 0.05), 20.0)
         assert many.error_code == R.INVALID_GOAL and 'at most 256' in many.message
         t0 = time.monotonic()
-        tight = demo.call(node, client, _box_request((0.4, 0.0, 0.4), 256, 0.01), 20.0)
+        tight = harness.call(node, client, _box_request((0.4, 0.0, 0.4), 256, 0.01), 20.0)
         assert time.monotonic() - t0 < 1.0 and tight.error_code in (R.SUCCESS, R.TIMEOUT)
         # load from several threads, then SIGTERM in the middle of it
         answers, stop = [], threading.Event()
@@ -96,7 +96,7 @@ def test_hostile_requests_get_codes_in_time_and_shutdown_under_load_is_clean(
         assert 'Traceback' not in log and 'InvalidHandle' not in log, log[-3000:]
     finally:
         node.destroy_client(client)
-        demo.stop_node(proc)
+        harness.stop_node(proc)
 
 
 def _rss_mb(pid):
@@ -111,12 +111,12 @@ def test_parameter_churn_does_not_grow_the_solver_process(tiny_bundle, graph, tm
     from rcl_interfaces.srv import SetParameters
     env, node = graph
     with open(tmp_path / 'node.log', 'wb') as log:
-        proc = demo.launch_node(str(tiny_bundle), ['solver_processes:=1'], env=env, stdout=log,
-                                stderr=subprocess.STDOUT)
+        proc = harness.launch_node(str(tiny_bundle), ['solver_processes:=1'], env=env, stdout=log,
+                                   stderr=subprocess.STDOUT)
     client = node.create_client(SolveIK, '/sik_node/solve_ik')
     params = node.create_client(SetParameters, '/sik_node/set_parameters')
     try:
-        assert demo.wait_for_service(node, client, proc, 90.0)
+        assert harness.wait_for_service(node, client, proc, 90.0)
         assert params.wait_for_service(timeout_sec=10.0)
         with open(f'/proc/{proc.pid}/task/{proc.pid}/children') as f:
             child = [int(c) for c in f.read().split()
@@ -125,9 +125,10 @@ def test_parameter_churn_does_not_grow_the_solver_process(tiny_bundle, graph, tm
         def churn(k):
             value = ParameterValue(type=ParameterType.PARAMETER_DOUBLE,
                                    double_value=1e-4 * (1 + k / 1000))
-            demo.call(node, params, SetParameters.Request(
+            harness.call(node, params, SetParameters.Request(
                 parameters=[Parameter(name='position_tolerance', value=value)]), 10.0)
-            answer = demo.call(node, client, demo.pose_request((0.4, 0.1, 0.4), None, 4), 20.0)
+            request = harness.pose_request((0.4, 0.1, 0.4), None, 4)
+            answer = harness.call(node, client, request, 20.0)
             assert answer.error_code in (R.SUCCESS, R.NO_SOLUTION), answer.message
         for k in range(8):  # warm-up: the cache fills to its bound
             churn(k)
@@ -140,4 +141,80 @@ def test_parameter_churn_does_not_grow_the_solver_process(tiny_bundle, graph, tm
     finally:
         node.destroy_client(client)
         node.destroy_client(params)
-        demo.stop_node(proc)
+        harness.stop_node(proc)
+
+
+def _solver_children(pid):
+    """Process ids of a node's solver processes (multiprocessing spawn children).
+
+    Every thread's children: replacements are started from the pool's restart threads.
+    """
+    import glob
+    out, children = [], []
+    for path in glob.glob(f'/proc/{pid}/task/*/children'):
+        try:
+            with open(path) as f:
+                children += f.read().split()
+        except OSError:
+            pass
+    for c in children:
+        try:
+            with open(f'/proc/{c}/cmdline') as f:
+                if 'spawn_main' in f.read():
+                    out.append(int(c))
+        except OSError:
+            pass
+    return out
+
+
+def test_solver_pool_heals_while_requests_fall_back(tiny_bundle, graph, tmp_path):
+    """Kill every solver process as it starts: solves still succeed, then the pool heals."""
+    import os
+    import signal
+    env, node = graph
+    log_path = tmp_path / 'node.log'
+    with open(log_path, 'wb') as log:
+        proc = harness.launch_node(str(tiny_bundle), ['solver_processes:=2'], env=env,
+                                   stdout=log, stderr=subprocess.STDOUT)
+    client = node.create_client(SolveIK, '/sik_node/solve_ik')
+    try:
+        assert harness.wait_for_service(node, client, proc, 120.0), log_path.read_text()
+        stop = threading.Event()
+        killed = []
+
+        def killer():
+            while not stop.is_set():
+                for c in _solver_children(proc.pid):
+                    try:
+                        os.kill(c, signal.SIGKILL)
+                        killed.append(c)
+                    except ProcessLookupError:
+                        pass
+                time.sleep(0.02)
+        thread = threading.Thread(target=killer, daemon=True)
+        thread.start()
+        codes = []
+        t_end = time.monotonic() + 8.0
+        while time.monotonic() < t_end:
+            request = harness.pose_request((0.4, 0.1, 0.4), None, 4)
+            request.timeout.sec = 2
+            answer = harness.call(node, client, request, 10.0)
+            codes.append(None if answer is None else answer.error_code)
+        stop.set()
+        thread.join()
+        assert len(set(killed)) >= 4, killed  # the first two and replacements as they started
+        assert codes and set(codes) <= {R.SUCCESS, R.NO_SOLUTION}, codes
+        # the pool heals: both processes back, serving
+        deadline = time.monotonic() + 90.0
+        while time.monotonic() < deadline and log_path.read_text().count('restarted') < 2:
+            time.sleep(0.5)
+        log = log_path.read_text()
+        assert 'lost' in log and 'failed to start' in log and 'restarted' in log, log[-3000:]
+        assert 'Traceback' not in log
+        alive = _solver_children(proc.pid)
+        assert len(alive) == 2, (alive, log[-2000:])
+        answer = harness.call(node, client, harness.pose_request((0.4, 0.1, 0.4), None, 4), 20.0)
+        assert answer.error_code in (R.SUCCESS, R.NO_SOLUTION), answer.message
+    finally:
+        node.destroy_client(client)
+        harness.stop_node(proc)

@@ -8,9 +8,9 @@ import pytest
 import rclpy
 from rclpy.signals import SignalHandlerOptions
 
+import harness
 from sik_interfaces.srv import SolvePath
 from sik_ros.robots import load_robot
-from sik_ros.ros import demo
 
 pytestmark = pytest.mark.timeout(180)
 R = SolvePath.Response
@@ -20,19 +20,19 @@ Q0 = np.array([0.0, -0.3, 0.0, -2.2, 0.0, 2.0, 0.8])
 @pytest.fixture(scope='module')
 def served(tmp_path_factory):
     """sik_node on the bundled Panda model and a SolvePath client."""
-    env = demo.ros_env()
+    env = harness.ros_env()
     log_path = tmp_path_factory.mktemp('path_node') / 'node.log'
     with open(log_path, 'wb') as log:
-        proc = demo.launch_node(None, env=env, stdout=log, stderr=subprocess.STDOUT)
+        proc = harness.launch_node(None, env=env, stdout=log, stderr=subprocess.STDOUT)
     rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
     node = rclpy.create_node('sik_path_test')
     client = node.create_client(SolvePath, '/sik_node/solve_path')
-    if not demo.wait_for_service(node, client, proc, 90.0):
+    if not harness.wait_for_service(node, client, proc, 90.0):
         pytest.fail(f'sik_node did not come up:\n{log_path.read_text()}')
     yield node, client
     node.destroy_node()
     rclpy.shutdown()
-    demo.stop_node(proc)
+    harness.stop_node(proc)
 
 
 def path_request(robot, n=20, length=0.2, frame='', scaling=0.5, step=0.0):
@@ -57,7 +57,7 @@ def test_solve_path_returns_trajectories_within_the_velocity_limits(served):
     """A line: SUCCESS, ranked trajectories whose times respect the scaled velocity limits."""
     node, client = served
     robot = load_robot('panda')
-    answer = demo.call(node, client, path_request(robot), 30.0)
+    answer = harness.call(node, client, path_request(robot), 30.0)
     assert answer.error_code == R.SUCCESS, answer.message
     assert answer.fraction == 1.0 and len(answer.trajectories) == len(answer.metrics) >= 1
     costs = [m.cost for m in answer.metrics]
@@ -90,6 +90,6 @@ def test_bad_path_requests_get_their_codes(served, change, code):
     node, client = served
     req = path_request(load_robot('panda'), n=5)
     change(req)
-    answer = demo.call(node, client, req, 30.0)
+    answer = harness.call(node, client, req, 30.0)
     assert answer.error_code == code and answer.message, answer.message
     assert not answer.trajectories

@@ -45,15 +45,15 @@ def check_solutions(panda, ik, res, position, quat=None):
 
 
 def test_position_goals_give_exact_ranked_distinct_solutions(panda, ik, targets):
-    """Position goals: success, solutions verified by FK, scores ascending, all distinct."""
+    """Position goals: success, verified by FK, (tier, score) ascending, all distinct."""
     _, pos, _ = targets
     for p in pos:
         res = ik.solve(p, num_solutions=16)
         assert res.success and 1 <= len(res.solutions) <= 16
         check_solutions(panda, ik, res, p)
         assert all(s.converged for s in res.solutions), 'success: every solution is exact'
-        scores = [s.score for s in res.solutions]
-        assert scores == sorted(scores)
+        ranks = [(s.tier, s.score) for s in res.solutions]
+        assert ranks == sorted(ranks)
         qs = np.array([s.q[:6] for s in res.solutions])
         for i in range(len(qs)):
             for j in range(i):

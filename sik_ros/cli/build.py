@@ -57,7 +57,8 @@ def main(argv: Optional[List[str]] = None) -> int:
         report = Builder(robot, args.out, cfg, args.work, bars=not args.quiet).run()
         print(json.dumps({'bundle': args.out, 'self_check': report}))
         return 0
-    return run_cli('sik-build', body)
+    return run_cli('sik-build', body, 'the bundle was not written; its work folder stays '
+                   '(run the same command to resume)')
 
 
 if __name__ == '__main__':

@@ -10,6 +10,8 @@ from sik_ros.cli import argv_or_default, Parser, run_cli
 from sik_ros.collision import Obstacle
 from sik_ros.errors import InvalidArgument
 from sik_ros.solver import dumps, IKResult, SelectiveIK
+from sik_ros.solver.config import PATH_DEFAULTS
+from sik_ros.solver.results import tier_label
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -21,9 +23,10 @@ def build_parser() -> argparse.ArgumentParser:
                        help=f'target {axis} in the base frame [m] (not with --path)')
     p.add_argument('--path', help='a Cartesian path instead: CSV (x,y,z[,qx,qy,qz,qw] per row) '
                    'or YAML (a list of [x, y, z(, qx, qy, qz, qw)]) of waypoints [m]')
-    p.add_argument('--max-joint-step', type=float, default=0.3,
+    p.add_argument('--max-joint-step', type=float, default=PATH_DEFAULTS.max_joint_step,
                    help='--path: largest joint change between waypoints [rad]')
-    p.add_argument('--paths', type=int, default=4, help='--path: ranked paths at most')
+    p.add_argument('--paths', type=int, default=PATH_DEFAULTS.num_paths,
+                   help='--path: ranked paths at most')
     p.add_argument('--orientation', nargs=4, type=float, metavar=('QX', 'QY', 'QZ', 'QW'),
                    help='target orientation quaternion (default: position-only goal)')
     p.add_argument('--bundle', default='panda', help='bundle name or directory (default: panda)')
@@ -62,12 +65,13 @@ def short_names(names: List[str]) -> List[str]:
 def format_table(res: IKResult, joint_names: List[str]) -> str:
     """A readable table of ranked solutions."""
     lines = [f"{'#':>2} {'pos err [mm]':>12} {'rot err [deg]':>13} {'clearance':>9} "
-             f"{'score':>8}  q [rad] ({', '.join(short_names(joint_names))})"]
+             f"{'tier':>10} {'score':>8}  q [rad] ({', '.join(short_names(joint_names))})"]
     for i, s in enumerate(res.solutions, 1):
         clear = '-' if not np.isfinite(s.min_obstacle_distance) else \
             f'{s.min_obstacle_distance:.3f}'
         lines.append(f'{i:>2} {s.position_error * 1e3:>12.4f} '
-                     f'{np.degrees(s.orientation_error):>13.4f} {clear:>9} {s.score:>8.3f}  '
+                     f'{np.degrees(s.orientation_error):>13.4f} {clear:>9} '
+                     f'{tier_label(s.tier, s.self_collision):>10} {s.score:>8.3f}  '
                      + ' '.join(f'{v:+.3f}' for v in s.q))
     head = (f"{'success' if res.success else 'FAILED'}: {len(res.solutions)} solutions for a "
             f'{res.goal} goal in {res.elapsed * 1e3:.1f} ms')

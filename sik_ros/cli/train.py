@@ -4,7 +4,6 @@ import argparse
 from dataclasses import replace
 import json
 from pathlib import Path
-import signal
 import sys
 from typing import List, Optional
 
@@ -73,19 +72,13 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
-def _interrupt(signum, frame):
-    raise KeyboardInterrupt
-
-
 def main(argv: Optional[List[str]] = None) -> int:
     """Entry point of sik-train."""
     args = build_parser().parse_args(argv_or_default(argv))
 
     def body() -> int:
-        # Ctrl-C, kill -INT (also of a job started in the background, which ignores SIGINT)
-        # and SIGTERM stop a run with a checkpoint of its last step
-        signal.signal(signal.SIGINT, signal.default_int_handler)
-        signal.signal(signal.SIGTERM, _interrupt)
+        # Ctrl-C, kill -INT and SIGTERM stop a run with a checkpoint of its last step
+        # (run_cli turns both signals into a KeyboardInterrupt)
         rank, size = distributed.init(args.device or 'cpu')
         out = Path(args.out)
         if args.max_time is not None and args.max_time <= 0:
@@ -158,7 +151,8 @@ def main(argv: Optional[List[str]] = None) -> int:
             'rank': rank, 'world_size': size, 'weights_sha256': weights}) + '\n')
         sys.stdout.flush()
         return 0
-    return run_cli('sik-train', body)
+    return run_cli('sik-train', body,
+                   'checkpoint of the last step saved (--resume continues the run)')
 
 
 if __name__ == '__main__':

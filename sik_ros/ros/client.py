@@ -22,11 +22,13 @@ the caller's ``timeout``; IK requests have no side effects, so a resend is harml
 
 import threading
 import time
-from typing import Optional
+from typing import Optional, Sequence
 
+from geometry_msgs.msg import Pose
 import rclpy
 from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
+from shape_msgs.msg import SolidPrimitive
 
 from sik_interfaces.srv import SolveIK
 
@@ -34,13 +36,20 @@ SERVICE = '/sik_node/solve_ik'
 
 
 class SolveIKClient:
-    """A node with a ``SolveIK`` client, spun by its own background thread."""
+    """A node with a service client (``SolveIK`` by default), spun by its own thread."""
 
     def __init__(self, service: str = SERVICE, node_name: str = 'sik_client',
-                 context: Optional[Context] = None):
-        """Create the node and start spinning it (rclpy must be initialised)."""
+                 context: Optional[Context] = None, srv_type=SolveIK):
+        """Create the node and start spinning it (rclpy must be initialised).
+
+        Args:
+            service: the service's name.
+            node_name: the client node's name.
+            context: the rclpy context (default: the global one).
+            srv_type: the service type (``SolveIK``, ``SolvePath``, ...).
+        """
         self.node = rclpy.create_node(node_name, context=context)
-        self.client = self.node.create_client(SolveIK, service)
+        self.client = self.node.create_client(srv_type, service)
         self._executor = SingleThreadedExecutor(context=context)
         self._executor.add_node(self.node)
         self._thread = threading.Thread(target=self._spin, name=f'{node_name}_spin',
@@ -57,8 +66,7 @@ class SolveIKClient:
         """Whether the service appeared within ``timeout`` seconds."""
         return self.client.wait_for_service(timeout_sec=timeout)
 
-    def call(self, request: SolveIK.Request, timeout: float = 10.0,
-             attempt: Optional[float] = None) -> Optional[SolveIK.Response]:
+    def call(self, request, timeout: float = 10.0, attempt: Optional[float] = None):
         """Send a request and wait for its answer [s]; None if none came in ``timeout``.
 
         Args:
@@ -98,3 +106,24 @@ class SolveIKClient:
     def __exit__(self, *exc) -> None:
         """Close the client."""
         self.close()
+
+
+def pose_request(position: Sequence[float], orientation: Optional[Sequence[float]] = None,
+                 max_solutions: int = 0, frame_id: str = '') -> SolveIK.Request:
+    """Build a SolveIK request: a position goal, or a pose goal with a quaternion x y z w."""
+    req = SolveIK.Request(max_solutions=max_solutions)
+    req.target.header.frame_id = frame_id
+    p = req.target.pose.position
+    p.x, p.y, p.z = (float(v) for v in position)
+    if orientation is not None:
+        o = req.target.pose.orientation
+        o.x, o.y, o.z, o.w = (float(v) for v in orientation)
+        req.use_orientation = True
+    return req
+
+
+def box(center: Sequence[float], size: Sequence[float]):
+    """Make a box obstacle (SolidPrimitive, Pose) centred at ``center`` with sides ``size`` [m]."""
+    pose = Pose()
+    pose.position.x, pose.position.y, pose.position.z = (float(v) for v in center)
+    return SolidPrimitive(type=SolidPrimitive.BOX, dimensions=[float(v) for v in size]), pose

@@ -6,6 +6,7 @@ pure: they turn messages into arrays and :class:`~sik_ros.collision.Obstacle` ob
 back into ``sik_interfaces`` messages and RViz markers. Units are SI: metres, radians, seconds.
 """
 
+import math
 from typing import Dict, List, Optional, Sequence, Tuple
 
 from builtin_interfaces.msg import Duration
@@ -20,7 +21,8 @@ from sik_interfaces.msg import IKSolution, IKSolutionArray
 from sik_interfaces.srv import SolveIK
 from sik_ros.chain import chain_forward
 from sik_ros.collision import BOX, CYLINDER, Obstacle, SPHERE
-from sik_ros.errors import InvalidArgument, InvalidGoal, InvalidSeed, SikError
+from sik_ros.errors import (InvalidArgument, InvalidFrame, InvalidGoal, InvalidSeed, SikError,
+                            SolverCrashed, SolverUnavailable)
 from sik_ros.solver import Solution
 
 #: Name of every SolveIK error code, by value (for logs and tables).
@@ -48,22 +50,56 @@ TARGET_COLOR = (0.90, 0.10, 0.10, 0.9)
 
 
 def error_code_for(exc: SikError) -> int:
-    """Return the SolveIK code of a library error: INVALID_SEED for seeds, else INVALID_GOAL."""
+    """Return the SolveIK code of a library error.
+
+    INVALID_SEED for seeds, INVALID_FRAME for frames, TIMEOUT when no solver was free in
+    time, INTERNAL_ERROR for a solver process that died, else INVALID_GOAL (bad input).
+    """
     if isinstance(exc, InvalidSeed):
         return SolveIK.Response.INVALID_SEED
+    if isinstance(exc, InvalidFrame):
+        return SolveIK.Response.INVALID_FRAME
+    if isinstance(exc, SolverUnavailable):
+        return SolveIK.Response.TIMEOUT
+    if isinstance(exc, SolverCrashed):
+        return SolveIK.Response.INTERNAL_ERROR
     return SolveIK.Response.INVALID_GOAL
 
 
-def seconds_from_duration(duration: Duration) -> float:
+#: Most seconds a ``builtin_interfaces/Duration`` holds (its ``sec`` is an int32).
+MAX_DURATION = float(2 ** 31 - 1)
+
+
+def seconds_from_duration(duration: Duration, what: str = 'timeout') -> float:
     """Convert a ``builtin_interfaces/Duration`` to seconds [s].
 
     Raises:
-        InvalidArgument: a negative duration.
+        InvalidGoal: a negative duration, or nanoseconds of a second or more.
     """
+    if duration.nanosec >= 1_000_000_000:
+        raise InvalidGoal(f'{what}.nanosec must be below 1e9; got {duration.nanosec}')
     seconds = duration.sec + duration.nanosec * 1e-9
     if seconds < 0.0:
-        raise InvalidArgument(f'timeout must not be negative; got {seconds:g} s')
+        raise InvalidGoal(f'{what} must not be negative; got {seconds:g} s')
     return seconds
+
+
+def duration_from_seconds(seconds: float) -> Duration:
+    """A ``builtin_interfaces/Duration`` of ``seconds`` >= 0, to the nearest nanosecond.
+
+    Nanoseconds that round up to a whole second carry into ``sec``.
+
+    Raises:
+        InvalidGoal: not finite, negative, or beyond :data:`MAX_DURATION`.
+    """
+    if not 0.0 <= seconds <= MAX_DURATION:  # NaN too
+        raise InvalidGoal(f'a duration of {seconds:g} s does not fit '
+                          f'builtin_interfaces/Duration (0 to {MAX_DURATION:.0f} s)')
+    sec = int(seconds)
+    nanosec = int(round((seconds - sec) * 1e9))
+    if nanosec >= 1_000_000_000:
+        sec, nanosec = sec + 1, nanosec - 1_000_000_000
+    return Duration(sec=sec, nanosec=nanosec)
 
 
 def goal_from_pose(pose: Pose, use_orientation: bool
@@ -114,13 +150,17 @@ def seed_from_joint_state(msg: JointState, joint_names: Sequence[str],
     return np.array([by_name[n] for n in joint_names], dtype=float)
 
 
-def obstacles_from_msgs(primitives: Sequence[SolidPrimitive],
-                        poses: Sequence[Pose]) -> List[Obstacle]:
-    """Obstacles in the base frame from SolidPrimitives and one Pose each.
+def obstacles_from_msgs(primitives: Sequence[SolidPrimitive], poses: Sequence[Pose],
+                        cap: Optional[int] = None) -> List[Obstacle]:
+    """Obstacles in the base frame from SolidPrimitives and one Pose each, at most ``cap``.
 
     Raises:
-        InvalidGoal: counts that differ, an unsupported shape (cone) or bad dimensions.
+        InvalidGoal: more than ``cap``, counts that differ, an unsupported shape (cone) or bad
+            dimensions.
     """
+    if cap is not None and len(primitives) > cap:
+        raise InvalidGoal(f'{len(primitives)} obstacles; at most {cap} are accepted '
+                          f'(parameter max_obstacles)')
     if len(primitives) != len(poses):
         raise InvalidGoal(f'{len(primitives)} obstacles but {len(poses)} obstacle_poses: give '
                           f'one pose per obstacle')
@@ -138,6 +178,11 @@ def obstacles_from_msgs(primitives: Sequence[SolidPrimitive],
     return out
 
 
+def known_clearance(distance: float) -> float:
+    """A clearance for a message [m]: NaN (a check the deadline cut short) becomes 0, touching."""
+    return 0.0 if math.isnan(distance) else float(distance)
+
+
 def solution_to_msg(solution: Solution, joint_names: Sequence[str], header: Header
                     ) -> IKSolution:
     """One ranked library solution as an ``IKSolution`` (joint state stamped with ``header``)."""
@@ -148,9 +193,10 @@ def solution_to_msg(solution: Solution, joint_names: Sequence[str], header: Head
     msg.posture_index = solution.posture_index.tolist()
     msg.position_error = float(solution.position_error)
     msg.orientation_error = float(solution.orientation_error)
-    msg.min_obstacle_distance = float(solution.min_obstacle_distance)
+    msg.min_obstacle_distance = known_clearance(solution.min_obstacle_distance)
     msg.self_collision = bool(solution.self_collision)
     msg.score = float(solution.score)
+    msg.tier = int(solution.tier)
     return msg
 
 

@@ -6,34 +6,26 @@ and one through the topic ``/sik_node/goal`` (answer on ``/sik_node/solutions``)
 answer as a ranked table, then stops the node with SIGINT. Exit code 0 when every request was
 answered and the node shut down cleanly.
 
-The helpers (:func:`launch_node`, :func:`stop_node`, :func:`ros_env`, :func:`pose_request`,
-:func:`format_answer`) are shared by the end-to-end tests and ``bench/service.py``.
+Starting and stopping the node: :mod:`sik_ros.ros.launch`; requests: :mod:`sik_ros.ros.client`.
 """
 
 import argparse
-import json
-import os
-from pathlib import Path
-import random
-import signal
-import subprocess
-import sys
 import time
-from typing import Dict, List, Optional, Sequence
+from typing import List, Optional, Sequence
 
-from geometry_msgs.msg import Pose, PoseStamped
+from geometry_msgs.msg import PoseStamped
 import numpy as np
 import rclpy
 from rclpy.node import Node
-from shape_msgs.msg import SolidPrimitive
 
 from sik_interfaces.msg import IKSolutionArray
 from sik_interfaces.srv import SolveIK, SolvePath
-from sik_ros.ros.client import SolveIKClient
+from sik_ros.ros.client import box, pose_request, SolveIKClient
 from sik_ros.ros.conversions import ERROR_NAMES
+from sik_ros.ros.launch import (bundle_goals, launch_node, NODE, ros_env, stop_node,
+                                wait_for_service)
+from sik_ros.solver.results import tier_label
 
-NODE = '/sik_node'
-REPO = Path(__file__).resolve().parents[2]
 #: Arm configurations whose tip poses serve as reachable demo targets [rad].
 READY = (0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785)
 REACH_LEFT = (0.5, -0.3, 0.2, -2.0, 0.1, 1.9, 0.6)
@@ -41,100 +33,6 @@ REACH_LOW = (0.0, 0.4, 0.0, -2.0, 0.0, 2.4, 0.8)
 REACH_RIGHT = (-0.4, 0.3, 0.0, -1.9, 0.0, 2.2, 0.8)
 #: Codes that answer a valid request (a model may fail to solve a target; that is not a crash).
 ANSWERED = (SolveIK.Response.SUCCESS, SolveIK.Response.NO_SOLUTION, SolveIK.Response.TIMEOUT)
-
-
-def params_file() -> Path:
-    """``config/panda.yaml`` of the source tree, else of the installed package's share folder."""
-    local = REPO / 'config' / 'panda.yaml'
-    if local.is_file():
-        return local
-    from ament_index_python.packages import get_package_share_directory
-    return Path(get_package_share_directory('sik_ros')) / 'config' / 'panda.yaml'
-
-
-def ros_env(domain_id: Optional[int] = None) -> Dict[str, str]:
-    """Environment for an isolated ROS graph: a random (or given) domain, discovery on localhost.
-
-    Also exported into this process, so ``rclpy.init`` afterwards joins the same graph.
-    """
-    domain = domain_id if domain_id is not None else random.SystemRandom().randint(1, 100)
-    os.environ['ROS_DOMAIN_ID'] = str(domain)
-    os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
-    os.environ.setdefault('RMW_IMPLEMENTATION', 'rmw_fastrtps_cpp')
-    os.environ.setdefault('OMP_NUM_THREADS', '1')
-    return dict(os.environ)
-
-
-def launch_node(model_dir: Optional[str] = None, params: Sequence[str] = (),
-                env: Optional[Dict[str, str]] = None, **popen) -> subprocess.Popen:
-    """Start ``python -m sik_ros.ros.node`` with ``config/panda.yaml`` and ``-p`` overrides.
-
-    Args:
-        model_dir: a bundle directory (None: the bundled model).
-        params: extra ``name:=value`` parameter overrides.
-        env: the process environment (see :func:`ros_env`).
-        **popen: passed to :class:`subprocess.Popen` (e.g. ``stdout``).
-    """
-    cmd = [sys.executable, '-m', 'sik_ros.ros.node', '--ros-args', '--params-file',
-           str(params_file())]
-    overrides = ([f'model_dir:={model_dir}'] if model_dir else []) + list(params)
-    for item in overrides:
-        cmd += ['-p', item]
-    return subprocess.Popen(cmd, env=env, **popen)
-
-
-def stop_node(proc: subprocess.Popen, timeout: float = 15.0) -> int:
-    """SIGINT the node and wait for it [s]; kill it if it hangs. Returns its exit code."""
-    if proc.poll() is None:
-        proc.send_signal(signal.SIGINT)
-        try:
-            proc.wait(timeout)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.wait()
-    return proc.returncode
-
-
-def wait_for_service(node: Node, client, proc: subprocess.Popen, timeout: float) -> bool:
-    """Wait until the service is up [s]; False if the node died or the time ran out."""
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        if proc.poll() is not None:
-            return False
-        if client.wait_for_service(timeout_sec=0.5):
-            return True
-    return False
-
-
-def pose_request(position: Sequence[float], orientation: Optional[Sequence[float]] = None,
-                 max_solutions: int = 0, frame_id: str = '') -> SolveIK.Request:
-    """Build a SolveIK request: a position goal, or a pose goal with a quaternion x y z w."""
-    req = SolveIK.Request(max_solutions=max_solutions)
-    req.target.header.frame_id = frame_id
-    p = req.target.pose.position
-    p.x, p.y, p.z = (float(v) for v in position)
-    if orientation is not None:
-        o = req.target.pose.orientation
-        o.x, o.y, o.z, o.w = (float(v) for v in orientation)
-        req.use_orientation = True
-    return req
-
-
-def box(center: Sequence[float], size: Sequence[float]):
-    """Make a box obstacle (SolidPrimitive, Pose) centred at ``center`` with sides ``size`` [m]."""
-    pose = Pose()
-    pose.position.x, pose.position.y, pose.position.z = (float(v) for v in center)
-    return SolidPrimitive(type=SolidPrimitive.BOX, dimensions=[float(v) for v in size]), pose
-
-
-def call(node: Node, client, request: SolveIK.Request, timeout: float = 10.0):
-    """Send a request and wait for the answer [s]; None if none came."""
-    future = client.call_async(request)
-    rclpy.spin_until_future_complete(node, future, timeout_sec=timeout)
-    if not future.done():
-        client.remove_pending_request(future)
-        return None
-    return future.result()
 
 
 def format_answer(title: str, answer, seconds: Optional[float] = None, rows: int = 8) -> str:
@@ -146,29 +44,18 @@ def format_answer(title: str, answer, seconds: Optional[float] = None, rows: int
         return '\n'.join(lines)
     names = [n.split('_')[-1] for n in answer.solutions[0].joint_state.name]
     lines.append(f"   {'rank':>4} {'pos err [mm]':>12} {'rot err [deg]':>13} "
-                 f"{'clearance [m]':>13} {'score':>8}  joints [rad] ({' '.join(names)})")
+                 f"{'clearance [m]':>13} {'tier':>10} {'score':>8}  "
+                 f"joints [rad] ({' '.join(names)})")
     for rank, s in enumerate(answer.solutions[:rows], 1):
         clear = '-' if not np.isfinite(s.min_obstacle_distance) else \
             f'{s.min_obstacle_distance:.3f}'
         lines.append(f'   {rank:>4} {s.position_error * 1e3:>12.4f} '
-                     f'{np.degrees(s.orientation_error):>13.4f} {clear:>13} {s.score:>8.3f}  '
+                     f'{np.degrees(s.orientation_error):>13.4f} {clear:>13} '
+                     f'{tier_label(s.tier, s.self_collision):>10} {s.score:>8.3f}  '
                      + ' '.join(f'{v:+.3f}' for v in s.joint_state.position))
     if len(answer.solutions) > rows:
         lines.append(f'   ... and {len(answer.solutions) - rows} more')
     return '\n'.join(lines)
-
-
-def bundle_goals(model_dir: Optional[str]) -> List[str]:
-    """Goal kinds (``position``, ``pose``) a bundle has models for; empty if unreadable."""
-    if model_dir:
-        path = Path(model_dir)
-    else:
-        from sik_ros.bundle import BUNDLES  # imported here: it loads torch
-        path = BUNDLES / 'panda'
-    try:
-        return sorted(json.loads((path / 'bundle.json').read_text())['models'])
-    except (OSError, ValueError, KeyError, TypeError):
-        return []
 
 
 def topic_goal(node: Node, position: Sequence[float], timeout: float = 10.0):
@@ -190,12 +77,16 @@ def topic_goal(node: Node, position: Sequence[float], timeout: float = 10.0):
     return got[0] if got else None
 
 
-def path_demo(node: Node, robot, pose: bool) -> bool:
+def path_demo(robot, pose: bool) -> bool:
     """Plan a straight line and a circle through ``~/solve_path`` and print the ranked paths."""
-    client = node.create_client(SolvePath, f'{NODE}/solve_path')
-    if not client.wait_for_service(timeout_sec=10.0):
-        print('== ~/solve_path: not available')
-        return False
+    with SolveIKClient(f'{NODE}/solve_path', 'sik_demo_paths', srv_type=SolvePath) as client:
+        if not client.wait_for_service(10.0):
+            print('== ~/solve_path: not available')
+            return False
+        return _paths(client, robot, pose)
+
+
+def _paths(client: SolveIKClient, robot, pose: bool) -> bool:
     p0, quat = robot.fk(np.array(READY))
     t = np.linspace(0, 1, 30)
     shapes = (('straight line, 30 cm along y', p0 + t[:, None] * [0.0, 0.3, 0.0]),
@@ -214,7 +105,7 @@ def path_demo(node: Node, robot, pose: bool) -> bool:
         req.seed.name, req.seed.position = list(robot.joint_names), [float(v) for v in READY]
         req.timeout.sec = 5
         t0 = time.perf_counter()
-        answer = call(node, client, req, 30.0)
+        answer = client.call(req, 30.0)
         took = time.perf_counter() - t0
         kind = 'pose' if pose else 'position'
         if answer is None:
@@ -230,7 +121,6 @@ def path_demo(node: Node, robot, pose: bool) -> bool:
             print(f'{i:>3} {m.max_step:>14.3f} {m.travel:>12.3f} {m.duration:>12.2f} '
                   f'{1e3 * m.max_position_error:>12.4f} {m.cost:>7.3f}')
         ok &= answer.error_code in ANSWERED
-    node.destroy_client(client)
     return ok
 
 
@@ -280,7 +170,7 @@ def run_demo(node: Node, client: 'SolveIKClient', goals: List[str]) -> bool:
         return False
     print(format_answer(title, answer, time.perf_counter() - t0))
     ok &= answer.error_code in ANSWERED
-    return path_demo(node, robot, 'pose' in goals) and ok
+    return path_demo(robot, 'pose' in goals) and ok
 
 
 def main(argv: Optional[List[str]] = None) -> int:

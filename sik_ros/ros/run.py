@@ -50,7 +50,12 @@ def main(args: Optional[List[str]] = None) -> int:
     executor.add_node(node)
     try:
         while rclpy.ok():
-            executor.spin_once(timeout_sec=SPIN_PERIOD)
+            try:
+                executor.spin_once(timeout_sec=SPIN_PERIOD)
+            except (KeyboardInterrupt, ExternalShutdownException):
+                raise
+            except Exception as exc:  # a callback's failure must not stop the node
+                _log_error('a callback failed (the node goes on)', exc)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:
@@ -63,7 +68,7 @@ def main(args: Optional[List[str]] = None) -> int:
             while node.in_flight and time.monotonic() < deadline:
                 executor.spin_once(timeout_sec=0.02)  # lets finished requests send answers
         except Exception as exc:  # the interrupted executor could not go on: exit anyway
-            _log_shutdown_error('draining the requests in flight', exc)
+            _log_error('during shutdown, draining the requests in flight failed', exc)
         if node.in_flight:  # still solving past the grace period: do not wait for it
             rclpy.logging.get_logger(NODE_NAME).warning(
                 f'exiting with {node.in_flight} request(s) still in flight after the '
@@ -78,12 +83,15 @@ def main(args: Optional[List[str]] = None) -> int:
             try:
                 step()
             except Exception as exc:  # one line, and the other steps still run
-                _log_shutdown_error(what, exc)
+                _log_error(f'during shutdown, {what} failed', exc)
     return 0
 
 
-def _log_shutdown_error(what: str, exc: Exception) -> None:
-    """One ERROR line for a step of the shutdown that failed (the shutdown goes on)."""
+def _log_error(what: str, exc: Exception) -> None:
+    """One ERROR line for something that failed while the node goes on (or shuts down)."""
     reason = ' '.join(str(exc).split())
-    rclpy.logging.get_logger(NODE_NAME).error(
-        f'during shutdown, {what} failed: {type(exc).__name__}: {reason}')
+    rclpy.logging.get_logger(NODE_NAME).error(f'{what}: {type(exc).__name__}: {reason}')
+
+
+if __name__ == '__main__':
+    raise SystemExit(main())

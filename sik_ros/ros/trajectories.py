@@ -2,13 +2,14 @@
 
 from typing import List, Optional, Sequence, Tuple
 
-from builtin_interfaces.msg import Duration
 from geometry_msgs.msg import PoseStamped
 import numpy as np
 from std_msgs.msg import Header
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from sik_interfaces.msg import PathMetrics
+from sik_ros.errors import InvalidGoal
+from sik_ros.ros.conversions import duration_from_seconds, known_clearance, MAX_DURATION
 from sik_ros.solver import JointPath
 
 #: Shortest time between two trajectory points [s].
@@ -30,17 +31,23 @@ def segment_times(q: np.ndarray, velocity: np.ndarray, scaling: float) -> np.nda
     """Time from start of each row of ``q`` (N, n) [s]: each joint within its velocity limit.
 
     Every segment takes as long as its slowest joint needs at ``scaling`` times its limit
-    [rad/s] (at least :data:`MIN_SEGMENT`).
+    [rad/s] (at least :data:`MIN_SEGMENT`), so the times strictly increase.
+
+    Raises:
+        InvalidGoal: at this ``scaling`` the path would last longer than a
+            ``builtin_interfaces/Duration`` holds (or forever).
     """
     if len(q) < 2:
         return np.zeros(len(q))
-    dt = (np.abs(np.diff(q, axis=0)) / (velocity * scaling)).max(axis=1)
-    return np.concatenate([[0.0], np.cumsum(np.maximum(dt, MIN_SEGMENT))])
-
-
-def _duration(seconds: float) -> Duration:
-    sec = int(seconds)
-    return Duration(sec=sec, nanosec=int(round((seconds - sec) * 1e9)) % 1_000_000_000)
+    with np.errstate(divide='ignore', over='ignore', invalid='ignore'):
+        # the distance in units of each joint's limit, then the scaling: no underflow to 0
+        dt = (np.abs(np.diff(q, axis=0)) / velocity).max(axis=1) / scaling
+    times = np.concatenate([[0.0], np.cumsum(np.maximum(dt, MIN_SEGMENT))])
+    if not times[-1] <= MAX_DURATION:  # inf and NaN too
+        raise InvalidGoal(f'velocity_scaling {scaling:g} makes the path last {times[-1]:g} s, '
+                          f'beyond what builtin_interfaces/Duration holds '
+                          f'({MAX_DURATION:.0f} s)')
+    return times
 
 
 def trajectory_msg(path: JointPath, joint_names: Sequence[str], velocity: np.ndarray,
@@ -48,10 +55,11 @@ def trajectory_msg(path: JointPath, joint_names: Sequence[str], velocity: np.nda
     """A joint path as a timed ``JointTrajectory`` and its ``PathMetrics``."""
     times = segment_times(path.q, velocity, scaling)
     traj = JointTrajectory(header=header, joint_names=list(joint_names))
-    traj.points = [JointTrajectoryPoint(positions=q.tolist(), time_from_start=_duration(t))
+    traj.points = [JointTrajectoryPoint(positions=q.tolist(),
+                                        time_from_start=duration_from_seconds(t))
                    for q, t in zip(path.q, times)]
     metrics = PathMetrics(max_step=path.max_step, travel=path.travel,
-                          min_obstacle_distance=path.min_obstacle_distance,
+                          min_obstacle_distance=known_clearance(path.min_obstacle_distance),
                           max_position_error=float(path.position_errors.max()),
                           max_orientation_error=float(path.orientation_errors.max()),
                           duration=float(times[-1]), cost=path.cost)

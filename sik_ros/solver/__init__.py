@@ -16,300 +16,32 @@ Settings are :class:`SolverConfig` (:mod:`~sik_ros.solver.config`), answers
 "Posture index selection" and Algorithm 2, and docs/interfaces.md for the public contract.
 """
 
-from dataclasses import fields, replace
-from pathlib import Path
-import threading
-import time
-from typing import Dict, List, Optional, Sequence, Tuple, Union
+from importlib import import_module
+from typing import Any
 
-import numpy as np
+#: Where each public name lives (loaded on first use, PEP 562: ``sik_ros.solver.config`` or
+#: ``.results`` do not load torch).
+_EXPORTS = {
+    'GoalModel': 'sik_ros.bundle', 'IKResult': 'sik_ros.solver.results',
+    'JointPath': 'sik_ros.solver.path', 'PathResult': 'sik_ros.solver.path',
+    'SelectiveIK': 'sik_ros.solver.selective_ik', 'Solution': 'sik_ros.solver.results',
+    'SolverConfig': 'sik_ros.solver.config', 'dumps': 'sik_ros.solver.results',
+    'result_to_dict': 'sik_ros.solver.results',
+}
 
-from sik_ros.bundle import GoalModel, load_bundle
-from sik_ros.collision import CollisionChecker, Obstacle
-from sik_ros.errors import InvalidArgument
-from sik_ros.kinematics import Robot
-from sik_ros.objectives import Objective
-from sik_ros.solver import candidates as _candidates, codec, path as _path, pipeline
-from sik_ros.solver.adjust import adjust_index
-from sik_ros.solver.config import SolverConfig
-from sik_ros.solver.context import Context, Goal
-from sik_ros.solver.inputs import (check_arrays, check_goal, check_num_solutions,
-                                   check_objective, check_obstacles, check_path, check_seed)
-from sik_ros.solver.path import JointPath, PathResult, PathSettings
-from sik_ros.solver.ranking import distinct_mask
-from sik_ros.solver.refine import errors, refine
-from sik_ros.solver.results import dumps, IKResult, result_to_dict, Solution
-from sik_ros.validation import flag, positive, seconds, vector
-
-__all__ = ['dumps', 'GoalModel', 'IKResult', 'JointPath', 'PathResult', 'result_to_dict',
-           'SelectiveIK', 'Solution', 'SolverConfig']
+__all__ = sorted(_EXPORTS)
 
 
-class SelectiveIK:
-    """Multi-solution IK from trained SIK models and their posture-index tables.
+def __getattr__(name: str) -> Any:
+    """Load a public name from its module on first use."""
+    module = _EXPORTS.get(name)
+    if module is None:
+        raise AttributeError(f'module {__name__!r} has no attribute {name!r}')
+    value = getattr(import_module(module), name)
+    globals()[name] = value
+    return value
 
-    Not thread-safe per instance (Pinocchio data); :meth:`clone` gives an instance sharing the
-    models and tables for another thread. Calls on one instance are serialised by a lock.
-    """
 
-    def __init__(self, robot: Robot, models: Dict[str, GoalModel],
-                 config: Optional[SolverConfig] = None, bundle: Optional[Path] = None):
-        self.robot = robot
-        self.models = models
-        self.config = config or SolverConfig()
-        self.bundle = bundle
-        self.checker = CollisionChecker(robot)
-        self._lock = threading.Lock()
-        self._ctx = Context(robot, models, self.config, robot.model.createData(), self.checker)
-
-    # -- loading ---------------------------------------------------------------------------------
-
-    @classmethod
-    def load(cls, bundle: Union[str, Path] = 'panda',
-             config: Optional[SolverConfig] = None) -> 'SelectiveIK':
-        """Load a bundle: a name of the bundled models (``panda``) or a bundle directory.
-
-        Raises:
-            CorruptArtifact: a missing or damaged file.
-            ArtifactMismatch: files made for another robot or model.
-        """
-        if not isinstance(bundle, (str, Path)):
-            raise InvalidArgument(f'bundle must be a bundled name or a directory; got {bundle!r}')
-        path, robot, models = load_bundle(bundle)
-        return cls(robot, models, config, path)
-
-    def clone(self) -> 'SelectiveIK':
-        """An instance sharing models and tables, with its own Pinocchio/coal data."""
-        return SelectiveIK(self.robot, self.models, self.config, self.bundle)
-
-    def with_config(self, **changes) -> 'SelectiveIK':
-        """An instance with some :class:`SolverConfig` fields changed.
-
-        Raises:
-            InvalidArgument: an unknown field or a bad value.
-        """
-        return SelectiveIK(self.robot, self.models, self._changed(changes), self.bundle)
-
-    def configure(self, **changes) -> 'SelectiveIK':
-        """Change some :class:`SolverConfig` fields of this instance, in place; returns it.
-
-        Unlike :meth:`with_config`, the instance keeps its Pinocchio data and collision
-        checker (no geometry is loaded again): for a pool whose instances follow parameter
-        changes. Calls already running finish with the old settings.
-
-        Raises:
-            InvalidArgument: an unknown field or a bad value.
-        """
-        config = self._changed(changes)
-        with self._lock:
-            self.config = config
-            self._ctx = replace(self._ctx, config=config)
-        return self
-
-    def _changed(self, changes: Dict) -> SolverConfig:
-        unknown = sorted(set(changes) - {f.name for f in fields(SolverConfig)})
-        if unknown:
-            raise InvalidArgument(f'unknown SolverConfig fields {unknown}')
-        return replace(self.config, **changes)
-
-    def warm_up(self) -> float:
-        """Solve one of each kind of request once (position, pose, an obstacle, a short path).
-
-        The first calls of an instance allocate its working memory (and the first of a process
-        its allocator arenas): a server warms its solvers before it accepts requests, so that
-        neither the first answers' latency nor the memory measured afterwards carries that.
-
-        Returns:
-            the time it took [s].
-        """
-        t0 = time.perf_counter()
-        q = 0.5 * (self.robot.lower + self.robot.upper)
-        pos, quat = self.fk(q)
-        ball = Obstacle('sphere', (0.05,), position=tuple(pos + 0.3))
-        for goal in self.goals:
-            rot = quat if goal == 'pose' else None
-            self.solve(pos, rot, seed=q, timeout=1.0)
-            self.solve(pos, rot, obstacles=[ball], timeout=1.0)
-            line = pos + np.linspace(0.0, 0.02, 3)[:, None] * [0.0, 0.0, 1.0]
-            self.solve_path(line, None if rot is None else np.repeat(quat[None], 3, 0), seed=q,
-                            timeout=1.0)
-        return time.perf_counter() - t0
-
-    # -- what it is ------------------------------------------------------------------------------
-
-    @property
-    def joint_names(self) -> List[str]:
-        """Arm joint names, in the order of every ``q``."""
-        return list(self.robot.joint_names)
-
-    @property
-    def goals(self) -> List[str]:
-        """Goal kinds this bundle answers (``position``, ``pose``)."""
-        return sorted(self.models)
-
-    def fk(self, q: np.ndarray):
-        """Tip position (3,) [m] and quaternion (4,) x y z w of a configuration (n,)."""
-        return self.robot.fk(vector(q, self.robot.dof, 'q'))
-
-    def check_seed(self, seed) -> np.ndarray:
-        """A seed as a (n,) array, or :class:`InvalidSeed` saying what is wrong with it."""
-        return check_seed(self.robot, seed)
-
-    # -- solving ---------------------------------------------------------------------------------
-
-    def solve(self, position, orientation=None, num_solutions: int = 16, seed=None,
-              obstacles: Sequence[Obstacle] = (), refine: bool = True,
-              objective: Optional[Objective] = None, timeout: Optional[float] = None
-              ) -> IKResult:
-        """Ranked joint solutions for one target.
-
-        Args:
-            position: target tip position in the base frame (3,) [m].
-            orientation: None for a position goal; else a quaternion (x, y, z, w).
-            num_solutions: most solutions returned (1 to ``max_solutions_cap``).
-            seed: current joint configuration (n,) [rad]: its posture index is tried first and
-                ranking prefers solutions near it.
-            obstacles: :class:`Obstacle` list; colliding solutions never rank above free ones.
-            refine: refine the decoded solutions numerically (False: raw decoder output).
-            objective: custom ranking cost (lower is better); default: distance to the seed
-                if given, else closeness to the joint limits.
-            timeout: give up refining after this many seconds [s].
-
-        Raises:
-            InvalidGoal, InvalidSeed, InvalidArgument: bad input (see docs/interfaces.md).
-        """
-        t0 = time.perf_counter()
-        goal = check_goal(position, orientation, self.goals)
-        num = check_num_solutions(num_solutions, self.config.max_solutions_cap)
-        q_seed = None if seed is None else check_seed(self.robot, seed)
-        obstacles = check_obstacles(obstacles, self.config.max_obstacles)
-        objective = check_objective(objective)
-        refine = flag(refine, 'refine')
-        timeout = seconds(timeout, 'timeout')
-        deadline = None if timeout is None else t0 + timeout
-        with self._lock:
-            result = pipeline.solve(self._ctx, goal, num, q_seed, obstacles, refine, objective,
-                                    deadline)
-        result.elapsed = time.perf_counter() - t0
-        return result
-
-    def solve_batch(self, positions, orientations=None, **kw) -> List[IKResult]:
-        """:meth:`solve` for many targets: positions (N, 3), orientations (N, 4) or None."""
-        positions, orientations = check_arrays(positions, orientations)
-        return [self.solve(p, None if orientations is None else orientations[i], **kw)
-                for i, p in enumerate(positions)]
-
-    def solve_path(self, positions, orientations=None, seed=None, num_paths: int = 4,
-                   max_joint_step: float = 0.3, obstacles: Sequence[Obstacle] = (),
-                   timeout: Optional[float] = None, path_tolerance: float = 0.005
-                   ) -> PathResult:
-        """Ranked joint paths through Cartesian waypoints, without flips.
-
-        Args:
-            positions: waypoints (N, 3) [m] in the base frame.
-            orientations: None for position goals; else (N, 4) quaternions x y z w.
-            seed: current joint configuration (n,) [rad]: paths starting near it rank first.
-            num_paths: most paths returned (each from a distinct start).
-            max_joint_step: largest joint change between consecutive waypoints [rad].
-            obstacles: :class:`Obstacle` list; no configuration of a path touches one.
-            timeout: budget of the whole path [s].
-            path_tolerance: how far the tool may leave the straight segment between two
-                waypoints [m] (checked at interpolated configurations).
-
-        Raises:
-            InvalidGoal, InvalidSeed, InvalidArgument: bad input (see docs/interfaces.md).
-        """
-        t0 = time.perf_counter()
-        goals = check_path(positions, orientations, self.goals, self.config.max_waypoints)
-        q_seed = None if seed is None else check_seed(self.robot, seed)
-        obstacles = check_obstacles(obstacles, self.config.max_obstacles)
-        given = dict(num_paths=check_num_solutions(num_paths, self.config.max_solutions_cap),
-                     max_joint_step=positive(max_joint_step, 'max_joint_step'),
-                     path_tolerance=positive(path_tolerance, 'path_tolerance'))
-        pose = orientations is not None
-        settings = PathSettings.for_paths(pose, **given)
-        # a position path that fails with its narrow beam is planned again with the wide one,
-        # from starts spread over the postures
-        wider = None if pose else PathSettings.for_paths(True, near_seed=False, **given)
-        timeout = seconds(timeout, 'timeout')
-        deadline = None if timeout is None else t0 + timeout
-        with self._lock:
-            result = _path.solve_path(self._ctx, goals, q_seed, obstacles, settings, deadline,
-                                      wider)
-        result.elapsed = time.perf_counter() - t0
-        return result
-
-    # -- the stages, for studies and benchmarks --------------------------------------------------
-    # ``goal`` is the goal kind ('position' or 'pose'), ``pos`` (3,) [m], ``rot`` (3, 3) or None.
-
-    def candidates(self, goal: str, pos: np.ndarray, rot, q_seed, num_solutions: int = 16,
-                   refine: bool = True, others: int = 0) -> Tuple[np.ndarray, np.ndarray]:
-        """Posture indices to decode and their table rows (-1: not from the table).
-
-        See :func:`sik_ros.solver.candidates.table_candidates`.
-        """
-        return _candidates.table_candidates(self._ctx, self._goal(goal, pos, rot), q_seed,
-                                            num_solutions, refine, others)
-
-    def candidate_indices(self, goal: str, pos: np.ndarray, rot, q_seed,
-                          num_solutions: int = 16, refine: bool = True,
-                          others: int = 0) -> np.ndarray:
-        """The indices of :meth:`candidates`."""
-        return self.candidates(goal, pos, rot, q_seed, num_solutions, refine, others)[0]
-
-    def starting_postures(self, goal: str, pos: np.ndarray, rot, z: np.ndarray,
-                          rows: np.ndarray) -> np.ndarray:
-        """See :func:`sik_ros.solver.candidates.starting_postures`."""
-        return _candidates.starting_postures(self._ctx, self._goal(goal, pos, rot), z, rows)
-
-    def oriented_postures(self, pos: np.ndarray, rot: np.ndarray, count: int) -> np.ndarray:
-        """See :func:`sik_ros.solver.candidates.oriented_postures`."""
-        return _candidates.oriented_postures(self._ctx, Goal(np.asarray(pos, float), rot), count)
-
-    def align_last_joint(self, q: np.ndarray, rot: np.ndarray) -> np.ndarray:
-        """See :func:`sik_ros.solver.candidates.align_last_joint`."""
-        return _candidates.align_last_joint(self._ctx, q, rot)
-
-    def decode(self, goal: str, pos: np.ndarray, rot, z: np.ndarray) -> np.ndarray:
-        """Joint solutions (M, n) [rad] decoded from posture indices (M, latent), clipped."""
-        return codec.decode(self._ctx, self._goal(goal, pos, rot), z)
-
-    def encode(self, goal: str, pos: np.ndarray, rot, q: np.ndarray) -> np.ndarray:
-        """Posture indices (M, latent) of configurations (M, n) for a goal."""
-        return codec.encode(self._ctx, self._goal(goal, pos, rot), q)
-
-    def errors(self, q: np.ndarray, pos: np.ndarray, rot) -> Tuple[np.ndarray, np.ndarray]:
-        """Position errors [m] and orientation errors [rad] (zeros without ``rot``), (M,)."""
-        return errors(self._ctx, q, Goal(np.asarray(pos, float), rot))
-
-    def refine(self, q: np.ndarray, pos: np.ndarray, rot, deadline: Optional[float] = None,
-               iterations: Optional[int] = None, prune: bool = False,
-               enough: Optional[int] = None) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Refined configurations (M, n), position errors [m], orientation errors [rad].
-
-        See :func:`sik_ros.solver.refine.refine`.
-        """
-        r = refine(self._ctx, q, Goal(np.asarray(pos, float), rot), deadline, iterations,
-                   prune, enough)
-        return r.q, r.perr, r.oerr
-
-    def distinct_mask(self, q: np.ndarray, goal: str,
-                      threshold: Optional[float] = None) -> np.ndarray:
-        """Greedy keep-mask of rows at least ``threshold`` apart (default: the config's)."""
-        return distinct_mask(q, self.config.distinct_threshold if threshold is None
-                             else threshold, self._ctx.ignores_last(goal))
-
-    def adjust_index(self, goal: str, pos: np.ndarray, rot, sols: List[Solution],
-                     obstacles: Sequence[Obstacle], deadline=None,
-                     step: float = 0.25) -> Optional[List[Solution]]:
-        """Algorithm 2: see :func:`sik_ros.solver.adjust.adjust_index`."""
-        return adjust_index(self._ctx, self._goal(goal, pos, rot), sols, obstacles, deadline,
-                            step)
-
-    @staticmethod
-    def _goal(kind: str, pos: np.ndarray, rot) -> Goal:
-        goal = Goal(np.asarray(pos, dtype=float), rot)
-        if goal.kind != kind:
-            raise InvalidArgument(f'a {kind} goal needs {"no " if kind == "position" else ""}'
-                                  f'rotation')
-        return goal
+def __dir__():
+    """The package's names, the lazy public ones included."""
+    return sorted(set(globals()) | set(__all__))

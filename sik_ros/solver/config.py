@@ -8,6 +8,25 @@ from sik_ros.errors import InvalidArgument
 
 
 @dataclass(frozen=True)
+class PathDefaults:
+    """What a path request leaves out gets these (library, CLI and ``~/solve_path`` alike).
+
+    Attributes:
+        num_paths: ranked paths returned at most.
+        max_joint_step: largest joint change between consecutive waypoints [rad].
+        path_tolerance: how far the tool may leave the segment between two waypoints [m].
+    """
+
+    num_paths: int = 4
+    max_joint_step: float = 0.3
+    path_tolerance: float = 0.005
+
+
+#: The one set of path defaults.
+PATH_DEFAULTS = PathDefaults()
+
+
+@dataclass(frozen=True)
 class SolverConfig:
     """Tuning of the solver.
 

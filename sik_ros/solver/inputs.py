@@ -13,7 +13,7 @@ from sik_ros.errors import InvalidArgument, InvalidGoal, InvalidSeed, JointLimit
 from sik_ros.kinematics import Robot
 from sik_ros.rotations import quaternion_matrix
 from sik_ros.solver.context import Goal
-from sik_ros.validation import MAX_DISTANCE, quaternion, vector
+from sik_ros.validation import MAX_DISTANCE, quaternion, real_array, vector
 
 
 def check_goal(position, orientation, goals: Sequence[str]) -> Goal:
@@ -41,19 +41,13 @@ def check_arrays(positions, orientations, min_rows: int = 0):
     Raises:
         InvalidGoal: not arrays of those shapes.
     """
-    try:
-        pos = np.asarray(positions, dtype=float)
-    except (TypeError, ValueError, OverflowError) as exc:
-        raise InvalidGoal(f'positions must be an (N, 3) array; got {positions!r}') from exc
+    pos = real_array(positions, 'positions', InvalidGoal, 'an (N, 3) array')
     if pos.ndim != 2 or pos.shape[1] != 3 or len(pos) < min_rows:
         raise InvalidGoal(f'positions must be an (N, 3) array with N >= {min_rows}; got shape '
                           f'{pos.shape}')
     quat = None
     if orientations is not None:
-        try:
-            quat = np.asarray(orientations, dtype=float)
-        except (TypeError, ValueError, OverflowError) as exc:
-            raise InvalidGoal('orientations must be an (N, 4) array') from exc
+        quat = real_array(orientations, 'orientations', InvalidGoal, 'an (N, 4) array')
         if quat.shape != (len(pos), 4):
             raise InvalidGoal(f'orientations must have shape ({len(pos)}, 4) like the '
                               f'positions; got {quat.shape}')
@@ -91,13 +85,12 @@ def check_path(positions, orientations, goals: Sequence[str],
     raise AssertionError('a waypoint failed the batch check but passed check_goal')
 
 
-def check_num_solutions(num_solutions, cap: int) -> int:
-    """``num_solutions`` as an int in 1..``cap``, or :class:`InvalidArgument`."""
+def check_num_solutions(num_solutions, cap: int, what: str = 'num_solutions') -> int:
+    """``num_solutions`` as an int in 1..``cap``, or :class:`InvalidArgument` naming ``what``."""
     if isinstance(num_solutions, bool) or not isinstance(num_solutions, (int, np.integer)):
-        raise InvalidArgument(f'num_solutions must be an integer; got {num_solutions!r}')
+        raise InvalidArgument(f'{what} must be an integer; got {num_solutions!r}')
     if not 1 <= num_solutions <= cap:
-        raise InvalidArgument(f'num_solutions must be between 1 and {cap}; got '
-                              f'{num_solutions}')
+        raise InvalidArgument(f'{what} must be between 1 and {cap}; got {num_solutions}')
     return int(num_solutions)
 
 
@@ -127,10 +120,7 @@ def check_objective(objective):
 
 def check_seed(robot: Robot, seed) -> np.ndarray:
     """A seed as a (n,) array within the limits, or :class:`InvalidSeed` saying what is wrong."""
-    try:
-        q = np.asarray(seed, dtype=float)
-    except (TypeError, ValueError, OverflowError) as exc:
-        raise InvalidSeed(f'seed must be {robot.dof} numbers; got {seed!r}') from exc
+    q = real_array(seed, 'seed', InvalidSeed, f'{robot.dof} numbers')
     if q.shape != (robot.dof,):
         raise InvalidSeed(f'seed must have {robot.dof} joint values '
                           f'({", ".join(robot.joint_names)}); got shape {q.shape}')

@@ -36,6 +36,7 @@ from sik_ros.chain import SerialChain
 from sik_ros.collision import Obstacle
 from sik_ros.rotations import rotation_angle, rotation_log
 from sik_ros.solver import pipeline  # noqa: I100 (a sibling module, not the package)
+from sik_ros.solver.config import PATH_DEFAULTS
 from sik_ros.solver.context import Context, Goal, POSITION
 from sik_ros.solver.explore import nearest_turns
 from sik_ros.solver.ranking import distinct_mask
@@ -122,9 +123,9 @@ class PathSettings:
     takes them from :data:`POSE_BEAM` or :data:`POSITION_BEAM` by the paths' kind.
     """
 
-    num_paths: int = 4
-    max_joint_step: float = 0.3
-    path_tolerance: float = 0.005
+    num_paths: int = PATH_DEFAULTS.num_paths
+    max_joint_step: float = PATH_DEFAULTS.max_joint_step
+    path_tolerance: float = PATH_DEFAULTS.path_tolerance
     orientation_path_tolerance: float = 0.05
     starts: int = POSE_BEAM['starts']
     tracks: int = POSE_BEAM['tracks']

@@ -1,9 +1,11 @@
 """Scores, distinct postures, and the ranking of candidates into solutions.
 
 One score orders candidates everywhere (:func:`pose_score`: the position error plus the
-orientation error weighted by :data:`ORIENTATION_WEIGHT`). Ranking puts solutions in tiers —
-free and exact, free and inexact, colliding and exact, colliding and inexact — and orders each
-tier by the objective (exact ones) or the score (inexact ones).
+orientation error weighted by :data:`ORIENTATION_WEIGHT`). Ranking is lexicographic, whatever
+the scale of the objective: the tier first (:data:`FREE_EXACT`, :data:`FREE_INEXACT`,
+:data:`COLLIDING`), then, within a tier, exact before inexact, a posture before a second 2 pi
+equivalent of it, and the cost: the objective for exact solutions, the weighted goal error for
+inexact ones.
 """
 
 import time
@@ -17,15 +19,12 @@ from sik_ros.objectives import JointLimitMargin, Objective, SeedDistance
 from sik_ros.solver.batch import Candidates
 from sik_ros.solver.config import SolverConfig
 from sik_ros.solver.context import Context, POSITION
-from sik_ros.solver.results import Solution
+from sik_ros.solver.results import COLLIDING, FREE_EXACT, FREE_INEXACT, Solution
 
 #: Metres of position error that one radian of orientation error counts as [m/rad].
 ORIENTATION_WEIGHT = 0.1
 #: Ranking cost of an inexact solution per metre of score [1/m].
 INEXACT_COST = 100.0
-#: Ranking offsets of the tiers: a periodic joint's further 2 pi equivalents of a posture, then
-#: inexact solutions, then colliding ones, behind the rest.
-EQUIVALENT_TIER, INEXACT_TIER, COLLIDING_TIER = 500.0, 1e3, 2e3
 
 
 def pose_score(perr: np.ndarray, oerr: np.ndarray) -> np.ndarray:
@@ -126,13 +125,16 @@ def rank(ctx: Context, c: Candidates, q_seed: Optional[np.ndarray],
          limit: Optional[int] = None, deadline: Optional[float] = None) -> List[Solution]:
     """Solutions ranked best first; with ``limit``, only the best ``limit`` of them.
 
-    The default objective is the distance to the seed when there is one, else the closeness
-    to the joint limits. Self-collision is checked lazily in ranking order: a self-colliding
-    posture drops behind every free one, so checking stops once ``limit`` free postures are
-    found. Among the 2 pi equivalents of a posture (periodic joints) the best by the objective
-    ranks with the others, the rest after every distinct posture. Past ``deadline`` no more
-    collision checks start: clearances not computed are NaN and rank as colliding;
-    self-collision not checked is reported False.
+    The order is lexicographic: tier (free and exact, free and inexact, colliding or
+    self-colliding), then exact before inexact, then a posture before its further 2 pi
+    equivalents (periodic joints; the best of each by the objective ranks with the others),
+    then the cost within the tier, which each solution reports as its ``score``: the objective
+    for exact solutions, :func:`pose_score` times :data:`INEXACT_COST` for inexact ones. No
+    objective value, however large, lifts a solution across a tier. The default objective is
+    the distance to the seed when there is one, else the closeness to the joint limits.
+    Self-collision is checked lazily in ranking order, so checking stops once ``limit`` free
+    postures are found. Past ``deadline`` no more collision checks start: clearances not
+    computed are NaN and rank as colliding; self-collision not checked is reported False.
     """
     if len(c) == 0:
         return []
@@ -141,19 +143,28 @@ def rank(ctx: Context, c: Candidates, q_seed: Optional[np.ndarray],
     if objective is None:
         objective = SeedDistance(q_seed) if q_seed is not None else JointLimitMargin(ctx.robot)
     cost = np.asarray(objective(c.q), dtype=float)
-    inexact_cost = np.where(c.exact, 0.0, pose_score(c.perr, c.oerr) * INEXACT_COST)
-    base = inexact_cost + np.where(c.exact, cost, 0.0) + INEXACT_TIER * ~c.exact
-    keys = posture_keys(c.q, ctx.robot.periodic) if ctx.robot.periodic.any() else None
-    if keys is not None:
-        # every distinct posture before a second 2 pi equivalent of one (the best of each first)
-        base = base + EQUIVALENT_TIER * equivalents(keys, base)
-    score = base + COLLIDING_TIER * hit
+    within = np.where(c.exact, cost, pose_score(c.perr, c.oerr) * INEXACT_COST)
+    inexact = ~c.exact
+    equivalent = np.zeros(len(c), dtype=bool)
+    if ctx.robot.periodic.any():
+        keys = posture_keys(c.q, ctx.robot.periodic)
+        # the cheapest of each posture by (exact first, cost): its position in that order
+        position = np.empty(len(c))
+        position[np.lexsort((within, inexact))] = np.arange(len(c))
+        equivalent = equivalents(keys, position)
+    else:
+        keys = None
+
+    def order(colliding: np.ndarray) -> np.ndarray:
+        tier = np.where(colliding, COLLIDING, np.where(inexact, FREE_INEXACT, FREE_EXACT))
+        return np.lexsort((within, equivalent, inexact, tier))
+
     selfc = np.zeros(len(c), dtype=bool)
     limit = len(c) if limit is None else limit
     free = 0
     # 2 pi equivalents place the arm alike: one check per posture
     checked = {}
-    for i in np.argsort(score, kind='stable'):
+    for i in order(hit):
         if free >= limit or (deadline is not None and time.perf_counter() > deadline):
             break
         key = i if keys is None else keys[i].tobytes()
@@ -161,12 +172,12 @@ def rank(ctx: Context, c: Candidates, q_seed: Optional[np.ndarray],
             checked[key] = ctx.checker.self_collision(c.q[i:i + 1])[0]
         selfc[i] = checked[key]
         free += not selfc[i]
-    score = base + COLLIDING_TIER * (hit | selfc)
-    order = np.argsort(score, kind='stable')[:limit]
+    colliding = hit | selfc
+    tier = np.where(colliding, COLLIDING, np.where(inexact, FREE_INEXACT, FREE_EXACT))
     return [Solution(c.q[i].copy(), float(c.perr[i]), float(c.oerr[i]),
-                     c.z[i].astype(np.float32), float(score[i]), float(clear[i]),
-                     bool(selfc[i]), bool(c.exact[i]))
-            for i in order]
+                     c.z[i].astype(np.float32), float(within[i]), float(clear[i]),
+                     bool(selfc[i]), bool(c.exact[i]), int(tier[i]))
+            for i in order(colliding)[:limit]]
 
 
 def from_solutions(sols: Sequence[Solution]) -> Candidates:

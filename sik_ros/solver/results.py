@@ -6,6 +6,17 @@ from typing import Dict, List, Sequence
 
 import numpy as np
 
+#: Ranking tiers (:attr:`Solution.tier`), best first: free of collisions and within the
+#: tolerances; free and outside them; touching an obstacle or the robot itself.
+FREE_EXACT, FREE_INEXACT, COLLIDING = 0, 1, 2
+
+
+def tier_label(tier: int, self_collision: bool = False) -> str:
+    """A short name of a ranking tier for tables: free, inexact, obstacle or self-coll."""
+    if tier == COLLIDING:
+        return 'self-coll.' if self_collision else 'obstacle'
+    return {FREE_EXACT: 'free', FREE_INEXACT: 'inexact'}.get(tier, f'tier {tier}')
+
 
 @dataclass
 class Solution:
@@ -16,10 +27,13 @@ class Solution:
         position_error: distance from the tip to the target [m].
         orientation_error: angle between tip and target orientation [rad] (0 for position goals).
         posture_index: the posture index that produced it.
-        score: ranking score, lower is better.
+        score: the ranking cost within its tier, lower is better: the objective for exact
+            solutions, the weighted goal error for inexact ones (see ``tier``).
         min_obstacle_distance: clearance from the obstacles [m] (+inf without obstacles).
         self_collision: whether the posture collides with itself.
         converged: whether it meets the tolerances.
+        tier: the ranking tier, ranked first: 0 free of collisions and exact, 1 free and
+            inexact, 2 touching an obstacle or itself (:mod:`sik_ros.solver.ranking`).
     """
 
     q: np.ndarray
@@ -30,6 +44,7 @@ class Solution:
     min_obstacle_distance: float = float('inf')
     self_collision: bool = False
     converged: bool = False
+    tier: int = 0
 
     @property
     def in_collision(self) -> bool:
@@ -60,7 +75,7 @@ def result_to_dict(res: IKResult, joint_names: Sequence[str]) -> Dict:
             'posture_index': [float(v) for v in s.posture_index], 'score': s.score,
             'min_obstacle_distance': (None if not np.isfinite(s.min_obstacle_distance)
                                       else s.min_obstacle_distance),
-            'self_collision': s.self_collision, 'converged': s.converged,
+            'self_collision': s.self_collision, 'converged': s.converged, 'tier': s.tier,
         } for s in res.solutions],
     }
 

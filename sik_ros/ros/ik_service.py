@@ -1,0 +1,88 @@
+"""``~/solve_ik`` and ``~/goal``: one IK request, from message to library call to answer.
+
+:func:`solve_request` checks every field of a ``SolveIK`` request at the edge (frame, goal, seed,
+obstacles, timeout), solves it with the node's solvers and returns the code, message and the
+library's result; :func:`fill_response` puts the ranked solutions into the response. Bad input
+raises a :class:`~sik_ros.errors.SikError` that :class:`~sik_ros.ros.guard.RequestGuard` turns
+into its code.
+"""
+
+from dataclasses import dataclass
+from typing import Callable, Optional, Sequence, Tuple
+
+import numpy as np
+from std_msgs.msg import Header
+
+from sik_interfaces.srv import SolveIK
+from sik_ros.errors import InvalidFrame
+from sik_ros.ros import conversions as conv
+from sik_ros.ros.params import NodeParams
+from sik_ros.ros.solvers import NodeSolvers
+from sik_ros.solver import IKResult
+
+R = SolveIK.Response
+
+
+@dataclass(frozen=True)
+class Arm:
+    """What the services need to know of the served arm.
+
+    Attributes:
+        base_frame: the frame goals are given in.
+        joint_names: the arm's joints, in chain order.
+    """
+
+    base_frame: str
+    joint_names: Sequence[str]
+
+    def check_frame(self, frame_id: str, what: str) -> None:
+        """Raise :class:`InvalidFrame` unless ``frame_id`` is the base frame or empty."""
+        if frame_id.lstrip('/') not in ('', self.base_frame):
+            raise InvalidFrame(f'{what} frame_id {frame_id!r} is not the base frame '
+                               f'{self.base_frame!r} (or empty); sik_node does not transform '
+                               f'frames')
+
+
+def solver_settings(p: NodeParams) -> dict:
+    """The :class:`~sik_ros.solver.SolverConfig` fields that node parameters set."""
+    return {'position_tolerance': p.position_tolerance,
+            'orientation_tolerance': p.orientation_tolerance,
+            'max_solutions_cap': p.max_solutions_cap, 'max_obstacles': p.max_obstacles,
+            'max_waypoints': p.max_waypoints}
+
+
+def solve_request(solvers: NodeSolvers, arm: Arm, request: SolveIK.Request, p: NodeParams,
+                  state_seed: Callable[[], Optional[np.ndarray]]
+                  ) -> Tuple[int, str, IKResult]:
+    """Code, message and library result of a ``SolveIK`` request.
+
+    Args:
+        solvers: where to solve.
+        arm: the served arm.
+        request: the request (any field may be hostile).
+        p: the parameters in force.
+        state_seed: the latest ``joint_states`` as a seed (or None), used when the request
+            gives none and ``use_joint_states`` is on.
+
+    Raises:
+        SikError: bad input (its code: :func:`~sik_ros.ros.conversions.error_code_for`), or no
+            solver free in time.
+    """
+    arm.check_frame(request.target.header.frame_id, 'target')
+    num, note = conv.solution_count(request.max_solutions, p.num_solutions, p.max_solutions_cap)
+    position, orientation = conv.goal_from_pose(request.target.pose, request.use_orientation)
+    seed = conv.seed_from_joint_state(request.seed, arm.joint_names)
+    if seed is None and p.use_joint_states:
+        seed = state_seed()
+    obstacles = conv.obstacles_from_msgs(request.obstacles, request.obstacle_poses,
+                                         p.max_obstacles)
+    timeout = conv.seconds_from_duration(request.timeout) or p.timeout
+    result = solvers.solve(solver_settings(p), position, orientation, num, seed=seed,
+                           obstacles=obstacles, refine=p.refine, timeout=timeout)
+    code, text = conv.result_code(result, bool(obstacles), timeout)
+    return code, '; '.join(t for t in (text, note) if t), result
+
+
+def solution_msgs(result: IKResult, arm: Arm, header: Header) -> list:
+    """The ranked solutions of a result as ``IKSolution`` messages."""
+    return [conv.solution_to_msg(s, arm.joint_names, header) for s in result.solutions]
