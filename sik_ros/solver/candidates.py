@@ -48,8 +48,11 @@ def table_candidates(ctx: Context, goal: Goal, q_seed: Optional[np.ndarray],
         # a pose model's index of more than one element holds the posture of a whole
         # position's self-motion: only those of rows whose tips had nearly the goal's
         # orientation stand for postures that reach it (the paper's look-up over positions
-        # and orientations), the nearest first
-        rows = table.oriented_rows(goal.position, goal.quaternion, count, cfg.oriented_cells)
+        # and orientations), the nearest first. As many cells as candidates wanted (at least
+        # ``oriented_cells``): a raw call's 192 from 125 cells instead of 27 came 1.72 cm /
+        # 31 deg from the goal instead of 1.98 cm / 44 deg (Panda, 60 targets)
+        rows = table.oriented_rows(goal.position, goal.quaternion, count,
+                                   max(cfg.oriented_cells, count))
     else:
         rows = table.rows_near(goal.position, cfg.k_cells)
     pool = table.indices[rows]
