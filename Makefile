@@ -13,13 +13,16 @@ PYTEST_ARGS ?=
 
 export VENV PYTHON
 
-.PHONY: setup run test lint clean distclean help
+.PHONY: setup run test test-fast lint bench docs-tables clean distclean help
 
 help:
 	@echo "make setup   create $(VENV), install the pinned requirements, build sik_interfaces"
 	@echo "make run     the demo: sik_node on the bundled Panda model answering IK requests"
 	@echo "make test    the test suite (pytest)"
+	@echo "make test-fast  unit tests only (no node, nothing slow)"
 	@echo "make lint    flake8 and pydocstyle only"
+	@echo "make bench   every benchmark (about an hour), then the tables of docs/benchmarks.md"
+	@echo "make docs-tables  the tables of docs/benchmarks.md and README.md from docs/results/"
 	@echo "make clean   remove build products and caches (keeps the venv)"
 	@echo "make distclean  also remove the venv"
 
@@ -32,8 +35,17 @@ run: setup
 test: setup
 	$(RUN_ENV) $(PY) -m pytest -q $(PYTEST_ARGS) test
 
+test-fast: setup
+	$(RUN_ENV) $(PY) -m pytest -q -m "not e2e and not slow" $(PYTEST_ARGS) test
+
 lint: setup
 	$(PY) -m pytest -q test/test_lint.py
+
+bench: setup
+	$(RUN_ENV) PY=$(PY) bash bench/run_all.sh
+
+docs-tables:
+	$(PY) bench/render.py
 
 clean:
 	rm -rf build install log $(VENV)/.sik-build *.egg-info .pytest_cache

@@ -1,15 +1,97 @@
 """Packaging of sik_ros: learned multi-solution inverse kinematics for ROS 2."""
 
+import filecmp
 from glob import glob
+import os
 
-from setuptools import find_packages, setup
+from setuptools import find_namespace_packages, setup
+from setuptools.command.develop import develop
+from setuptools.command.install import install
 
 PACKAGE_NAME = 'sik_ros'
+HERE = os.path.dirname(os.path.abspath(__file__))
+INTERFACES = 'sik_interfaces'
+
+
+def _interfaces_prefix():
+    """The first prefix on AMENT_PREFIX_PATH that holds sik_interfaces, else None."""
+    for prefix in os.environ.get('AMENT_PREFIX_PATH', '').split(os.pathsep):
+        marker = os.path.join(prefix, 'share', 'ament_index', 'resource_index', 'packages',
+                              INTERFACES)
+        if prefix and os.path.isfile(marker):
+            return prefix
+    return None
+
+
+def _differing_definition(prefix):
+    """The first message or service file of this source that ``prefix`` lacks or has changed."""
+    for source in sorted(glob(os.path.join(HERE, INTERFACES, '*', '*.*'))):
+        kind, name = source.split(os.sep)[-2:]
+        if kind not in ('msg', 'srv'):
+            continue
+        built = os.path.join(prefix, 'share', INTERFACES, kind, name)
+        if not os.path.isfile(built) or not filecmp.cmp(source, built, shallow=False):
+            return f'{kind}/{name}'
+    return None
+
+
+def _workspace_path(command):
+    """This package's folder relative to the colcon workspace (``<ws>/build/sik_ros/build``)."""
+    build_base = os.path.abspath(command.get_finalized_command('build').build_base)
+    package_build = os.path.dirname(build_base)
+    if os.path.basename(os.path.dirname(package_build)) == 'build':
+        return os.path.relpath(HERE, os.path.dirname(os.path.dirname(package_build)))
+    return HERE
+
+
+def check_interfaces(command):
+    """In a colcon build, stop unless the sik_interfaces of this source is built or sourced.
+
+    colcon does not look for packages inside another package's folder, so a plain
+    ``colcon build`` finds sik_ros but not sik_interfaces/ within it; the node would then fail at
+    run time for want of its messages. Outside colcon (pip) nothing is checked.
+    """
+    if os.environ.get('COLCON') != '1':
+        return
+    prefix = _interfaces_prefix()
+    if prefix is not None:
+        changed = _differing_definition(prefix)
+        if changed is None:
+            return
+        reason = (f'the {INTERFACES} found in {prefix} was built from other definitions '
+                  f'({changed} differs from this source)')
+    else:
+        reason = (f'{INTERFACES} is neither in this build nor on AMENT_PREFIX_PATH: it sits '
+                  f'in {INTERFACES}/ inside this package, where colcon does not look')
+    path = _workspace_path(command)
+    raise SystemExit(
+        f'sik_ros: {reason}. Build both packages:\n'
+        f'    colcon build --paths {path} {os.path.join(path, INTERFACES)}\n'
+        'with ROS 2 sourced (source /opt/ros/jazzy/setup.bash; in the sik_ros venv: '
+        'source scripts/env.sh).')
+
+
+class ColconInstall(install):
+    """``install`` that checks for sik_interfaces first when colcon runs it."""
+
+    def run(self):
+        check_interfaces(self)
+        super().run()
+
+
+class ColconDevelop(develop):
+    """``develop`` (colcon's --symlink-install) with the same check."""
+
+    def run(self):
+        check_interfaces(self)
+        super().run()
+
 
 setup(
     name=PACKAGE_NAME,
-    version='0.1.0',
-    packages=find_packages(exclude=['test', 'test.*']),
+    version='0.2.0',
+    # namespace packages too, so that the bundled model's folders install as package data
+    packages=find_namespace_packages(include=[PACKAGE_NAME, PACKAGE_NAME + '.*']),
     package_data={
         PACKAGE_NAME: [
             'bundles/panda/*',
@@ -34,6 +116,8 @@ setup(
         'threadpoolctl',
         'matplotlib',
         'PyYAML',
+        'xacro',
+        'viser',
     ],
     zip_safe=False,
     maintainer='sik_ros maintainers',
@@ -44,6 +128,7 @@ setup(
     extras_require={
         'test': ['pytest', 'pytest-timeout', 'flake8', 'pydocstyle'],
     },
+    cmdclass={'install': ColconInstall, 'develop': ColconDevelop},
     entry_points={
         'console_scripts': [
             'sik-collect = sik_ros.cli.collect:main',
@@ -52,6 +137,7 @@ setup(
             'sik-solve = sik_ros.cli.solve:main',
             'sik-eval = sik_ros.cli.eval:main',
             'sik-build = sik_ros.cli.build:main',
+            'sik-view = sik_ros.cli.view:main',
             'sik_node = sik_ros.ros.run:main',
         ],
     },

@@ -11,7 +11,8 @@ TRAC-IK's from ``--max-attempts`` random seeds: all of them, and those free of s
 (our ranking puts a self-colliding posture behind every free one, 2 pi equivalents included, so
 16 solutions may leave it out; TRAC-IK does not check collisions).
 
-    python bench/arms.py --arms panda,ur5,xarm7,kinova,so100 --bundles /work/builds
+    python bench/arms.py --arms panda,ur5,xarm7,kinova,so100 --bundles bundles_bench \
+        --json docs/results/arms.json
     python bench/arms.py --arms ur5 --targets 50 --no-build   # a smoke run
 """
 
@@ -29,8 +30,10 @@ import numpy as np  # noqa: E402
 import torch  # noqa: E402
 
 from sik_ros import SelectiveIK  # noqa: E402
+from sik_ros.checkpoints import load_checkpoint  # noqa: E402
 
 from peers import DLS, TracIK  # noqa: E402,I100 (bench/peers.py, beside this script)
+from report import add_json_argument, write_json  # noqa: E402 (bench/report.py)
 
 DISTINCT = 0.5  # rad, as the solver's distinct_threshold
 
@@ -77,6 +80,18 @@ def build(arm, bundles, budget):
     return str(out), time.perf_counter() - t0
 
 
+def training(bundle: Path) -> dict:
+    """Each model's training: steps, training time [s], last validation distance error [m]."""
+    out = {}
+    for goal, files in json.loads((bundle / 'bundle.json').read_text())['models'].items():
+        ckpt = load_checkpoint(bundle / files['model'])
+        last = ckpt['history'][-1] if ckpt.get('history') else {}
+        out[goal] = {'steps': int(ckpt.get('step', 0)),
+                     'train_s': float(ckpt.get('elapsed_s', 0.0)),
+                     'val_dist_m': last.get('val_dist_mean_m')}
+    return out
+
+
 def bench_arm(arm, args):
     """One arm: bundle, then both goal kinds against the peers; a dict of figures."""
     bundle, wall = build(arm, args.bundles, args.time)
@@ -88,7 +103,7 @@ def bench_arm(arm, args):
     poses = [robot.fk(qi) for qi in q]
     check = json.loads((Path(ik.bundle) / 'bundle.json').read_text()).get('self_check')
     row = {'arm': arm, 'dof': robot.dof, 'build_s': wall, 'bundle_mb': size / 1e6,
-           'self_check': check}
+           'self_check': check, 'training': training(Path(ik.bundle))}
     dls, tracik = DLS(robot), TracIK(robot)
     for goal in ('position', 'pose'):
         ok, n, t, ratio, reached = [], [], [], [], []
@@ -136,7 +151,7 @@ def bench_arm(arm, args):
 
 
 def main() -> None:
-    """Run every arm and print a table row each (and the JSON)."""
+    """Run every arm and print a table row each (and ``--json``)."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument('--arms', default='panda,ur5,xarm7,kinova,so100')
     parser.add_argument('--bundles', default='bundles_bench')
@@ -145,6 +160,7 @@ def main() -> None:
     parser.add_argument('--max-attempts', type=int, default=300)
     parser.add_argument('--seed', type=int, default=2024)
     parser.add_argument('--no-build', action='store_true', help='skip arms without a bundle')
+    add_json_argument(parser)
     args = parser.parse_args()
     torch.set_num_threads(1)
     print(f'# bench/arms.py: {args.targets} targets per goal kind, seed {args.seed}, peers from '
@@ -174,7 +190,8 @@ def main() -> None:
                   f'({f["distinct_p10"]:.0f}) | {f["time_median_ms"]:.2f} | '
                   f'{f["ratio_median"]:.3f} vs {peer} ({100 * f["peer_reached"]:.0f} %) '
                   f'| {br} |', flush=True)
-    print(json.dumps(rows, default=float))
+    write_json(args.json, 'arms', {'targets': args.targets, 'seed': args.seed,
+                                   'max_attempts': args.max_attempts, 'arms': rows})
 
 
 if __name__ == '__main__':

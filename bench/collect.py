@@ -3,7 +3,7 @@
 Each run is a fresh process (``sik-collect --robot panda --interval 30``) measured with
 ``/usr/bin/time``-style accounting from ``resource.getrusage`` of the child.
 
-    python bench/collect.py [--runs 3] [--interval 30]
+    python bench/collect.py [--runs 3] [--interval 30] [--json PATH]
 """
 
 import argparse
@@ -16,6 +16,8 @@ import subprocess
 import sys
 import tempfile
 import time
+
+from report import add_json_argument, write_json  # noqa: I100 (bench/report.py)
 
 
 def one_run(interval: float, out: str) -> tuple:
@@ -35,6 +37,7 @@ def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.split('\n')[0])
     p.add_argument('--runs', type=int, default=3)
     p.add_argument('--interval', type=float, default=30.0)
+    add_json_argument(p)
     args = p.parse_args()
     tmp = tempfile.mkdtemp(prefix='sik-bench-collect-')
     try:
@@ -53,6 +56,10 @@ def main() -> None:
     for i, (w, m) in enumerate(results, 1):
         print(f'| {i} | {w:.1f} | {m:.0f} |')
     print(f'| median | {statistics.median(walls):.1f} | {statistics.median(peaks):.0f} |')
+    write_json(args.json, 'collect', {
+        'interval_deg': args.interval, 'rows': rows,
+        'runs': [{'wall_s': w, 'peak_rss_mb': m} for w, m in results],
+        'wall_median_s': statistics.median(walls), 'peak_rss_median_mb': statistics.median(peaks)})
     print(f'target: <= 30 s and <= 3072 MB -> '
           f'{"met" if statistics.median(walls) <= 30 and max(peaks) <= 3072 else "NOT met"}')
 

@@ -13,7 +13,7 @@ step above 0.3 rad. Printed by length (below and from 30 cm): the median of the 
 ratios and the ratio of the total times (the mean time per path's), the joint travel of both
 on the paths both solve, and an obstacle case.
 
-    python bench/paths.py --paths 200
+    python bench/paths.py --paths 200 --json docs/results/paths.json
 """
 
 import argparse
@@ -32,6 +32,7 @@ from sik_ros.chain import chain_forward  # noqa: E402
 from sik_ros.kinematics import find_frame  # noqa: E402
 
 from peers import TracIK  # noqa: E402,I100 (bench/peers.py)
+from report import add_json_argument, write_json  # noqa: E402 (bench/report.py)
 
 STEP = 0.3  # rad
 
@@ -131,6 +132,7 @@ def main() -> None:
     parser.add_argument('--seed', type=int, default=2024)
     parser.add_argument('--num-paths', type=int, default=4,
                         help='ranked paths asked of ours (the peers give one)')
+    add_json_argument(parser)
     args = parser.parse_args()
     torch.set_num_threads(1)
     ik = SelectiveIK.load('panda')
@@ -166,6 +168,7 @@ def main() -> None:
           '(median, ms) | ratio (median) | ratio of the total times | travel ours / peer where '
           'both succeed (median, rad) |')
     print('|---|---|---|---|---|---|---|---|---|---|')
+    groups, overall = [], []
     for pose in (True, False):
         for long in (False, True):
             sel = [r for r in rows if r['pose'] == pose and r['long'] == long]
@@ -173,6 +176,19 @@ def main() -> None:
                 continue
             both = [r for r in sel if r['ok'] and r['ok_peer']]
             peer = 'TRAC-IK seeded' if pose else 'DLS continuation'
+            groups.append({
+                'goal': 'pose' if pose else 'position', 'long': long, 'paths': len(sel),
+                'peer': peer, 'success': float(np.mean([r['ok'] for r in sel])),
+                'peer_success': float(np.mean([r['ok_peer'] for r in sel])),
+                'time_median_ms': 1e3 * float(np.median([r['t'] for r in sel])),
+                'peer_time_median_ms': 1e3 * float(np.median([r['t_peer'] for r in sel])),
+                'ratio_median': float(np.median([r['t'] / r['t_peer'] for r in sel])),
+                'ratio_total': sum(r['t'] for r in sel) / sum(r['t_peer'] for r in sel),
+                'both': len(both),
+                'travel_median_rad': (float(np.median([r['travel'] for r in both]))
+                                      if both else None),
+                'peer_travel_median_rad': (float(np.median([r['travel_peer'] for r in both]))
+                                           if both else None)})
             print(f"| {'pose' if pose else 'position'} | {'>= 30 cm' if long else '< 30 cm'} "
                   f"| {len(sel)} | {100 * np.mean([r['ok'] for r in sel]):.1f} % | {peer} "
                   f"| {100 * np.mean([r['ok_peer'] for r in sel]):.1f} % "
@@ -186,14 +202,21 @@ def main() -> None:
         sel = [r for r in rows if r['pose'] == pose]
         ours = 100 * np.mean([r['ok'] for r in sel])
         peer = 100 * np.mean([r['ok_peer'] for r in sel])
+        overall.append({'goal': 'pose' if pose else 'position', 'paths': len(sel),
+                        'success': ours / 100, 'peer_success': peer / 100,
+                        'max_step_median_rad': float(np.nanmedian([r['step'] for r in sel]))})
         print(f"{'pose' if pose else 'position'} paths overall: ours {ours:.1f} %, peer "
               f"{peer:.1f} %, max step of ours (median) "
               f"{np.nanmedian([r['step'] for r in sel]):.3f} rad")
-    obstacle_case(ik)
+    obstacle = obstacle_case(ik)
+    write_json(args.json, 'paths', {'paths': args.paths, 'seed': args.seed,
+                                    'num_paths': args.num_paths, 'step_rad': STEP,
+                                    'groups': groups, 'overall': overall,
+                                    'obstacle': obstacle})
 
 
-def obstacle_case(ik) -> None:
-    """A box next to a line that the first-ranked unconstrained path hits."""
+def obstacle_case(ik) -> dict:
+    """A box next to a line that the first-ranked unconstrained path hits; its figures."""
     q0 = np.array([0.0, -0.3, 0.0, -2.2, 0.0, 2.0, 0.8])
     p0, quat = ik.fk(q0)
     pos = p0 + np.linspace(0, 0.2, 20)[:, None] * [0.0, 1.0, 0.0]
@@ -209,6 +232,10 @@ def obstacle_case(ik) -> None:
           f'{hit:+.3f} m); with it: success {res.success}, clearance '
           f'{res.paths[0].min_obstacle_distance if res.paths else float("nan"):+.3f} m, '
           f'{1e3 * took:.0f} ms')
+    return {'box_size': 0.12, 'clearance_unconstrained_m': float(hit),
+            'success': bool(res.success),
+            'clearance_m': res.paths[0].min_obstacle_distance if res.paths else None,
+            'time_ms': 1e3 * took}
 
 
 if __name__ == '__main__':

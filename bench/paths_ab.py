@@ -24,6 +24,7 @@ os.environ.setdefault('OMP_NUM_THREADS', '1')
 import numpy as np  # noqa: E402
 
 from ab import answers_in_turn  # noqa: E402,I100 (bench/ab.py, beside this script)
+from report import add_json_argument, git_commit, write_json  # noqa: E402 (bench/report.py)
 
 
 def worker(root: str, seed: int, count: int, bundle: str = 'panda') -> None:
@@ -66,6 +67,7 @@ def main() -> None:
     parser.add_argument('--seed', type=int, default=7)
     parser.add_argument('--bundle', default='panda', help='bundle name or directory')
     parser.add_argument('--worker', nargs=4, help=argparse.SUPPRESS)
+    add_json_argument(parser)
     args = parser.parse_args()
     if args.worker:
         worker(args.worker[0], int(args.worker[1]), int(args.worker[2]), args.worker[3])
@@ -80,7 +82,8 @@ def main() -> None:
           'ratio; longer / shorter by 1 %) | max step (median) | from the current state '
           '(median) |')
     print('|---|---|---|---|---|---|---|---|---|')
-    for name in answers:
+    figures = []
+    for spec, name in zip(args.checkouts, answers):
         for pose in (True, False):
             rows = [(a, b) for a, b in zip(answers[name], ref) if a['pose'] == pose]
             # travel path by path, where both solve it (and the reference moves at all)
@@ -88,13 +91,22 @@ def main() -> None:
                              if a['ok'] and b['ok'] and b['travel'] > 0])
             paired = (f'{both.mean():.3f}; {100 * np.mean(both > 1.01):.0f} / '
                       f'{100 * np.mean(both < 0.99):.0f} %' if len(both) else '—')
-            print(f'| {name} | {"pose" if pose else "position"} '
-                  f'| {100 * np.mean([a["ok"] for a, _ in rows]):.1f} % '
-                  f'| {np.median([a["t"] for a, _ in rows]):.1f} ms '
-                  f'| {np.median([a["t"] / b["t"] for a, b in rows]):.3f} '
-                  f'| {np.nanmedian([a["travel"] for a, _ in rows]):.3f} rad | {paired} '
-                  f'| {np.nanmedian([a["step"] for a, _ in rows]):.3f} rad '
-                  f'| {np.nanmedian([a["start"] for a, _ in rows]):.2f} rad |')
+            f = {'name': name, **git_commit(spec.partition('=')[2]),
+                 'goal': 'pose' if pose else 'position', 'paths': len(rows),
+                 'success': float(np.mean([a['ok'] for a, _ in rows])),
+                 'time_median_ms': float(np.median([a['t'] for a, _ in rows])),
+                 'ratio_median': float(np.median([a['t'] / b['t'] for a, b in rows])),
+                 'travel_median_rad': float(np.nanmedian([a['travel'] for a, _ in rows])),
+                 'travel_ratio_mean': float(both.mean()) if len(both) else None,
+                 'max_step_median_rad': float(np.nanmedian([a['step'] for a, _ in rows])),
+                 'start_median_rad': float(np.nanmedian([a['start'] for a, _ in rows]))}
+            figures.append(f)
+            print(f'| {name} | {f["goal"]} | {100 * f["success"]:.1f} % '
+                  f'| {f["time_median_ms"]:.1f} ms | {f["ratio_median"]:.3f} '
+                  f'| {f["travel_median_rad"]:.3f} rad | {paired} '
+                  f'| {f["max_step_median_rad"]:.3f} rad | {f["start_median_rad"]:.2f} rad |')
+    write_json(args.json, 'paths_ab', {'bundle': args.bundle, 'paths': args.paths,
+                                       'seed': args.seed, 'checkouts': figures})
 
 
 if __name__ == '__main__':

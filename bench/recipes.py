@@ -29,7 +29,8 @@ from sik_ros.eval.plots import new_figure, save_figure  # noqa: E402
 from sik_ros.eval.studies import diversity_study  # noqa: E402
 from sik_ros.solver import SelectiveIK  # noqa: E402
 
-from solve import distinct_count  # noqa: E402,I100 (bench/solve.py)
+from report import add_json_argument, write_json  # noqa: E402,I100 (bench/report.py)
+from solve import distinct_count  # noqa: E402 (bench/solve.py)
 
 
 def solver_figures(bundle: Path, targets: int, seed: int = 123) -> dict:
@@ -67,6 +68,7 @@ def main() -> None:
     parser.add_argument('--dataset', default='data/panda30', help='dataset for the tables')
     parser.add_argument('--targets', type=int, default=200)
     parser.add_argument('--figure', help='write the validation curves here (.png)')
+    add_json_argument(parser)
     args = parser.parse_args()
     torch.set_num_threads(1)
     runs = [Path(r) for r in args.runs]
@@ -76,6 +78,7 @@ def main() -> None:
     print('| run | sampler | FK weight | cycle | steps | samples | time [s] | val dist [cm] '
           '| index spread |' + solver_cols)
     print('|---' * (9 + 4 * args.solver) + '|')
+    rows = []
     with tempfile.TemporaryDirectory() as tmp:
         for r, c in ckpts.items():
             cfg, last = c['train_config'], c['history'][-1]
@@ -84,11 +87,19 @@ def main() -> None:
                     f"| {c['step'] * cfg['batch_size'] / 1e6:.1f} M | {c['elapsed_s']:.0f} "
                     f"| {100 * last['val_dist_mean_m']:.2f} "
                     f"| {last.get('val_index_spread', float('nan')):.2f} |")
+            row = {'run': r.name, 'sampler': cfg.get('sampler', 'dataset'),
+                   'fk_weight': cfg['fk_weight'], 'cycle_weight': cfg.get('cycle_weight', 0),
+                   'steps': c['step'], 'samples': c['step'] * cfg['batch_size'],
+                   'elapsed_s': c['elapsed_s'], 'val_dist_m': last['val_dist_mean_m'],
+                   'index_spread': last.get('val_index_spread')}
+            rows.append(row)
             if args.solver:
                 f = solver_figures(with_table(r, args.dataset, Path(tmp)), args.targets)
+                row.update(solver=f)
                 line += (f" {100 * f['raw']:.3f} | {100 * f['first']:.3f} | {f['distinct']:.0f} "
                          f"({f['distinct_p10']:.0f}) | {100 * f['table4']:.2f} |")
             print(line, flush=True)
+    write_json(args.json, 'recipes', {'targets': args.targets, 'runs': rows})
     if args.figure:
         fig = new_figure(7, 4)
         ax = fig.add_subplot(1, 1, 1)

@@ -1,4 +1,4 @@
-"""Benchmark of sik_node's ``~/solve_ik`` over loopback DDS (issue 5's targets).
+"""Benchmark of sik_node's ``~/solve_ik`` over loopback DDS: latency, throughput, memory.
 
 Measures, for goals at FK of random configurations (position goals, pose goals, or both
 alternating: ``--goals mixed``) and 16 ranked refined solutions:
@@ -13,7 +13,7 @@ alternating: ``--goals mixed``) and 16 ranked refined solutions:
   sent [MB].
 
 Usage: ``python bench/service.py [--quick] [--requests N] [--goals position|pose|mixed]
-[--model-dir DIR]``. Prints a table; the
+[--model-dir DIR] [--json PATH]``. Prints a table; the
 figures are never asserted (see docs/benchmarks.md).
 """
 
@@ -35,6 +35,8 @@ from sik_ros.robots import load_robot
 from sik_ros.ros import client as ros_client, launch
 from sik_ros.ros.client import SolveIKClient
 from sik_ros.solver import SelectiveIK
+
+from report import add_json_argument, write_json  # noqa: I100 (bench/report.py)
 
 NUM_SOLUTIONS = 16
 NODE_TIMEOUT = 0.05  # [s] config/panda.yaml
@@ -134,6 +136,28 @@ def in_process(bundle: str, goals: List[tuple]) -> List[float]:
             for p, quat in goals]
 
 
+def figures(args: argparse.Namespace, n: int, rtt, inside, solver, answered: int,
+            wall: float, rss0: float, rss1: float, ok: int, goals: List[tuple]) -> dict:
+    """The printed figures as a dict for ``--json`` (times [ms], memory [MB])."""
+    def pct(seconds) -> dict:
+        p50, p99 = np.nanpercentile(np.asarray(seconds, dtype=float) * 1e3, [50, 99])
+        return {'p50_ms': float(p50), 'p99_ms': float(p99)}
+
+    rtt_a, inside_a = np.asarray(rtt), np.asarray(inside)
+    out = {'goals': args.goals, 'requests': n, 'clients': args.clients,
+           'duration_s': wall, 'params': args.param, 'solutions': NUM_SOLUTIONS,
+           'round_trip': pct(rtt_a), 'solver_in_node': pct(inside_a),
+           'overhead': pct(rtt_a - inside_a), 'solver_alone': pct(solver),
+           'throughput_rps': answered / wall, 'rss_start_mb': rss0, 'rss_end_mb': rss1,
+           'rss_growth_mb': rss1 - rss0, 'requests_total': n + answered,
+           'success': ok / len(rtt)}
+    if args.goals == 'mixed':
+        pose = np.array([quat is not None for _, quat in goals])
+        out['round_trip_position'] = pct(rtt_a[~pose])
+        out['round_trip_pose'] = pct(rtt_a[pose])
+    return out
+
+
 def main(argv: Optional[List[str]] = None) -> int:
     """Entry point."""
     parser = argparse.ArgumentParser(description=__doc__.split('\n')[0])
@@ -148,6 +172,7 @@ def main(argv: Optional[List[str]] = None) -> int:
     parser.add_argument('--model-dir', help='bundle directory (default: the bundled panda)')
     parser.add_argument('-p', '--param', action='append', default=[],
                         help='a node parameter override name:=value (repeatable)')
+    add_json_argument(parser)
     args = parser.parse_args(argv)
     n = args.requests or (200 if args.quick else 10_000)
     duration = args.duration or (3.0 if args.quick else 20.0)
@@ -199,6 +224,8 @@ def main(argv: Optional[List[str]] = None) -> int:
           f'{NUM_SOLUTIONS} ranked refined solutions, node timeout {NODE_TIMEOUT * 1e3:.0f} ms'
           + (f', parameters {" ".join(args.param)}' if args.param else '')
           + (' (quick run)' if args.quick else ''))
+    write_json(args.json, 'service', figures(args, n, rtt, inside, solver, answered, wall,
+                                             rss0, rss1, ok, goals))
     width = max(len(r[0]) for r in rows)
     print(f"| {'metric':<{width}} | {'measured':>22} | {'target':>16} |")
     print(f"|{'-' * (width + 2)}|{'-' * 24}|{'-' * 18}|")

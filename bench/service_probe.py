@@ -10,7 +10,7 @@ Starts the node and sends the same position goals (16 solutions) with
 and prints, per loop, round trip, the node's own solver time and their difference (p50 / p99),
 and the client process's CPU time per request. See docs/benchmarks.md.
 
-    python bench/service_probe.py [--requests 200]
+    python bench/service_probe.py [--requests 200] [--json PATH]
 """
 
 import argparse
@@ -27,6 +27,8 @@ from sik_interfaces.srv import SolveIK
 from sik_ros.robots import load_robot
 from sik_ros.ros import client as ros_client, launch
 from sik_ros.ros.client import SolveIKClient
+
+from report import add_json_argument, write_json  # noqa: I100 (bench/report.py)
 
 SOLVER_MS = re.compile(r'goal, ([0-9.]+) ms')
 
@@ -45,6 +47,7 @@ def main() -> None:
     """Entry point."""
     parser = argparse.ArgumentParser(description=__doc__.split('\n')[0])
     parser.add_argument('--requests', type=int, default=200)
+    add_json_argument(parser)
     args = parser.parse_args()
     robot = load_robot('panda')
     q = np.random.default_rng(0).uniform(robot.lower, robot.upper, (args.requests, robot.dof))
@@ -54,6 +57,7 @@ def main() -> None:
     rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
     node = rclpy.create_node('sik_probe')
     client = node.create_client(SolveIK, '/sik_node/solve_ik')
+    loops = []
     try:
         if not launch.wait_for_service(node, client, proc, 90.0):
             raise SystemExit('sik_node did not come up')
@@ -88,6 +92,11 @@ def main() -> None:
             if fast:
                 fast.close()
             rtt_ms, in_ms = np.array(rtt) * 1e3, np.array(inside) * 1e3
+            loops.append({'loop': mode, 'round_trip_p50_ms': float(np.median(rtt_ms)),
+                          'round_trip_p99_ms': float(np.percentile(rtt_ms, 99)),
+                          'solver_p50_ms': float(np.nanmedian(in_ms)),
+                          'overhead_p50_ms': float(np.nanmedian(rtt_ms - in_ms)),
+                          'client_cpu_ms': cpu})
             print(f'{mode:>14}: round trip p50 {np.median(rtt_ms):.2f} / p99 '
                   f'{np.percentile(rtt_ms, 99):.2f} ms, solver p50 {np.nanmedian(in_ms):.2f} ms,'
                   f' overhead p50 {np.nanmedian(rtt_ms - in_ms):.2f} ms, client CPU '
@@ -96,6 +105,7 @@ def main() -> None:
         node.destroy_node()
         launch.stop_node(proc)
         rclpy.try_shutdown()
+    write_json(args.json, 'service_probe', {'requests': args.requests, 'loops': loops})
 
 
 if __name__ == '__main__':

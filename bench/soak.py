@@ -8,7 +8,7 @@ Prints answered / lost, the codes, round-trip p50 / p99 [ms] and the node's RSS 
 processes) after the node's warm-up, once every client is connected and answered once (each
 client is a new DDS participant: its discovery data is the node's too), and at the end.
 
-    python bench/soak.py --requests 10000 --clients 16
+    python bench/soak.py --requests 10000 --clients 16 [--json PATH]
 """
 
 import argparse
@@ -26,6 +26,8 @@ from shape_msgs.msg import SolidPrimitive
 from sik_ros.robots import load_robot
 from sik_ros.ros import client as ros_client, launch
 from sik_ros.ros.client import SolveIKClient
+
+from report import add_json_argument, write_json  # noqa: I100 (bench/report.py)
 
 
 def rss_mb(pid: int) -> float:
@@ -73,6 +75,7 @@ def main() -> None:
     parser.add_argument('--processes', type=int, default=0, help='solver_processes')
     parser.add_argument('--rounds', type=int, default=1,
                         help='rounds of --requests on the same node (RSS after each)')
+    add_json_argument(parser)
     args = parser.parse_args()
     env = launch.ros_env()
     proc = launch.launch_node(None, [f'solver_processes:={args.processes}'], env=env)
@@ -121,6 +124,7 @@ def main() -> None:
           f'{args.rounds} rounds on one node, solver_processes {args.processes}, timeout '
           f'{args.timeout} s, a parameter change every {args.churn}', flush=True)
     print(f'node RSS {rss0:.1f} MB after the warm-up', flush=True)
+    rounds = []
     for round_ in range(args.rounds):
         codes.clear()
         times.clear()
@@ -140,6 +144,12 @@ def main() -> None:
         time.sleep(1.0)
         rss1 = rss_mb(proc.pid)
         ms = 1e3 * np.array(times)
+        rounds.append({'answered': len(times), 'lost': lost[0],
+                       'codes': {str(k): v for k, v in codes.items()}, 'wall_s': wall,
+                       'rate_rps': len(times) / wall, 'p50_ms': float(np.percentile(ms, 50)),
+                       'p99_ms': float(np.percentile(ms, 99)), 'max_ms': float(ms.max()),
+                       'rss_mb': rss1, 'rss_growth_mb': rss1 - rss0,
+                       'rss_growth_connected_mb': rss1 - rss_c})
         print(f'round {round_ + 1}: answered {len(times)}, lost {lost[0]}, codes {dict(codes)}, '
               f'{wall:.0f} s ({len(times) / wall:.0f} req/s); round trip p50 '
               f'{np.percentile(ms, 50):.1f} ms, p99 {np.percentile(ms, 99):.1f} ms, max '
@@ -149,6 +159,10 @@ def main() -> None:
     admin.close()
     rclpy.shutdown()
     launch.stop_node(proc)
+    write_json(args.json, 'soak', {'requests': args.requests, 'clients': args.clients,
+                                   'churn': args.churn, 'timeout_s': args.timeout,
+                                   'processes': args.processes, 'rss_start_mb': rss0,
+                                   'rounds': rounds})
 
 
 if __name__ == '__main__':

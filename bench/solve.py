@@ -7,8 +7,8 @@ ours / peer is reported. Peers: TRAC-IK (pytracik) for pose goals; damped least 
 Pinocchio Jacobians for position goals (TRAC-IK has no position-only mode; its full-pose figures
 are shown beside for reference). Also: raw (unrefined) decoder errors, and an obstacle case.
 
-    python bench/solve.py --targets 1000          # the full run (docs/benchmarks.md)
-    python bench/solve.py --targets 50 --quick    # a smoke run
+    python bench/solve.py --targets 1000 --json docs/results/solve.json   # docs/benchmarks.md
+    python bench/solve.py --targets 50 --quick                            # a smoke run
 """
 
 import argparse
@@ -27,6 +27,7 @@ from sik_ros.collision import CollisionChecker, Obstacle  # noqa: E402
 from sik_ros.solver import SelectiveIK  # noqa: E402
 
 from peers import DLS as PinocchioDLS, TracIK  # noqa: E402,I100 (bench/peers.py)
+from report import add_json_argument, write_json  # noqa: E402 (bench/report.py)
 
 DISTINCT = 0.5  # rad, L2 between joint vectors
 
@@ -54,7 +55,11 @@ def peer_time_to(count, solve_once, rng, robot, position_goal, max_attempts):
 
 
 def bench_goal(ik, goal, positions, quats, peers, args):
-    """Run ours and the peers on every target of one goal kind; print a table."""
+    """Run ours and the peers on every target of one goal kind; print a table.
+
+    Returns:
+        the figures of the table (times [ms], errors [m] and [rad]).
+    """
     robot = ik.robot
     position_goal = goal == 'position'
     rng = np.random.default_rng(11)
@@ -123,15 +128,34 @@ def bench_goal(ik, goal, positions, quats, peers, args):
     print('| peer (to the same number of distinct solutions) | median time [ms] | reached | '
           'median ratio ours/peer | p90 ratio | median ratio where reached |')
     print('|---|---|---|---|---|---|')
+    mean = (lambda v: float(np.mean(v)) if len(v) else float('nan'))  # noqa: E731
+    out = {'targets': len(positions), 'success': float(np.mean(rows['ok'])),
+           'distinct_median': float(np.median(rows['n'])),
+           'distinct_p10': float(np.percentile(rows['n'], 10)),
+           'time_median_ms': float(np.median(t)), 'time_p95_ms': float(np.percentile(t, 95)),
+           'raw_mean_m': mean(rows['raw']), 'raw_best_m': mean(rows['raw_best']),
+           'raw_orientation_mean_rad': None if position_goal else mean(rows['raw_o']),
+           'candidates_mean_m': mean(rows['cand']),
+           'candidates_orientation_mean_rad': None if position_goal else mean(rows['cand_o']),
+           'cached_postures_mean_m': mean(rows['cached']) if rows['cached'] else None,
+           'oriented_mean_m': mean(rows['or']) if rows['or'] else None,
+           'oriented_orientation_mean_rad': mean(rows['or_o']) if rows['or'] else None,
+           'peers': []}
     for name, pr in peer_rows.items():
         if not pr['t']:
             continue
         reached = np.array(pr['reached'], dtype=bool)
         ratio = np.array(pr['ratio'])
+        out['peers'].append({
+            'name': name, 'time_median_ms': 1e3 * float(np.median(pr['t'])),
+            'reached': float(np.mean(reached)), 'ratio_median': float(np.median(ratio)),
+            'ratio_p90': float(np.percentile(ratio, 90)),
+            'ratio_median_reached': (float(np.median(ratio[reached])) if reached.any()
+                                     else float('nan'))})
         print(f'| {name} | {1e3 * np.median(pr["t"]):.2f} | {100 * np.mean(reached):.1f} % '
               f'| {np.median(ratio):.3f} | {np.percentile(ratio, 90):.3f} '
-              f'| {np.median(ratio[reached]) if reached.any() else float("nan"):.3f} |')
-    return rows
+              f'| {out["peers"][-1]["ratio_median_reached"]:.3f} |')
+    return out
 
 
 def single_solution_time(ik, tracik, robot, positions, quats):
@@ -160,7 +184,7 @@ def single_solution_time(ik, tracik, robot, positions, quats):
 
 
 def obstacle_case(ik):
-    """A box in front of the arm that the best unconstrained solution hits."""
+    """A box in front of the arm that the best unconstrained solution hits; its figures."""
     target = np.array([0.45, 0.0, 0.25])
     free = ik.solve(target, num_solutions=16)
     checker = CollisionChecker(ik.robot)
@@ -181,6 +205,11 @@ def obstacle_case(ik):
           f'collision-free; best clearance {res.solutions[0].min_obstacle_distance:+.3f} m, '
           f'error {res.solutions[0].position_error * 1e3:.3f} mm, '
           f'{res.elapsed * 1e3:.1f} ms')
+    best = res.solutions[0]
+    return {'target': target, 'box_size': (0.15, 0.3, 0.15), 'box_position': elbow,
+            'clearance_unconstrained_m': before, 'solutions': len(res.solutions),
+            'exact_free': n_free, 'clearance_m': best.min_obstacle_distance,
+            'error_m': best.position_error, 'time_ms': 1e3 * res.elapsed}
 
 
 def main():
@@ -195,6 +224,7 @@ def main():
     parser.add_argument('--config', default='{}',
                         help='SolverConfig fields to change, as JSON, e.g. '
                         '\'{"give_up_after": 10}\'')
+    add_json_argument(parser)
     args = parser.parse_args()
     if args.quick:
         args.targets = min(args.targets, 50)
@@ -208,9 +238,13 @@ def main():
     dls = PinocchioDLS(robot)
     print(f'# bench/solve.py: {platform.processor() or platform.machine()}, '
           f'{os.cpu_count()} cores, torch threads 1, {args.targets} targets uniform in joint '
-          f'space (seed 2024), bundle {ik.bundle}, solver config changes {args.config}')
+          f'space (seed 2024), bundle {args.bundle}, solver config changes {args.config}')
+    results = {'targets': args.targets, 'seed': 2024, 'bundle': args.bundle,
+               'config': json.loads(args.config), 'max_attempts': args.max_attempts}
     if 'pose' in ik.goals:
         med, ratio, ok = single_solution_time(ik, tracik, robot, positions, quats)
+        results['single'] = {'time_median_ms': med, 'ratio_median': ratio,
+                             'success': {k: v / 100 for k, v in ok.items()}}
         print(f'single pose solution (num_solutions=1), in turn per target: TRAC-IK (random '
               f'seed) median {med["trac-ik"]:.3f} ms, success {ok["trac-ik"]:.1f} %; ours '
               f'{med["ours"]:.3f} ms (ratio {ratio["ours"]:.2f}), seeded '
@@ -218,15 +252,16 @@ def main():
               f'{ok["ours"]:.1f} / {ok["ours seeded"]:.1f} %')
     goals = args.goals.split(',')
     if 'position' in goals and 'position' in ik.goals:
-        bench_goal(ik, 'position', positions, quats, {
+        results['position'] = bench_goal(ik, 'position', positions, quats, {
             'DLS on Pinocchio Jacobians (position)': lambda p, _q, q0: dls.solve(p, q0),
             'TRAC-IK on the full pose (reference)': lambda p, qt, q0: tracik.solve(p, qt, q0),
         }, args)
     if 'pose' in goals and 'pose' in ik.goals:
-        bench_goal(ik, 'pose', positions, quats, {
+        results['pose'] = bench_goal(ik, 'pose', positions, quats, {
             'TRAC-IK (pose)': lambda p, qt, q0: tracik.solve(p, qt, q0),
         }, args)
-    obstacle_case(ik)
+    results['obstacle'] = obstacle_case(ik)
+    write_json(args.json, 'solve', results)
 
 
 if __name__ == '__main__':

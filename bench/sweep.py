@@ -11,7 +11,7 @@ return; a redundant arm's solutions are not isolated.) A tiny build is far from 
 bundle's accuracy or speed (``bench/arms.py`` measures those); this shows that each arm loads,
 builds, solves and finds the solutions there are.
 
-    python bench/sweep.py --out /tmp/sweep                       # the default list of arms
+    python bench/sweep.py --json docs/results/sweep.json        # the default list of arms
     python bench/sweep.py --out /tmp/sweep --arms z1,ur10 --targets 30
 """
 
@@ -32,6 +32,7 @@ from sik_ros import SelectiveIK  # noqa: E402
 
 from arms import branches  # noqa: E402,I100 (bench/arms.py, beside this script)
 from peers import TracIK  # noqa: E402
+from report import add_json_argument, write_json  # noqa: E402 (bench/report.py)
 
 ARMS = ('ur3_gripper,ur10,z1,b1_z1,bravo7_gripper,talos_arm,so101,tiago,pr2,baxter,'
         'anymal_kinova')
@@ -107,14 +108,14 @@ def sweep_arm(arm, args):
 def main():
     """Parse arguments, sweep the arms, print a table (and ``--json``)."""
     parser = argparse.ArgumentParser(description=__doc__.split('\n')[0])
-    parser.add_argument('--out', required=True, help='folder for the tiny bundles')
+    parser.add_argument('--out', default='bundles_sweep', help='folder for the tiny bundles')
     parser.add_argument('--arms', default=ARMS, help='comma-separated example-robot-data names')
     parser.add_argument('--time', type=float, default=60.0, help='sik-build budget [s]')
     parser.add_argument('--rows', type=int, default=200_000, help='uniform samples per arm')
     parser.add_argument('--targets', type=int, default=50, help='targets per check')
     parser.add_argument('--attempts', type=int, default=200, help='TRAC-IK seeds per target')
     parser.add_argument('--seed', type=int, default=2024)
-    parser.add_argument('--json', help='write the figures here as well')
+    add_json_argument(parser)
     args = parser.parse_args()
     rows = []
     print('| arm | joints (periodic) | base → tip | build [s] | bundle [MB] | self-check '
@@ -138,8 +139,9 @@ def main():
                   f'{r["ours_mean"]:.2f} / {r["peer_mean"]:.2f} | '
                   f'{100 * r["at_least_peer"]:.0f} % |' if 'ours_mean' in r else '— | — |'),
               flush=True)
-    if args.json:
-        Path(args.json).write_text(json.dumps(rows, indent=1))
+    write_json(args.json, 'sweep', {'time_s': args.time, 'rows': args.rows,
+                                    'targets': args.targets, 'attempts': args.attempts,
+                                    'seed': args.seed, 'arms': rows})
 
 
 if __name__ == '__main__':

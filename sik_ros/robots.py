@@ -29,6 +29,7 @@ import xml.etree.ElementTree as ElementTree
 import pinocchio as pin
 
 from sik_ros.artifacts import check_robot_manifest
+from sik_ros.description import expand_xacro, is_xacro_text
 from sik_ros.errors import (ArtifactMismatch, CorruptArtifact, FrameNotFound, InvalidArgument,
                             InvalidModel, RobotNotFound)
 from sik_ros.kinematics import chain_joint, find_frame, rename_frame, Robot, sha256_file
@@ -299,11 +300,16 @@ def chain_differences(robot: Robot, urdf_text: str, tol: float = 1e-6) -> List[s
     Compared: the joint names, axes, placements and limits of the chain between the robot's
     base and tip frames, and the base and tip placements.
 
+    A xacro text (one that declares the xacro namespace) is expanded first, its includes found
+    from the current folder.
+
     Raises:
-        InvalidModel: the text is not a URDF Pinocchio can read.
+        InvalidModel: the text is not a URDF Pinocchio can read, or xacro failed on it.
     """
     import tempfile
     import numpy as np
+    if is_xacro_text(urdf_text):
+        urdf_text = expand_xacro(urdf_text)
     text, _ = prepare_urdf(urdf_text)
     try:
         model = unique_frame_names(pin.buildModelFromXML(text))

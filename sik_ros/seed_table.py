@@ -9,24 +9,18 @@ random subset of the dataset's configurations; when loaded it computes their tip
 forward kinematics and puts them in a KD-tree over ``(position [m], scale * quaternion)``. For
 a goal, :meth:`SeedTable.starts` takes the configurations whose tips are nearest the goal pose
 and thins them to a subset far apart in joint space (one per branch, as far as they go), which
-refinement then takes onto the goal in a few steps.
-
-Measured on a UR5 bundle (100 pose goals, paired, ``docs/benchmarks.md``): 24 such starts
-reach 6.5 branches per goal in 0.62x the time that 48 uniform random starts and the position
-model's oriented postures took to reach 5.9.
+refinement then takes onto the goal in a few steps (more branches in less time than random
+starts; docs/design.md).
 
 An arm's first joint turns the whole arm about its own axis, a line fixed to the base
 (:func:`first_axis`): a pose turned about that line is reached by turning the first joint
 alike. Every row is keyed by its tip pose in a frame along that axis (:func:`to_axis_frame`)
 turned to azimuth 0 (onto the half-plane y = 0, :func:`turned`), its first joint turned back
 with it, and a goal is looked up turned alike; the rows found get the goal's azimuth on their
-first joint. Every row then serves every azimuth: the same table is one dimension denser.
-Measured (paired, 300 pose goals, ``bench/solve_ab.py``): the starts 4.6 cm and 0.47 rad from
-the goal (median) instead of 9.7 cm and 0.71 rad; UR5 calls 0.90x the time with 6.41
-branches instead of 6.36, Kinova 0.89x with 6.27 instead of 6.19. A first joint short of a
-whole turn (the SO-100's spans 4 rad) cannot take every goal's azimuth: the look-up goes
-further until it has ``neighbours`` rows that can (the same time as without the keys, 1.00x,
-the same solutions found).
+first joint. Every row then serves every azimuth: the same table is one dimension denser, and
+the starts lie about half as far from the goal. A first joint short of a whole turn (the
+SO-100's spans 4 rad) cannot take every goal's azimuth: the look-up goes further until it has
+``neighbours`` rows that can.
 """
 
 import json
@@ -42,29 +36,24 @@ from sik_ros.artifacts import (atomic_write, check_robot_manifest, FORMAT_VERSIO
                                range_values)
 from sik_ros.chain import chain_forward
 from sik_ros.dataset import Dataset
+from sik_ros.defaults import SEED_TABLE_ROWS
 from sik_ros.errors import ArtifactMismatch, CorruptArtifact, InvalidArgument
 from sik_ros.index_table import farthest_point_subset
 from sik_ros.kinematics import Robot
 from sik_ros.rotations import rotation_to_quaternion, z_to_axis
 
-#: Configurations a seed table keeps by default (6 MB for 6 joints; 250,000 reach nearly as many
-#: branches on the UR5: 6.8 against 6.9 of 60 goals).
-DEFAULT_ROWS = 500_000
+#: Configurations a seed table keeps by default (6 MB for 6 joints).
+DEFAULT_ROWS = SEED_TABLE_ROWS
 #: Metres that one unit of quaternion distance counts as in the look-up (about 0.15 m per
 #: radian of tip rotation) [m].
 QUATERNION_SCALE = 0.3
 #: Nearest configurations by tip pose that the far-apart starts are chosen among.
 NEIGHBOURS = 100
 #: Relative slack of the KD-tree look-up (scipy's ``eps``: each row found within 1.5 times the
-#: distance of the true k-th nearest): on a UR5 table 97 % of the exact look-up's 100 rows, in
-#: 0.48x its time (67 against 141 us); 6.460 branches against 6.463 (300 pose goals), Kinova
-#: 6.303 against 6.300.
+#: distance of the true k-th nearest): nearly the exact look-up's rows in half its time.
 LOOKUP_EPS = 0.5
 #: Starts no nearer each other than this (distance of their joints' cosines and sines, about
 #: radians when near), at least ``START_LEAST`` of them: nearer ones reach the same solution.
-#: Measured (300 pose goals each): UR5 15.8 starts of 24 on average, 0.93x the time, 6.457
-#: branches against 6.460; Kinova 17.2, 0.95x, 6.300 against 6.307; SO-100 8, 0.90x, the same
-#: 1.14 solutions (fewer than 8 there lost some: 1.11 with no least).
 START_SPACING = 1.2
 START_LEAST = 8
 #: The KD-tree's layout (scipy's ``cKDTree`` arguments).
@@ -140,8 +129,14 @@ class SeedTable:
             quat = -quat if quat[3] < 0 else quat  # as the table's
             key = np.concatenate([np.asarray(position, dtype=float), QUATERNION_SCALE * quat])
         # rows whose first joint cannot take the goal's azimuth within its limits are left
-        # out: look further until ``k`` of them can (a first joint short of a whole turn)
+        # out: look further until ``k`` of them can (a first joint short of a whole turn). The
+        # first look-up asks for as many more as the joint's share of a turn leaves out, and a
+        # quarter more (SO-100, a 4 rad first joint: one look-up in most calls, where starting
+        # from ``k`` took two or more in half of them)
         wanted = k
+        share = (self._upper - self._lower) / (2 * np.pi)
+        if self._axis is not None and share < 1.0:
+            wanted = min(len(self.q), math.ceil(1.25 * k / max(share, 1e-3)))
         while True:
             rows = self._nearest(key, wanted)
             q = self._base_q[rows]
@@ -169,8 +164,8 @@ class SeedTable:
                     ) -> Tuple[np.ndarray, float]:
         """A goal's key in the axis frame turned to azimuth 0, and its azimuth [rad].
 
-        :func:`to_axis_frame` then :func:`turned` for one pose, in Python floats (on
-        1-row arrays they took 50 us of a UR5 call).
+        :func:`to_axis_frame` then :func:`turned` for one pose, in Python floats (cheaper than
+        NumPy on 1-row arrays).
         """
         origin, rot = self._axis
         x, y, z = (float(v) for v in np.asarray(position, dtype=float) - origin)

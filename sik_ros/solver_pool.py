@@ -61,12 +61,14 @@ class PoolHealth:
         ready: processes started and serving (idle or busy).
         restarts: replacements started since the pool began.
         failed_starts: replacements that failed to start (each retried after a back-off).
+        idle: ready processes waiting for a request.
     """
 
     processes: int
     ready: int
     restarts: int
     failed_starts: int
+    idle: int = 0
 
     @property
     def degraded(self) -> bool:
@@ -223,7 +225,14 @@ class SolverPool:
         """How many processes serve, of how many, and the restarts so far."""
         with self._lock:
             return PoolHealth(len(self._all), len(self._all) - self._missing, self._restarts,
-                              self._failed_starts)
+                              self._failed_starts, self._idle.qsize())
+
+    @property
+    def busy_pids(self) -> List[int]:
+        """Process ids of the processes serving a request now."""
+        with self._lock:
+            idle = {id(w) for w in list(self._idle.queue)}
+            return [w.process.pid for w in self._all if id(w) not in idle]
 
     def solve(self, settings: Dict[str, Any], *args, **kwargs) -> IKResult:
         """:meth:`SelectiveIK.solve` with the config fields ``settings`` changed, in a process.

@@ -11,6 +11,22 @@ from sik_ros.robots import load_robot
 
 os.environ.setdefault('OMP_NUM_THREADS', '1')
 
+#: Modules whose tests start a sik_node and talk to it over ROS 2 (marker ``e2e``).
+E2E_MODULES = {'test_hostile', 'test_node', 'test_node_arms', 'test_node_faults',
+               'test_node_path'}
+#: Modules whose tests take more than a few seconds alone (marker ``slow``).
+SLOW_MODULES = {'test_arms', 'test_eval', 'test_training'}
+
+
+def pytest_collection_modifyitems(config, items):
+    """Mark the end-to-end and slow modules' tests (``make test-fast`` leaves them out)."""
+    for item in items:
+        module = item.module.__name__.split('.')[-1]
+        if module in E2E_MODULES:
+            item.add_marker(pytest.mark.e2e)
+        if module in SLOW_MODULES:
+            item.add_marker(pytest.mark.slow)
+
 
 @pytest.fixture(scope='session')
 def panda():

@@ -238,14 +238,14 @@ def test_position_path_starts_take_the_turns_nearest_the_seed(ur5_bundle, ur5):
 
     Each periodic joint within its limits, as a brute force over the turns finds.
     """
-    import sik_ros.solver.path as path_mod
     from sik_ros.solver.context import Goal
     from sik_ros.solver.explore import nearest_turns
+    from sik_ros.solver.path import starts
     ik = SelectiveIK.load(ur5_bundle[0])
     rng = np.random.default_rng(3)
     for q in rng.uniform(ur5.lower, ur5.upper, (5, 6)):
         seed = rng.uniform(ur5.lower, ur5.upper)
-        near = path_mod._near_seed(ik._ctx, Goal(ur5.fk(q)[0]), seed, 4)
+        near = starts._near_seed(ik._ctx, Goal(ur5.fk(q)[0]), seed, 4)
         assert len(near)
         for row in near:
             for j in range(6):
@@ -262,7 +262,7 @@ def test_refinement_turns_a_periodic_joint_back_at_its_limit(ur5_bundle, ur5):
     its 2 pi limit: refinement reaches the goal with that joint at the goal's own value (a
     clamp at 2 pi held it there). Following a path (no joint may jump) still clamps.
     """
-    from sik_ros.solver.refine import limited_step
+    from sik_ros.kernels.dls import limited_step
     ik = SelectiveIK.load(ur5_bundle[0])
     goal_q = np.array([0.4, -1.2, 1.1, 0.217, 1.3, 0.6])
     p, rot = ur5.fk_rot(goal_q[None])
@@ -273,11 +273,14 @@ def test_refinement_turns_a_periodic_joint_back_at_its_limit(ur5_bundle, ur5):
     assert perr[0] <= 1e-4 and oerr[0] <= 1e-3
     assert abs(q[0, 3] - 0.217) < 1e-3 and np.all(q[0] <= ur5.upper)
     # one step on the wrist joint alone, past the limit: turned back, or clamped
-    jac = np.zeros((1, 6, 6))
-    jac[0, 5, 3] = 1.0
-    err = np.array([[0, 0, 0, 0, 0, 0.3]])
-    turned = limited_step(ik._ctx, start[None], jac, err, 1e-6, np.eye(6), turn=True)
-    clamped = limited_step(ik._ctx, start[None], jac, err, 1e-6, np.eye(6))
+    jac = np.zeros((6, 6))
+    jac[5, 3] = 1.0
+    err = np.array([0, 0, 0, 0, 0, 0.3])
+    work = np.empty((6, 6)), np.empty((6, 6)), np.empty(6)
+    turned, clamped = start[None].copy(), start[None].copy()
+    for row, turn in ((turned[0], True), (clamped[0], False)):
+        limited_step(row, jac, err, 6, ur5.lower, ur5.upper, ur5.periodic, turn, 1e-6,
+                     ik.config.max_step, *work)
     assert turned[0, 3] == pytest.approx(0.217, abs=1e-3)
     assert clamped[0, 3] == ur5.upper[3]
 

@@ -75,17 +75,64 @@ def test_collision_geometry_is_loaded(panda):
     assert geom.ngeoms > 7
 
 
-def test_pinocchio_loop_matches_batched(panda):
-    """The per-configuration Pinocchio path gives the batched FK and Jacobians."""
+@pytest.mark.parametrize('name', ['panda', 'ur5', 'kinova', 'z1'])
+def test_kernels_match_pinocchio_on_several_arms(name):
+    """The compiled FK and Jacobian equal Pinocchio's to 1e-12 (periodic joints included).
+
+    The Kinova's continuous joints are periodic revolute joints over +-2 pi; configurations
+    are drawn over the whole ranges.
+    """
+    robot = load_robot(name)
+    q = np.random.default_rng(4).uniform(robot.lower, robot.upper, size=(40, robot.dof))
+    p, r, jac = robot.jacobian_batch(q)
+    p2, r2 = robot.fk_rot(q)
+    np.testing.assert_array_equal(p2, p)
+    np.testing.assert_array_equal(r2, r)
+    base_id = robot.model.getFrameId(robot.base_frame)
+    for i in range(len(q)):
+        ref = robot.pin_placement(q[i])
+        np.testing.assert_allclose(p[i], ref.translation, rtol=0, atol=1e-12)
+        np.testing.assert_allclose(r[i], ref.rotation, rtol=0, atol=1e-12)
+        # Pinocchio's Jacobian is in the world frame: turned into the base frame
+        turn = robot.data.oMf[base_id].rotation.T
+        world = robot.pin_jacobian(q[i])
+        ref_jac = np.concatenate([turn @ world[:3], turn @ world[3:]])
+        np.testing.assert_allclose(jac[i], ref_jac, rtol=0, atol=1e-12)
+
+
+def test_kernels_match_the_vectorised_chain(panda):
+    """The kernels' FK equals the NumPy chain FK the training loss uses, to 1e-12."""
+    from sik_ros.chain import chain_forward
     q = np.random.default_rng(3).uniform(panda.lower, panda.upper, size=(25, panda.dof))
-    p1, r1, j1 = panda.jacobian_batch(q)
-    p2, r2, j2 = panda.jacobian_loop(q)
-    p3, r3 = panda.fk_loop(q)
-    np.testing.assert_allclose(p2, p1, atol=1e-12)
-    np.testing.assert_allclose(r2, r1, atol=1e-12)
-    np.testing.assert_allclose(j2, j1, atol=1e-12)
-    np.testing.assert_allclose(p3, p1, atol=1e-12)
-    np.testing.assert_allclose(r3, r1, atol=1e-12)
+    p1, r1 = chain_forward(panda.chain, q)
+    p2, r2 = panda.fk_rot(q)
+    np.testing.assert_allclose(p2, p1, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(r2, r1, rtol=0, atol=1e-12)
+
+
+def test_kernels_refuse_other_types(panda):
+    """The kernels are compiled for their declared types only: others are refused, not compiled."""
+    from sik_ros.kernels import fk_many
+    q = np.zeros((2, panda.dof), dtype=np.float32)
+    with pytest.raises(TypeError):
+        fk_many(panda.frames, q, np.empty((2, 3)), np.empty((2, 3, 3)))
+
+
+def test_rotation_error_kernel_matches_scipy_near_pi():
+    """The kernels' rotation error equals SciPy's rotation vector, also at and near pi."""
+    from scipy.spatial.transform import Rotation
+    from sik_ros.kernels.chain import rotation_error
+    vecs = np.concatenate([Rotation.random(200, random_state=5).as_rotvec(),
+                           [[np.pi, 0, 0], [0, np.pi - 1e-8, 0], [0, 0, 1e-12],
+                            [np.pi / np.sqrt(2), -np.pi / np.sqrt(2), 0.0]]])
+    out = np.empty(3)
+    for v in vecs:
+        norm = rotation_error(Rotation.from_rotvec(v).as_matrix(), np.eye(3), out)
+        assert norm == pytest.approx(np.linalg.norm(v), abs=1e-7)
+        if np.linalg.norm(v) < np.pi - 1e-6:
+            np.testing.assert_allclose(out, v, atol=1e-9)
+        else:  # at pi the axis' sign is either
+            np.testing.assert_allclose(np.abs(out), np.abs(v), atol=1e-7)
 
 
 def test_rotation_log_matches_scipy_everywhere():

@@ -28,9 +28,10 @@ EXPECTED = [
     ('use_joint_states', bool, False), ('goal_use_orientation', bool, False),
     ('publish_markers', bool, True), ('solver_processes', int, 0),
     ('max_obstacles', int, 256), ('max_waypoints', int, 2000), ('shutdown_grace', float, 1.0),
-    ('robot_description', str, '')]
+    ('robot_description', str, ''),
+    ('lifecycle', bool, False)]
 READ_ONLY = {'robot', 'model_dir', 'base_frame', 'tip_frame', 'solver_processes',
-             'robot_description'}
+             'robot_description', 'lifecycle'}
 
 
 def yaml_parameters():

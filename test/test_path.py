@@ -124,7 +124,7 @@ def test_the_edge_bound_holds_along_whole_edges(arm, request):
     :func:`_reach`, and the tool's turn from the nearer end against :func:`turn_bound` (from
     the ends' angular speeds) and against ``S / 2``.
     """
-    from sik_ros.solver.path import _reach, turn_bound
+    from sik_ros.solver.path.edges import _reach, turn_bound
     robot = request.getfixturevalue(arm)
     rng = np.random.default_rng(4)
     qa = rng.uniform(robot.lower, robot.upper, (400, robot.dof))
@@ -156,18 +156,21 @@ def test_the_edge_bound_holds_along_whole_edges(arm, request):
 
 def test_edges_skipping_fk_checks_give_the_same_paths(ik, monkeypatch):
     """With every edge checked by FK (no bound), a path comes out the same, bit for bit."""
-    import sik_ros.solver.path as path_mod
+    from sik_ros.solver.path import edges, tracking
     positions, quats = line(ik, 0.25, 25, (0.0, 1.0, 0.3))
-    proven, certified = [], path_mod._certified
+    proven, certified = [], edges._certified
 
     def counting(*args):
         out = certified(*args)
         proven.append(int(out.sum()))
         return out
-    monkeypatch.setattr(path_mod, '_certified', counting)
+    for module in (edges, tracking):  # the ladder's edges and the batches' steps
+        monkeypatch.setattr(module, '_certified', counting)
     fast = ik.solve_path(positions, quats, seed=Q0)
     assert sum(proven) > 0  # the bound did spare FK checks
-    monkeypatch.setattr(path_mod, '_certified', lambda ctx, qa, *a: np.zeros(len(qa), bool))
+    for module in (edges, tracking):
+        monkeypatch.setattr(module, '_certified',
+                            lambda ctx, qa, *a: np.zeros(len(qa), bool))
     slow = ik.solve_path(positions, quats, seed=Q0)
     assert fast.success and slow.success
     assert len(fast.paths) == len(slow.paths)
@@ -192,13 +195,13 @@ def test_tracks_carry_their_evaluations_and_step_once(ik):
     q = np.array([s.q for s in q if s.converged])
     ev = refine.Evaluation.of(ctx, q)
     steps = []
-    original = refine.limited_step
+    original = refine.follow_rows
 
-    def counting(ctx_, qa, *args):
-        steps.append(len(qa))
-        return original(ctx_, qa, *args)
+    def counting(*args):
+        original(*args)
+        steps.append(int(args[-1].sum()))  # the kernel's steps per row (its last argument)
     try:
-        refine.limited_step = counting
+        refine.follow_rows = counting
         for i in range(1, len(positions)):
             goal = Goal(positions[i], rot[i])
             _, q, ev = refine.follow(ctx, q, ev, goal, 10)
@@ -207,7 +210,7 @@ def test_tracks_carry_their_evaluations_and_step_once(ik):
             perr = np.linalg.norm(p - goal.position, axis=1)
             assert (perr <= ik.config.position_tolerance).all()
     finally:
-        refine.limited_step = original
+        refine.follow_rows = original
     assert len(q) >= 4  # the tracks were kept
     # a plain Newton step (the Jacobian where a row is) takes two steps per row here
     assert sum(steps) <= 1.3 * len(q) * (len(positions) - 1)
@@ -219,14 +222,15 @@ def test_waypoints_between_ladder_ones_are_solved_in_batches(ik, monkeypatch):
     The path is as exact, within its steps and about as short as waypoint by waypoint.
     """
     import sik_ros.solver.path as path_mod
+    from sik_ros.solver.path import ladder
     positions, quats = line(ik, 0.3, 41, (0.2, 1.0, -0.3))
-    batches, chunk = [], path_mod._chunk
+    batches, chunk = [], ladder._chunk
 
     def counting(*args):
         out = chunk(*args)
         batches.append(out is not None)
         return out
-    monkeypatch.setattr(path_mod, '_chunk', counting)
+    monkeypatch.setattr(ladder, '_chunk', counting)
     fast = ik.solve_path(positions, quats, seed=Q0)
     assert sum(batches) >= 2  # 40 waypoints after the first: 2 ladder ones, 3 batches
     assert fast.success
@@ -272,18 +276,18 @@ def test_a_position_path_the_narrow_beam_loses_is_planned_again_wider(ik, monkey
     nearest it) all die a third of the way along. (The earlier case, path 59, is planned by
     the narrow beam since refinement steps may be 0.6 rad.)
     """
-    import sik_ros.solver.path as path_mod
+    from sik_ros.solver.path import ladder
     direction = np.array([-0.4415, 0.2198, -0.8699])
     pos = np.array([0.5636, 0.0006, 0.5034]) + np.linspace(0, 0.4151, 53)[:, None] * \
         (direction / np.linalg.norm(direction))
     seed = np.array([-2.782, 0.198, -1.548, -0.07, -1.81, 1.211, -2.228])
-    plans, plan = [], path_mod._plan
+    plans, plan = [], ladder._plan
 
     def counting(*args):
         out = plan(*args)
         plans.append(out.success)
         return out
-    monkeypatch.setattr(path_mod, '_plan', counting)
+    monkeypatch.setattr(ladder, '_plan', counting)
     res = ik.solve_path(pos, seed=seed)
     assert plans == [False, True]
     assert res.success and res.fraction == 1.0
@@ -299,24 +303,24 @@ def test_position_starts_are_the_seed_and_the_table_postures_nearest_it(ik):
     Without them (``near_seed`` False, the wider beam's second try), or with a table that
     keeps no postures, the solver's solutions join the seed's.
     """
-    import sik_ros.solver.path as path_mod
     from sik_ros.solver.context import Goal
+    from sik_ros.solver.path import settings, starts
     from sik_ros.solver.refine import Evaluation, follow
     ctx = ik._ctx
     seed = np.array([1.0, 0.5, -0.8, -1.5, 0.4, 2.6, -1.2])
     goal = Goal(ik.fk(Q0)[0])
-    near = path_mod._near_seed(ctx, goal, seed, 4)
+    near = starts._near_seed(ctx, goal, seed, 4)
     assert len(near) == 3
     assert np.all(near[:, -1] == seed[-1])
     gaps = np.linalg.norm(near - seed, axis=1)
     assert np.all(np.diff(gaps) >= 0)
     _, alone, _ = follow(ctx, seed[None], Evaluation.of(ctx, seed[None]), goal,
-                         path_mod.START_ITERATIONS)
+                         settings.START_ITERATIONS)
     # the seed and three table postures; the seed and the solver's first four
-    for (q, _), most in ((path_mod._starts(ctx, goal, seed, [], 4, None), 4),
-                         (path_mod._starts(ctx, goal, seed, [], 4, None, near_seed=False), 5),
-                         (path_mod._starts(ik.with_config(cached_postures=False)._ctx, goal,
-                                           seed, [], 4, None), 5)):
+    for (q, _), most in ((starts._starts(ctx, goal, seed, [], 4, None), 4),
+                         (starts._starts(ctx, goal, seed, [], 4, None, near_seed=False), 5),
+                         (starts._starts(ik.with_config(cached_postures=False)._ctx, goal,
+                                         seed, [], 4, None), 5)):
         assert 2 <= len(q) <= most
         np.testing.assert_allclose(q[0], alone[0])
         p, _ = chain_forward(ik.robot.chain, q)
@@ -328,15 +332,15 @@ def test_position_starts_are_the_seed_and_the_table_postures_nearest_it(ik):
 
 def test_position_starts_keep_clear_of_obstacles(ik):
     """A box where the seed's own start would be: no start touches it."""
-    import sik_ros.solver.path as path_mod
     from sik_ros.solver.context import Goal
+    from sik_ros.solver.path import starts
     ctx = ik._ctx
     seed = np.array([1.0, 0.5, -0.8, -1.5, 0.4, 2.6, -1.2])
     goal = Goal(ik.fk(Q0)[0])
-    free, _ = path_mod._starts(ctx, goal, seed, [], 4, None)
+    free, _ = starts._starts(ctx, goal, seed, [], 4, None)
     _, _, origins, _ = chain_forward(ik.robot.chain, free[:1], frames=True)
     box = Obstacle('box', (0.1, 0.1, 0.1), tuple(origins[0, 3]))
     assert ik.checker.clearance(free[:1], [box])[0] <= 0
-    q, _ = path_mod._starts(ctx, goal, seed, [box], 4, None)
+    q, _ = starts._starts(ctx, goal, seed, [box], 4, None)
     assert len(q) >= 2
     assert np.all(ik.checker.clearance(q, [box]) > 0)

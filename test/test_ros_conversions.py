@@ -170,3 +170,47 @@ def test_markers_without_solutions_or_valid_target():
     """No solutions and a non-finite target: only the DELETEALL marker."""
     markers = conv.posture_markers(None, [], Header(), np.array([np.nan, 0, 0])).markers
     assert [m.action for m in markers] == [Marker.DELETEALL]
+
+
+@pytest.mark.parametrize('seconds, expected', [
+    (1.9999999999, (2, 0)), (0.0, (0, 0)), (2.5, (2, 500_000_000)), (1e-9, (0, 1)),
+    (0.9999999996, (1, 0)), (2.0 ** 31 - 1, (2 ** 31 - 1, 0))])
+def test_durations_carry_nanoseconds_that_round_to_a_second(seconds, expected):
+    """A duration whose nanoseconds round up to 1e9 carries a second (1.9999999999 s -> 2 s)."""
+    d = conv.duration_from_seconds(seconds)
+    assert (d.sec, d.nanosec) == expected
+
+
+@pytest.mark.parametrize('seconds', [-1e-9, math.nan, math.inf, 2.0 ** 31, 1e300])
+def test_durations_that_do_not_fit_are_invalid_goals(seconds):
+    """Negative, non-finite and too long durations are refused, not wrapped or raised raw."""
+    with pytest.raises(InvalidGoal, match='Duration'):
+        conv.duration_from_seconds(seconds)
+
+
+def test_trajectory_times_strictly_increase_past_two_thousand_points():
+    """2,500 minimal segments: every time_from_start later than the one before, seconds kept."""
+    from sik_ros.ros.trajectories import segment_times
+    q = np.zeros((2500, 7))
+    times = segment_times(q, np.full(7, 2.0), 1.0)
+    durations = [conv.duration_from_seconds(t) for t in times]
+    ns = [d.sec * 1_000_000_000 + d.nanosec for d in durations]
+    assert all(b > a for a, b in zip(ns, ns[1:]))
+    assert durations[-1].sec == 2 and all(d.nanosec < 1_000_000_000 for d in durations)
+
+
+@pytest.mark.parametrize('scaling', [1e-300, 1e-12])
+def test_a_tiny_velocity_scaling_that_overflows_a_duration_is_an_invalid_goal(scaling):
+    """A path that would last beyond what Duration holds is refused by name."""
+    from sik_ros.ros.trajectories import segment_times
+    q = np.linspace(0.0, 1.0, 5)[:, None] * np.ones(7)
+    with pytest.raises(InvalidGoal, match='velocity_scaling'):
+        segment_times(q, np.full(7, 2.0), scaling)
+
+
+def test_negative_or_malformed_timeouts_are_invalid_goals():
+    """A negative timeout, or nanoseconds of a second or more, is INVALID_GOAL."""
+    for sec, nanosec in ((-1, 0), (0, 1_000_000_000)):
+        with pytest.raises(InvalidGoal):
+            conv.seconds_from_duration(Duration(sec=sec, nanosec=nanosec))
+    assert conv.error_code_for(InvalidGoal('x')) == R.INVALID_GOAL

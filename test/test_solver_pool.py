@@ -44,14 +44,13 @@ def test_a_request_whose_process_dies_is_retried_on_another(panda, tiny_bundle):
         thread.start()
         busy = []
         for _ in range(200):  # the process that took the request
-            idle = list(pool._idle.queue)
-            busy = [w for w in pool._all if w not in idle]
+            busy = pool.busy_pids
             if busy:
                 break
             time.sleep(0.01)
         assert busy, 'no process took the request'
         time.sleep(0.05)  # well inside the request (it takes ``alone`` seconds)
-        os.kill(busy[0].process.pid, signal.SIGKILL)
+        os.kill(busy[0], signal.SIGKILL)
         thread.join(30.0)
         result = out['result']
         assert result.success and out['took'] < 20.0
@@ -60,11 +59,12 @@ def test_a_request_whose_process_dies_is_retried_on_another(panda, tiny_bundle):
                 assert np.linalg.norm(panda.fk(s.q)[0] - pos) < 1e-4
         deadline = time.monotonic() + 90.0
         while time.monotonic() < deadline:
-            alive = [w for w in pool._all if w.process.is_alive()]
-            if len(alive) == 2 and pool._idle.qsize() == 2:
+            health = pool.health()
+            if health.ready == 2 and health.idle == 2:
                 break
             time.sleep(0.2)
-        assert len(pool.pids) == 2 and busy[0].process.pid not in pool.pids
-        assert pool._idle.qsize() == 2
+        assert len(pool.pids) == 2 and busy[0] not in pool.pids
+        health = pool.health()
+        assert (health.ready, health.idle, health.restarts) == (2, 2, 1), health
     finally:
         pool.close()

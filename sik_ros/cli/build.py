@@ -2,11 +2,13 @@
 
 import argparse
 import json
+from pathlib import Path
 from typing import List, Optional
 
 from sik_ros.build import BuildConfig, Builder
 from sik_ros.cli import argv_or_default, Parser, run_cli
-from sik_ros.robots import load_robot
+from sik_ros.description import is_xacro_file, parse_xacro_args, write_xacro_urdf
+from sik_ros.robots import load_robot, package_dirs
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -18,7 +20,10 @@ def build_parser() -> argparse.ArgumentParser:
         'after an interruption to continue).')
     src = p.add_mutually_exclusive_group(required=True)
     src.add_argument('--robot', help='example-robot-data robot name (e.g. ur5, xarm7)')
-    src.add_argument('--urdf', help='URDF file of the arm')
+    src.add_argument('--urdf', help='URDF file of the arm; a .xacro file is expanded by xacro '
+                     'first, into <out>.urdf (the bundle names that file)')
+    p.add_argument('--xacro-arg', action='append', default=[], metavar='NAME:=VALUE',
+                   help='a xacro argument (repeat for several); runs xacro on --urdf')
     p.add_argument('--base', help='base frame (default: the parent link of the first joint)')
     p.add_argument('--tip', help='tip frame (default: the end of the longest chain, tool0/'
                    'tcp/ee frames preferred)')
@@ -45,10 +50,19 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: Optional[List[str]] = None) -> int:
     """Entry point of sik-build."""
-    args = build_parser().parse_args(argv_or_default(argv))
+    parser = build_parser()
+    args = parser.parse_args(argv_or_default(argv))
+    if args.xacro_arg and not args.urdf:
+        parser.error('--xacro-arg needs --urdf')
 
     def body() -> int:
-        robot = load_robot(args.robot or 'panda', args.urdf, args.base, args.tip)
+        urdf = args.urdf
+        if urdf is not None and (is_xacro_file(urdf) or args.xacro_arg):
+            urdf = str(write_xacro_urdf(Path(urdf), Path(args.out.rstrip('/\\') + '.urdf'),
+                                        parse_xacro_args(args.xacro_arg),
+                                        package_dirs(Path(urdf))))
+            print(f'xacro: {args.urdf} -> {urdf}')
+        robot = load_robot(args.robot or 'panda', urdf, args.base, args.tip)
         periodic = [n for n, p in zip(robot.joint_names, robot.periodic) if p]
         print(f'robot {robot.name}: {robot.dof} joints {robot.joint_names}, base '
               f'{robot.base_frame}, tip {robot.tip_frame}; periodic: {periodic or "none"}')

@@ -4,12 +4,9 @@ import argparse
 import time
 from typing import List, Optional
 
-from tqdm import tqdm
-
 from sik_ros.cli import argv_or_default, Parser, run_cli
 from sik_ros.cli.common import add_robot_args, robot_from_args
-from sik_ros.dataset import (check_budget, collect, estimate_seconds, finest_interval,
-                             free_disk, grid_count, MAX_ROWS, row_bytes)
+from sik_ros.defaults import MAX_ROWS
 from sik_ros.errors import InvalidArgument
 
 
@@ -49,6 +46,10 @@ def main(argv: Optional[List[str]] = None) -> int:
     args = build_parser().parse_args(argv_or_default(argv))
 
     def body() -> int:
+        from tqdm import tqdm
+
+        from sik_ros.dataset import (check_budget, collect, estimate_seconds, finest_interval,
+                                     free_disk, grid_count, row_bytes)
         robot = robot_from_args(args)
         print(f'robot {robot.name}: {robot.dof} joints, base {robot.base_frame}, tip '
               f'{robot.tip_frame}; periodic: '

@@ -1,9 +1,10 @@
 """Arguments shared by several CLIs."""
 
 import argparse
+from typing import TYPE_CHECKING
 
-from sik_ros.kinematics import Robot
-from sik_ros.robots import load_robot
+if TYPE_CHECKING:  # loaded when a robot is: Pinocchio
+    from sik_ros.kinematics import Robot
 
 
 def add_robot_args(parser: argparse.ArgumentParser) -> None:
@@ -15,6 +16,7 @@ def add_robot_args(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('--tip', help='tip frame (default: the robot\'s, e.g. panda_hand_tcp)')
 
 
-def robot_from_args(args: argparse.Namespace) -> Robot:
+def robot_from_args(args: argparse.Namespace) -> 'Robot':
     """Load the robot the arguments name."""
+    from sik_ros.robots import load_robot
     return load_robot(args.robot, args.urdf, args.base, args.tip)

@@ -13,14 +13,8 @@ from pathlib import Path
 import sys
 from typing import List, Optional
 
-import torch
-from tqdm import tqdm
-
-from sik_ros.artifacts import write_text_atomic
 from sik_ros.cli import argv_or_default, Parser, run_cli
 from sik_ros.errors import InvalidArgument
-from sik_ros.eval import load_baselines, report, run_evaluation, Settings, summary_json
-from sik_ros.solver import SelectiveIK
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -67,6 +61,13 @@ def main(argv: Optional[List[str]] = None) -> int:
     args = build_parser().parse_args(argv)
 
     def body() -> int:
+        import torch
+        from tqdm import tqdm
+
+        from sik_ros.artifacts import write_text_atomic
+        from sik_ros.eval import (load_baselines, report, run_evaluation, Settings,
+                                  summary_json)
+        from sik_ros.solver import SelectiveIK
         check_args(args)
         torch.set_num_threads(args.threads)
         start = datetime.datetime.now()

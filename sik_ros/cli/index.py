@@ -4,17 +4,9 @@ import argparse
 import time
 from typing import List, Optional
 
-from tqdm import tqdm
-
-from sik_ros.bundle import add_to_bundle, bundle_files
-from sik_ros.checkpoints import load_checkpoint
 from sik_ros.cli import argv_or_default, Parser, run_cli
-from sik_ros.dataset import Dataset
+from sik_ros.defaults import SEED_TABLE_ROWS, TableConfig
 from sik_ros.errors import ArtifactExists, InvalidArgument
-from sik_ros.index_table import TableConfig
-from sik_ros.indexing import build_table
-from sik_ros.robots import robot_from_manifest
-from sik_ros.seed_table import DEFAULT_ROWS, default_rows, SeedTable
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -39,7 +31,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument('--seeds', type=int,
                    help='with --bundle and a pose-goal model of an arm of six joints or '
                    'fewer: configurations of the seed table written into the bundle, where its '
-                   f'pose solutions start (default: {DEFAULT_ROWS:,}; 0: none new, a seed '
+                   f'pose solutions start (default: {SEED_TABLE_ROWS:,}; 0: none new, a seed '
                    'table the bundle has stays); ignored otherwise')
     p.add_argument('--force', action='store_true', help='replace an existing --out')
     p.add_argument('--quiet', action='store_true', help='no progress bar')
@@ -52,6 +44,15 @@ def main(argv: Optional[List[str]] = None) -> int:
 
     def body() -> int:
         from pathlib import Path
+
+        from tqdm import tqdm
+
+        from sik_ros.bundle import add_to_bundle, bundle_files
+        from sik_ros.checkpoints import load_checkpoint
+        from sik_ros.dataset import Dataset
+        from sik_ros.indexing import build_table
+        from sik_ros.robots import robot_from_manifest
+        from sik_ros.seed_table import default_rows, SeedTable
         out = Path(args.out)
         if out.exists() and not args.force:
             raise ArtifactExists(f'{out} already exists (use --force to replace it)')

@@ -2,16 +2,17 @@
 
 import argparse
 from pathlib import Path
-from typing import List, Optional, Tuple
+from typing import List, Optional, Tuple, TYPE_CHECKING
 
 import numpy as np
 
 from sik_ros.cli import argv_or_default, Parser, run_cli
-from sik_ros.collision import Obstacle
 from sik_ros.errors import InvalidArgument
-from sik_ros.solver import dumps, IKResult, SelectiveIK
 from sik_ros.solver.config import PATH_DEFAULTS
-from sik_ros.solver.results import tier_label
+from sik_ros.solver.results import dumps, IKResult, tier_label
+
+if TYPE_CHECKING:  # loaded in main(): it brings torch and Pinocchio
+    from sik_ros.solver.selective_ik import SelectiveIK
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -105,7 +106,7 @@ def read_waypoints(path: str) -> Tuple[np.ndarray, Optional[np.ndarray]]:
     return arr[:, :3], (arr[:, 3:] if arr.shape[1] == 7 else None)
 
 
-def solve_path_file(ik: SelectiveIK, args) -> int:
+def solve_path_file(ik: 'SelectiveIK', args) -> int:
     """``--path``: plan through the file's waypoints and print the ranked paths."""
     positions, quats = read_waypoints(args.path)
     res = ik.solve_path(positions, quats, seed=args.seed, num_paths=args.paths,
@@ -128,6 +129,8 @@ def main(argv: Optional[List[str]] = None) -> int:
     def body() -> int:
         if args.path is None and None in (args.x, args.y, args.z):
             raise InvalidArgument('give a target x y z, or --path FILE')
+        from sik_ros.collision import Obstacle
+        from sik_ros.solver import SelectiveIK
         ik = SelectiveIK.load(args.bundle)
         if args.path is not None:
             return solve_path_file(ik, args)

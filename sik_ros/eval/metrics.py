@@ -8,7 +8,8 @@ from typing import Sequence, Tuple
 
 import numpy as np
 
-from sik_ros.kinematics import chain_forward, Robot
+from sik_ros.chain import chain_forward
+from sik_ros.kinematics import Robot
 
 
 def arm_points(robot: Robot, q: np.ndarray) -> np.ndarray:

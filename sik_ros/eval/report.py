@@ -4,6 +4,7 @@ Every section reads the typed results of one run (:class:`sik_ros.eval.run.Resul
 a plain sentence (:func:`verdict`) whether ours is as good as the paper's figure.
 """
 
+from pathlib import Path
 import shlex
 from typing import Dict, List, Sequence
 
@@ -47,10 +48,28 @@ def report(res: Results, ik: SelectiveIK, baselines: Dict[str, Method], missing:
     return '\n'.join(lines) + '\n'
 
 
+def shown_path(path) -> str:
+    """A bundle's path as a report shows it: inside the package from its root, else by name.
+
+    A report is kept in a repository and read on other machines: the absolute path of the
+    machine that wrote it says nothing there.
+    """
+    path = Path(path).resolve()
+    package = Path(__file__).resolve().parents[2]
+    try:
+        return str(path.relative_to(package))
+    except ValueError:
+        pass
+    try:
+        return str(path.relative_to(Path.cwd()))
+    except ValueError:
+        return path.name
+
+
 def models_section(ik: SelectiveIK, baselines: Dict[str, Method], missing: Dict[str, str],
                    res: Results) -> List[str]:
     """Which models were evaluated."""
-    lines = ['## Models', '', f'Bundle `{ik.bundle}`:', '']
+    lines = ['## Models', '', f'Bundle `{shown_path(ik.bundle)}`:', '']
     for goal, h in res.histories.items():
         cfg = h.config
         last = h.history[-1] if h.history else {}

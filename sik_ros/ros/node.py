@@ -13,6 +13,7 @@ callback hands its request to :class:`~sik_ros.ros.guard.RequestGuard` with a ha
 """
 
 from dataclasses import fields, replace
+import gc
 import logging
 from typing import List, Optional
 
@@ -33,6 +34,7 @@ from sik_interfaces.srv import SolveIK, SolvePath
 from sik_ros.errors import SikError
 from sik_ros.robots import chain_differences
 from sik_ros.ros import conversions as conv
+from sik_ros.ros.diagnostics import NodeDiagnostics
 from sik_ros.ros.guard import RequestGuard
 from sik_ros.ros.ik_service import Arm, solution_msgs, solve_request, solver_settings
 from sik_ros.ros.params import declarations, NodeParams, validate
@@ -65,11 +67,14 @@ class StartupError(SikError):
 class SikNode(Node):
     """The IK node: loads a bundle, answers ``~/solve_ik``, ``~/solve_path`` and ``~/goal``."""
 
-    def __init__(self, workers: int = WORKERS, **kwargs):
+    def __init__(self, workers: int = WORKERS, managed: bool = False, **kwargs):
         """Declare the parameters, load the bundle, start the solvers, create the interfaces.
 
         Args:
             workers: executor threads (and solver clones without solver processes).
+            managed: leave the bundle and the solvers to :meth:`start` (a managed node's
+                configure transition, :mod:`sik_ros.ros.lifecycle`); requests are refused
+                until then.
             **kwargs: passed to :class:`rclpy.node.Node` (e.g. ``parameter_overrides``).
 
         Raises:
@@ -81,32 +86,57 @@ class SikNode(Node):
         self.workers = workers
         self._declare_parameters()
         self._params = self._read_parameters()
-        reason = validate(self._params)
-        if reason is not None:
-            raise StartupError(f'bad parameters: {reason}')
-        self._ik = self._load(self._params)
-        self.arm = Arm(self._ik.robot.base_frame, list(self._ik.joint_names))
         self.shutdown_grace = self._params.shutdown_grace
+        self._ik: Optional[SelectiveIK] = None
+        self.arm: Optional[Arm] = None
+        self.solvers: Optional[NodeSolvers] = None
         #: why requests are refused: the robot_description topic's chain differs from the bundle's
         self._mismatch: Optional[str] = None
+        self._description: Optional[str] = None
         self.guard = RequestGuard(self.get_logger())
         self.guard.refusals.append(self._mismatch_refusal)
-        try:
-            self.solvers = NodeSolvers(self._ik, self._params.solver_processes, workers,
-                                       self._log)
-        except SikError as exc:
-            raise StartupError(f'cannot start the solver processes: {exc}') from exc
-        self.get_logger().info(f'solvers warmed up in {self.solvers.warm_up_seconds:.2f} s')
+        self.diagnostics = NodeDiagnostics(self)
+        if not managed:
+            self.start()
         self._joint_state: Optional[JointState] = None
         self._joint_state_sub = None
         self.add_on_set_parameters_callback(self._on_set_parameters)
         self.add_post_set_parameters_callback(self._after_set_parameters)
         self._create_interfaces()
+
+    def start(self) -> None:
+        """Load the bundle, start and warm up the solvers.
+
+        Raises:
+            StartupError: bad parameter values, a missing, corrupt or mismatched bundle, or
+                solver processes that cannot start; nothing is left loaded.
+        """
+        reason = validate(self._params)
+        if reason is not None:
+            raise StartupError(f'bad parameters: {reason}')
+        ik = self._load(self._params)
+        try:
+            solvers = NodeSolvers(ik, self._params.solver_processes, self.workers, self._log)
+        except SikError as exc:
+            raise StartupError(f'cannot start the solver processes: {exc}') from exc
+        self.get_logger().info(f'solvers warmed up in {solvers.warm_up_seconds:.2f} s')
+        self._ik, self.solvers = ik, solvers
+        self.arm = Arm(ik.robot.base_frame, list(ik.joint_names))
+        if self._description is not None:
+            self._check_description(self._description)
         self.get_logger().info(
-            f'ready: bundle {self._ik.bundle} ({", ".join(self._ik.goals)} goals, '
-            f'{len(self._ik.joint_names)} joints {self._ik.robot.base_frame} -> '
-            f'{self._ik.robot.tip_frame}), {workers} executor threads, '
+            f'ready: bundle {ik.bundle} ({", ".join(ik.goals)} goals, '
+            f'{len(ik.joint_names)} joints {ik.robot.base_frame} -> '
+            f'{ik.robot.tip_frame}), {self.workers} executor threads, '
             f'{self._params.solver_processes} solver processes')
+
+    def stop(self) -> None:
+        """Stop the solvers and let go of the bundle (its models are freed)."""
+        solvers, self.solvers = self.solvers, None
+        self._ik, self.arm, self._mismatch = None, None, None
+        if solvers is not None:
+            solvers.close()
+        gc.collect()
 
     def _create_interfaces(self) -> None:
         group = ReentrantCallbackGroup()
@@ -211,7 +241,12 @@ class SikNode(Node):
             return str(exc)
 
     def _on_robot_description(self, msg: String) -> None:
-        reason = self._differences(self._ik.robot, msg.data)
+        self._description = msg.data
+        if self._ik is not None:
+            self._check_description(msg.data)
+
+    def _check_description(self, urdf: str) -> None:
+        reason = self._differences(self._ik.robot, urdf)
         self._mismatch = (f'the bundle {self._ik.bundle} does not fit the robot_description '
                           f'topic: {reason}') if reason else None
         if reason:
@@ -230,9 +265,14 @@ class SikNode(Node):
         return self._params
 
     @property
-    def ik(self) -> SelectiveIK:
-        """The loaded solver (the one the clones and processes are made from)."""
+    def ik(self) -> Optional[SelectiveIK]:
+        """The loaded solver (the one the clones and processes are made from); None unloaded."""
         return self._ik
+
+    @property
+    def robot_description_seen(self) -> bool:
+        """Whether the robot_description topic has published a URDF."""
+        return self._description is not None
 
     @property
     def mismatch(self) -> Optional[str]:
@@ -256,7 +296,9 @@ class SikNode(Node):
     # -- requests --------------------------------------------------------------------------------
 
     def _header(self) -> Header:
-        return Header(stamp=self.get_clock().now().to_msg(), frame_id=self.arm.base_frame)
+        arm = self.arm
+        return Header(stamp=self.get_clock().now().to_msg(),
+                      frame_id=arm.base_frame if arm is not None else '')
 
     def _state_seed(self) -> Optional[np.ndarray]:
         """Return the latest ``joint_states`` as a seed (clipped to the limits), or None."""
@@ -325,7 +367,10 @@ class SikNode(Node):
         self._joint_state = msg
 
     def destroy_node(self) -> None:
-        """Stop the solver processes, then destroy the node."""
+        """Log the request statistics, stop the solver processes, then destroy the node."""
+        diagnostics = getattr(self, 'diagnostics', None)
+        if diagnostics is not None:
+            diagnostics.log_summary()
         solvers = getattr(self, 'solvers', None)
         if solvers is not None:
             solvers.close()

@@ -132,6 +132,11 @@ SPECS: Tuple[ParamSpec, ...] = (
               'robot_description topic publishes one, a bundle whose chain differs from it is '
               'refused (read-only)',
               read_only=True),
+    ParamSpec('lifecycle', bool, False,
+              'a managed node (rclpy LifecycleNode): it starts unconfigured, loads the bundle '
+              'on configure and serves only while active (otherwise requests are answered '
+              'TIMEOUT with the state); false: it loads and serves at start-up (read-only)',
+              read_only=True),
 )
 #: The declarations by name.
 SPEC: Dict[str, ParamSpec] = {s.name: s for s in SPECS}

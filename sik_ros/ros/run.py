@@ -18,7 +18,8 @@ from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
 from rclpy.signals import SignalHandlerOptions
 
 from sik_ros.errors import SikError
-from sik_ros.ros.node import NODE_NAME, SikNode, SPIN_PERIOD
+from sik_ros.ros.lifecycle import make_node
+from sik_ros.ros.node import NODE_NAME, SPIN_PERIOD
 
 
 def _stop(signum, frame) -> None:
@@ -35,7 +36,7 @@ def main(args: Optional[List[str]] = None) -> int:
     signal.signal(signal.SIGTERM, _stop)
     try:
         rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
-        node = SikNode()
+        node = make_node()
     except KeyboardInterrupt:  # stopped during start-up: not a failure
         rclpy.try_shutdown()
         return 0
@@ -49,7 +50,7 @@ def main(args: Optional[List[str]] = None) -> int:
     executor = MultiThreadedExecutor(num_threads=node.workers)
     executor.add_node(node)
     try:
-        while rclpy.ok():
+        while rclpy.ok() and not getattr(node, 'finished', False):  # a managed node's shutdown
             try:
                 executor.spin_once(timeout_sec=SPIN_PERIOD)
             except (KeyboardInterrupt, ExternalShutdownException):

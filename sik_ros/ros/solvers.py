@@ -4,7 +4,8 @@ With ``solver_processes: 0`` each executor thread borrows a :meth:`SelectiveIK.c
 Pinocchio and coal data) from a pool of clones, so parallel requests never share mutable state.
 With solver processes, requests and paths go to a :class:`~sik_ros.solver_pool.SolverPool`;
 while the pool is short of a process (one is being restarted) and none is idle, a request is
-solved by the node's own solver instead of waiting for a process that may be slow to come back.
+solved by the node's own solver instead of waiting for a process that may be slow to come back;
+so is a request whose process died while serving it and whose retry found none.
 """
 
 from contextlib import contextmanager
@@ -14,7 +15,7 @@ import threading
 import time
 from typing import Any, Callable, Dict, Iterator, Optional
 
-from sik_ros.errors import SolverTimeout, SolverUnavailable
+from sik_ros.errors import SolverCrashed, SolverTimeout, SolverUnavailable
 from sik_ros.solver import IKResult, PathResult, SelectiveIK
 
 #: ``log(level, message)`` with :mod:`logging` levels.
@@ -72,12 +73,21 @@ class NodeSolvers:
 
     def _call(self, method: str, settings: Dict[str, Any], args, kwargs):
         if self._pool is not None:
+            start = time.monotonic()
             try:
                 return self._pool.call(method, settings, *args, **kwargs)
             except SolverTimeout:
                 raise
-            except SolverUnavailable:
-                self.fallbacks += 1  # a process is missing: the node solves it itself
+            except (SolverUnavailable, SolverCrashed):
+                # a process is missing, or died with the request: the node solves it itself,
+                # in what is left of the request's time
+                self.fallbacks += 1
+                if kwargs.get('timeout') is not None:
+                    left = kwargs['timeout'] - (time.monotonic() - start)
+                    if left <= 0:
+                        raise SolverTimeout('the solver processes could not serve this '
+                                            'request within its timeout') from None
+                    kwargs = dict(kwargs, timeout=left)
         with self._borrow(settings, kwargs.get('timeout')) as ik:
             return getattr(ik, method)(*args, **kwargs)
 

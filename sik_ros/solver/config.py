@@ -41,11 +41,8 @@ class SolverConfig:
         pose_candidates: the same for pose goals (the pose model's indices), counting the
             oriented postures below. 0 (the default) decodes the pose model's indices only where
             the oriented postures fall short of ``candidates_per_solution`` per solution asked
-            for (large requests, bundles without an orientation-aware position table):
-            measured (paired, 100 pose targets each), 4 of them cost 12-18 % of a 16-solution
-            call on the Panda, UR5, xArm7 and Kinova bundles (their table look-up and decode)
-            and 35 % of a single-solution one, for 0.1 more distinct solutions on the Panda
-            and none on the others.
+            for (large requests, bundles without an orientation-aware position table); see
+            docs/design.md for why.
         oriented_candidates: for pose goals, also this many postures from the position model:
             the indices of its table (when it keeps orientations) whose rows' tip orientations
             were nearest the goal's, decoded at the goal position, the last joint then turned
@@ -58,10 +55,7 @@ class SolverConfig:
         refine_iterations: most damped least squares iterations.
         damping: damping of the least squares steps.
         max_step: largest joint change per iteration [rad] (also per step of a path's
-            tracks onto the next waypoint). 0.6 with ``stall_after`` 4: paired on 300 UR5 and
-            200 Panda pose goals, 0.93x and 0.89x the time of 0.4 and 8 (UR5: 7.2 iterations
-            a call instead of 9.2, the same branches; Panda: 15.06 distinct solutions against
-            15.08); Cartesian paths (300 Panda, 150 UR5) the same success and travel.
+            tracks onto the next waypoint).
         distinct_threshold: solutions closer than this (L2 over the joints that move the tool
             centre point for position goals) are duplicates [rad]; below 2 pi.
         adjust_budget: decodes Algorithm 2 may spend adjusting an index.
@@ -96,16 +90,14 @@ class SolverConfig:
             with them).
         branch_restarts: pose goals of arms with six joints or fewer (isolated solutions, no
             self-motion): starts drawn uniformly in joint space and refined, for the branches
-            the candidates missed (0 disables it). 48: on the UR5 and Kinova bundles, 5.9 and
-            6.3 branches (mean of 100 targets) against 5.3 and 6.1 with 32, for 1.4-1.7 ms more.
-            Used where the seed table is not: bundles without one, or ``seed_starts`` 0.
+            the candidates missed (0 disables it). Used where the seed table is not: bundles
+            without one, or ``seed_starts`` 0.
         seed_starts: pose goals of arms with six joints or fewer whose bundle has a seed
             table (:mod:`sik_ros.seed_table`): up to this many starts from it, the dataset
             configurations nearest the goal pose chosen far apart in joint space (no two
             within ``seed_table.START_SPACING``, at least ``START_LEAST``), in place of
             the oriented and table postures and of the ``branch_restarts`` random ones (0: those
-            instead). Redundant arms get none: on the Panda, 500,000 seeds in place of the
-            oriented postures gave 0.97x the time for 16 pose solutions and 1.3x for one.
+            instead). Redundant arms get none (docs/design.md).
         seed_neighbours: the configurations nearest the goal pose (by tip position [m] and
             0.3 m per unit of quaternion distance) that those are chosen among.
     """

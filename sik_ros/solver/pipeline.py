@@ -1,5 +1,7 @@
 """One solve, stage by stage.
 
+0. one solution with a seed (default ranking): the seed refined alone first
+   (:func:`from_seed`); the stages below only when that gives no exact, free solution;
 1. candidates: the table's indices near the goal (the seed's own first) and, for pose goals,
    the position model's postures that had the goal's orientation;
 2. their postures (the table's decoded postures, or a decode at the goal; raw answers are
@@ -41,9 +43,8 @@ ORIENTED_MIN = 8
 
 #: Perturbed copies (and as many random configurations) refined when every exact solution
 #: found collides with the arm itself, in at most ``FREE_ROUNDS`` rounds of fresh draws for
-#: position goals (one for pose goals, none for those the seed table gave starts) (a Panda
-#: position goal 14 cm from the base axis had 3 free solutions of 32 and none after one round
-#: for 4 or 16 solutions; one after two).
+#: position goals (one for pose goals, none for those the seed table gave starts); goals near
+#: the base axis may need more than one round (docs/design.md).
 FREE_RESTARTS = 16
 FREE_ROUNDS = 3
 
@@ -60,9 +61,8 @@ def initial_postures(ctx: Context, goal: Goal, num: int, q_seed: Optional[np.nda
     Order: the seed itself, the seed's own posture (its index decoded), then the oriented ones
     (pose goals), then the table's. The seed and the oriented postures have no index of the
     goal's model yet: NaN, encoded once ranked. With ``seeded`` (isolated pose solutions whose
-    starts come from the seed table) only the seed and its own posture: measured on a UR5
-    bundle, the oriented and table postures found no branch the seed table's starts missed,
-    and cost 15 % of a call.
+    starts come from the seed table) only the seed and its own posture: the oriented and
+    table postures find no branch the seed table's starts miss (docs/design.md).
     """
     extra = oriented_postures(ctx, goal, oriented_count(ctx.config, num)) \
         if goal.kind == POSE and refined and not seeded else np.empty((0, ctx.robot.dof))
@@ -156,6 +156,28 @@ def seed_posture_first(ctx: Context, goal: Goal, own: Candidates, sols: List[Sol
     return (first + rest)[:num]
 
 
+def from_seed(ctx: Context, goal: Goal, q_seed: np.ndarray, obstacles: Sequence[Obstacle],
+              deadline: Optional[float]) -> Optional[IKResult]:
+    """One solution refined from the seed alone, or None when it is not exact and free.
+
+    A single solution ranked by its distance to the seed is nearly always the seed's own
+    posture refined onto the goal: that first, the table's candidates only when it does not
+    reach the goal or collides. Periodic joints take the turns nearest the seed.
+    """
+    r = refine(ctx, q_seed[None], goal, deadline)
+    c = assess(r.q, unindexed(r.q, ctx.models[goal.kind].table.indices.shape[1]), r.perr,
+               r.oerr, goal.kind, ctx.config)
+    if not c.exact[0]:
+        return None
+    if ctx.robot.periodic.any():
+        c = Candidates(nearest_turns(ctx, c.q, q_seed), c.z, c.perr, c.oerr, c.exact)
+    sols = rank(ctx, c, q_seed, obstacles, None, limit=1, deadline=deadline)
+    if not sols or sols[0].in_collision:
+        return None
+    fill_indices(ctx, goal, sols)
+    return IKResult(True, sols, goal.kind, r.cut_short)
+
+
 def solve(ctx: Context, goal: Goal, num: int, q_seed: Optional[np.ndarray],
           obstacles: Sequence[Obstacle], refined: bool, objective: Optional[Objective],
           deadline: Optional[float], first_found: bool = False) -> IKResult:
@@ -164,11 +186,18 @@ def solve(ctx: Context, goal: Goal, num: int, q_seed: Optional[np.ndarray],
     With ``first_found`` (a path's starts) refinement stops at the first ``num`` distinct
     exact solutions even with a seed (then ranked by it): the seed's own row may be left
     unfinished (a path's starts follow the seed onto the goal on their own). Their posture
-    indices are left unknown (NaN) unless obstacles need them (Algorithm 2). Paired on 300
-    Panda position paths, the ``num`` without the usual spare ones and no indices: 0.94x the
-    time, the same paths.
+    indices are left unknown (NaN) unless obstacles need them (Algorithm 2).
     """
     cfg = ctx.config
+    # one solution with a seed: the seed refined alone first; when that fails, the first exact
+    # solution of the other starts (the seed's own row and posture already tried), as without
+    # a seed, ranked by the seed
+    single = num == 1 and q_seed is not None and refined and objective is None and \
+        not first_found
+    if single:
+        result = from_seed(ctx, goal, q_seed, obstacles, deadline)
+        if result is not None:
+            return result
     # a goal far from every position in the data is out of reach: answer quickly
     far = not ctx.models[goal.kind].table.within(goal.position, cfg.reach_margin)
     # isolated solutions (a pose, six joints or fewer): no self-motion to walk along, each
@@ -176,7 +205,8 @@ def solve(ctx: Context, goal: Goal, num: int, q_seed: Optional[np.ndarray],
     # has one, else drawn at random
     isolated = goal.kind == POSE and not far and ctx.robot.dof <= 6 and refined
     seeds = ctx.models[goal.kind].seeds if isolated and cfg.seed_starts > 0 else None
-    c = initial_postures(ctx, goal, num, q_seed, refined, seeded=seeds is not None)
+    c = initial_postures(ctx, goal, num, None if single else q_seed, refined,
+                         seeded=seeds is not None)
     timed_out = False
     own = None
     if refined:
@@ -185,17 +215,17 @@ def solve(ctx: Context, goal: Goal, num: int, q_seed: Optional[np.ndarray],
         # ranked by the default objective, the first distinct exact solutions found are as
         # good as any: stop refining once there are enough (with ``first_found`` also with a
         # seed, the few found then ranked by it)
-        enough = None if ((q_seed is not None and not first_found) or obstacles
+        enough = None if ((q_seed is not None and not first_found and not single) or obstacles
                           or objective is not None or cfg.early_stop_margin < 0) \
             else num + (0 if first_found else spare(cfg, num))
         if seeds is not None:
             c = Candidates.concat(c, seed_starts(ctx, goal, seeds, cfg.seed_starts,
                                                  c.z.shape[1]))
-            enough = None
+            enough = enough if num == 1 else None  # every branch, unless one is asked for
         elif isolated and cfg.branch_restarts > 0:
             c = Candidates.concat(c, branch_starts(ctx, goal, cfg.branch_restarts,
                                                    c.z.shape[1]))
-            enough = None
+            enough = enough if num == 1 else None
         # starts from the seed table are far apart already: merging the few heading for one
         # solution saves less than it costs (UR5 0.95x, Kinova 0.96x the time without, the
         # same branches; 300 pose goals each)

@@ -14,7 +14,8 @@ from typing import List, Optional, Sequence
 import numpy as np
 
 from sik_ros.collision import Obstacle
-from sik_ros.index_table import pairwise_distances
+from sik_ros.kernels import as_arg
+from sik_ros.kernels.sets import distinct_rows
 from sik_ros.objectives import JointLimitMargin, Objective, SeedDistance
 from sik_ros.solver.batch import Candidates
 from sik_ros.solver.config import SolverConfig
@@ -57,30 +58,10 @@ def distinct_mask(q: np.ndarray, threshold: float, ignore_last: bool = False,
     """
     if len(q) < 2:
         return np.ones(len(q), dtype=bool)
-    cols = slice(0, q.shape[1] - 1) if ignore_last else slice(None)
-    if periodic is not None and periodic.any():
-        d = turn_differences(q[:, cols], periodic[cols])
-        dist = np.sqrt((d * d).sum(axis=2))
-    else:
-        dist = pairwise_distances(q[:, cols])
-    # earlier[j, i]: row j, before row i, is near it
-    earlier = np.triu(dist < threshold, 1)
-    contested = earlier.any(axis=0)
-    mask = ~contested  # rows near no earlier one are kept whatever the others
-    # rows near one of those are dropped whatever the others (the same posture found again);
-    # the rest in order: kept unless near an earlier kept one (a Python step for each)
-    undecided = contested & ~(earlier & mask[:, None]).any(axis=0)
-    for i in np.flatnonzero(undecided):
-        mask[i] = not (earlier[:i, i] & mask[:i]).any()
-    return mask
-
-
-def turn_differences(q: np.ndarray, periodic: np.ndarray) -> np.ndarray:
-    """(M, M, n) pairwise differences of rows, periodic joints' 2 pi turns taken out."""
-    d = q[:, None] - q[None]
-    # times the mask, not a masked assignment: the other joints lose 0.0, at a third of the time
-    d -= np.rint(d * (0.5 / np.pi)) * (2 * np.pi * periodic)
-    return d
+    n = q.shape[1]
+    turns = np.zeros(n, dtype=bool) if periodic is None else as_arg(periodic, bool)
+    return distinct_rows(as_arg(q), float(threshold),
+                         n - 1 if ignore_last else n, turns)
 
 
 def by_score(c: Candidates) -> Candidates:

@@ -1,20 +1,26 @@
-"""Refinement: batched damped least squares towards a goal, within the joint limits.
+"""Refinement: damped least squares towards a goal, within the joint limits (compiled).
 
-Every candidate takes steps ``J^T (J J^T + lambda^2 I)^-1 e`` on the chain's Jacobian at once;
-joints at a limit that the descent direction pushes further out leave the step (active set).
-Candidates that reach the goal, stall far from it, or head for the same solution as a better one
-stop early (see :class:`~sik_ros.solver.config.SolverConfig`).
+The starts are handed to :func:`sik_ros.kernels.dls.refine_rows`, which refines them row by row:
+steps ``J^T (J J^T + lambda^2 I)^-1 e`` on the chain's Jacobian; joints at a limit that the
+descent direction pushes further out leave the step (active set). A row stops when it reaches
+the goal, stalls or stays far from it, heads for the same solution as an earlier, better row,
+or at the deadline; all stop once enough distinct rows are exact (see
+:class:`~sik_ros.solver.config.SolverConfig`). :func:`follow` does the same for a path's tracks
+(:func:`sik_ros.kernels.dls.follow_rows`).
 """
 
 from dataclasses import dataclass
-import time
 from typing import Optional, Tuple
 
 import numpy as np
 
-from sik_ros.rotations import rotation_angle, rotation_log
+from sik_ros.kernels import as_arg, follow_rows, refine_rows
+from sik_ros.kernels.dls import INTS, REALS
+from sik_ros.rotations import rotation_angle
 from sik_ros.solver.context import Context, Goal
-from sik_ros.solver.ranking import distinct_mask, pose_score
+
+#: The rotation handed to the kernels with a position goal (not read).
+NO_ROTATION = np.eye(3)
 
 
 @dataclass(frozen=True)
@@ -83,140 +89,50 @@ def dls_step(j: np.ndarray, err: np.ndarray, lam2: float, eye: np.ndarray) -> np
     return (j.transpose(0, 2, 1) @ np.linalg.solve(jjt, err[..., None]))[..., 0]
 
 
-def limited_step(ctx: Context, q: np.ndarray, j: np.ndarray, err: np.ndarray, lam2: float,
-                 eye: np.ndarray, turn: bool = False) -> np.ndarray:
-    """``q`` (M, n) after one damped least squares step on ``err``, within the joint limits.
-
-    Joints at a limit that the descent direction ``J^T e`` pushes further out leave the step
-    (active set); a step is scaled down to ``config.max_step`` on its largest joint. With
-    ``turn`` (solving, not following a path, where a joint must not jump) a periodic joint (a
-    range of a whole turn or more) stepping past a limit is turned back by 2 pi instead: the
-    same placement, where a clamp would hold it against the limit.
-    """
-    robot = ctx.robot
-    lower, upper = robot.lower, robot.upper
-    turns = turn and robot.periodic.any()
-    # with ``turn`` a periodic joint is never held at a limit: it comes back in by a turn
-    bounded = ~robot.periodic if turns else True
-    at_lower, at_upper = (q <= lower + 1e-9) & bounded, (q >= upper - 1e-9) & bounded
-    if at_lower.any() or at_upper.any():
-        g = (j * err[:, :, None]).sum(axis=1)  # J^T e (no einsum: see rotation_log)
-        blocked = (at_lower & (g < 0)) | (at_upper & (g > 0))
-        j = j * ~blocked[:, None, :]
-    dq = dls_step(j, err, lam2, eye)
-    scale = np.maximum(1.0, np.abs(dq).max(axis=1) / ctx.config.max_step)
-    q = q + dq / scale[:, None]
-    if turns:
-        # the same placement of the arm, a turn back within the limits (a clamp there left
-        # rows stuck against +-2 pi: 4 of a UR5 pose call's 24 starts, refined 8 steps for
-        # nothing, measured with stall checks from step 8)
-        whole = 2 * np.pi * robot.periodic
-        q += whole * (q < lower) - whole * (q > upper)
-    return np.minimum(np.maximum(q, lower), upper)  # np.clip, without its wrapper's 5 us
-
-
 def refine(ctx: Context, q: np.ndarray, goal: Goal, deadline: Optional[float] = None,
            iterations: Optional[int] = None, prune: bool = False,
            enough: Optional[int] = None) -> Refined:
-    """Batched damped least squares from ``q`` (M, n) towards ``goal``, within the limits.
+    """Damped least squares from each row of ``q`` (M, n) towards ``goal``, within the limits.
 
-    With ``prune``, at the iterations in ``config.prune_at`` a candidate closer than
-    ``config.prune_radius`` to one with a lower error (converged ones included) stops there:
-    both are heading for the same solution, which the final duplicate removal would keep only
-    once. Its row is returned as it was when it stopped. With ``enough``, it stops as soon as
-    ``enough`` distinct rows meet the tolerances (the others are returned where they are, with
-    their errors). A periodic joint stepping past a limit is turned back by 2 pi (the same
-    placement; see :func:`limited_step`).
+    Rows are refined one after the other, in order. With ``prune``, at the iterations in
+    ``config.prune_at`` a row closer than ``config.prune_radius`` to an earlier one with a
+    lower error (converged ones included) stops there: both are heading for the same solution,
+    which the final duplicate removal would keep only once. Its row is returned as it was when
+    it stopped. With ``enough``, refinement stops as soon as ``enough`` distinct rows meet the
+    tolerances (the rows after them are returned as they were, with their errors). A periodic
+    joint stepping past a limit is turned back by 2 pi (the same placement, where a clamp would
+    hold it against the limit).
 
     Args:
         ctx: the solver's parts.
         q: starting configurations (M, n) [rad].
         goal: the target.
         deadline: a ``time.perf_counter()`` value after which no iteration starts.
-        iterations: most iterations (default: ``config.refine_iterations``).
-        prune: merge candidates heading for the same solution.
-        enough: stop once this many distinct candidates are exact.
+        iterations: most iterations per row (default: ``config.refine_iterations``).
+        prune: stop rows heading for the same solution as an earlier, better one.
+        enough: stop once this many distinct rows are exact.
     """
-    cfg = ctx.config
-    pos, rot = goal.position, goal.rotation
-    q = q.copy()
-    n = len(q)
-    rows = 3 if rot is None else 6
-    lam2 = cfg.damping ** 2
-    eye = np.eye(rows)
-    active = np.ones(n, dtype=bool)
-    given_up = np.zeros(n, dtype=bool)
-    perr_all, oerr_all = np.full(n, np.inf), np.zeros(n)
-    stale = np.ones(n, dtype=bool)  # rows moved since their errors were computed
-    score = np.full(n, np.inf)  # latest error of each row, to choose between neighbours
-    window = cfg.stall_window
-    history = np.full((window, n), np.inf)  # errors of the last ``window`` iterations
-    exact = np.zeros(n, dtype=bool)
-    cut_short = False
-    roll_free = ctx.ignores_last(goal.kind)
-    for it in range(iterations or cfg.refine_iterations):
-        if prune and it in cfg.prune_at:
-            alive = np.flatnonzero(~given_up)
-            order = alive[np.argsort(score[alive], kind='stable')]
-            keep = distinct_mask(q[order], cfg.prune_radius, ctx.ignores_last(goal.kind))
-            active[order[~keep]] = False
-        idx = np.flatnonzero(active)
-        if len(idx) == 0:
-            break
-        if deadline is not None and time.perf_counter() > deadline:
-            cut_short = True
-            break
-        p, r, jac = ctx.robot.jacobian_loop(q[idx], ctx.data)
-        err = pos - p
-        perr = np.sqrt((err * err).sum(1))
-        done = perr < cfg.position_tolerance * 0.5
-        stuck = perr > 10 * cfg.position_tolerance
-        if rot is not None:
-            rot_err = rotation_log(rot @ r.transpose(0, 2, 1))
-            oerr = np.sqrt((rot_err * rot_err).sum(1))
-            err = np.concatenate([err, rot_err], axis=1)
-            done &= oerr < cfg.orientation_tolerance * 0.5
-            stuck |= oerr > 10 * cfg.orientation_tolerance
-            oerr_all[idx] = oerr
-            score[idx] = pose_score(perr, oerr)
-        else:
-            score[idx] = perr
-        perr_all[idx] = perr
-        stale[idx] = False
-        if enough and done.any():
-            exact[idx[done]] = True
-            found = np.flatnonzero(exact)
-            if len(found) >= enough and (
-                    distinct_mask(q[found], cfg.distinct_threshold, roll_free).sum() >= enough):
-                break
-        if window and it >= max(window, cfg.stall_after):
-            # hardly closer than ``window`` iterations ago: stalled (near a solution the steps
-            # converge fast; a row that does not is held by a joint limit or a singularity)
-            stalled = ~done & (score[idx] > cfg.stall_ratio * history[it % window, idx])
-        else:
-            stalled = None
-        if window:
-            history[it % window, idx] = score[idx]
-        if it >= cfg.give_up_after or (stalled is not None and stalled.any()):
-            # far from the goal this late: a local minimum or a joint limit, not worth more
-            if it < cfg.give_up_after:
-                stuck = stalled
-            elif stalled is not None:
-                stuck = stuck | stalled
-            given_up[idx[stuck & ~done]] = True
-            done |= stuck
-        if done.any():
-            active[idx[done]] = False
-            go = ~done
-            if not go.any():
-                continue
-            idx, jac, err = idx[go], jac[go], err[go]
-        q[idx] = limited_step(ctx, q[idx], jac[:, :rows], err, lam2, eye, turn=True)
-        stale[idx] = True
-    moved = np.flatnonzero(stale)
-    if len(moved):
-        perr_all[moved], oerr_all[moved] = errors(ctx, q[moved], goal)
-    return Refined(q, perr_all, oerr_all, cut_short)
+    cfg, robot = ctx.config, ctx.robot
+    q = np.array(q, dtype=float, order='C')
+    m = len(q)
+    perr, oerr, status = np.empty(m), np.empty(m), np.empty(m, dtype=np.int8)
+    settings = {'position_tolerance': cfg.position_tolerance,
+                'orientation_tolerance': cfg.orientation_tolerance,
+                'damping2': cfg.damping ** 2, 'max_step': cfg.max_step,
+                'stall_ratio': cfg.stall_ratio, 'prune_radius': cfg.prune_radius,
+                'distinct_threshold': cfg.distinct_threshold,
+                'deadline': np.inf if deadline is None else deadline,
+                'iterations': iterations or cfg.refine_iterations,
+                'stall_window': cfg.stall_window, 'stall_after': cfg.stall_after,
+                'give_up_after': cfg.give_up_after, 'enough': enough or 0, 'prune': int(prune),
+                'roll_free': int(ctx.ignores_last(goal.kind))}
+    pose = goal.rotation is not None
+    cut = refine_rows(robot.frames, robot.lower, robot.upper, robot.periodic, q,
+                      as_arg(goal.position), as_arg(goal.rotation) if pose else NO_ROTATION,
+                      pose, np.array([settings[k] for k in REALS], dtype=float),
+                      np.array([settings[k] for k in INTS], dtype=np.int64),
+                      np.array(cfg.prune_at, dtype=np.int64), perr, oerr, status)
+    return Refined(q, perr, oerr, bool(cut))
 
 
 def follow(ctx: Context, q: np.ndarray, start: Evaluation, goal: Goal, iterations: int,
@@ -224,9 +140,9 @@ def follow(ctx: Context, q: np.ndarray, start: Evaluation, goal: Goal, iteration
     """Configurations near ``goal`` refined onto it, carrying their evaluations: a lean refine.
 
     For a path's tracks, each a small step from the next waypoint: no merging, stalling or
-    giving up to watch for. Each iteration takes the rows' errors from their evaluation; the
-    rows within the tolerances stop, the others take a :func:`limited_step` and are evaluated
-    again (one Pinocchio call per row, whose Jacobian the next waypoint's first step uses).
+    giving up to watch for. Each row's error comes from its evaluation; a row within the
+    tolerances stops, the others take a step (no turns of periodic joints: a path's joint must
+    not jump) and are evaluated again, whose Jacobian the next waypoint's first step uses.
     The first step is taken on the Jacobian extrapolated to the step's midpoint
     (``jac + djac / 2``): along a path the residual left is then of third order, within the
     tolerances after one step nearly always (one evaluation per waypoint), where a plain
@@ -243,48 +159,21 @@ def follow(ctx: Context, q: np.ndarray, start: Evaluation, goal: Goal, iteration
     Returns:
         the indices of the exact rows (K,), in order, the rows (K, n) and their evaluation.
     """
-    cfg = ctx.config
-    dims = 3 if goal.rotation is None else 6
-    lam2, eye = cfg.damping ** 2, np.eye(dims)
-    tol2, otol2 = cfg.position_tolerance ** 2, cfg.orientation_tolerance ** 2
-    # the rows still going (``act``) and theirs; finished rows go to ``parts``
-    act, aq, ap, ar, aj, dj = np.arange(len(q)), q, start.p, start.r, start.jac, start.djac
-    pos, rot = goal.position, goal.rotation
-    per_row = pos.ndim == 2
-    parts = []
-    for it in range(iterations + 1):
-        err = pos - ap
-        ok = np.einsum('ij,ij->i', err, err) <= tol2
-        if rot is not None:
-            rot_err = rotation_log(rot @ ar.transpose(0, 2, 1))
-            ok &= np.einsum('ij,ij->i', rot_err, rot_err) <= otol2
-            err = np.concatenate([err, rot_err], axis=1)
-        if ok.all():
-            parts.append((act, aq, ap, ar, aj, it > 0))
-            break
-        if ok.any():
-            parts.append((act[ok], aq[ok], ap[ok], ar[ok], aj[ok], it > 0))
-            go = ~ok
-            act, aq, ap, ar, aj, dj, err = act[go], aq[go], ap[go], ar[go], aj[go], dj[go], err[go]
-            if per_row:
-                pos, rot = pos[go], None if rot is None else rot[go]
-        if it == iterations or (deadline is not None and time.perf_counter() > deadline):
-            break
-        j = aj[:, :dims] + 0.5 * dj[:, :dims] if it == 0 else aj[:, :dims]
-        aq = limited_step(ctx, aq, j, err, lam2, eye)
-        ap, ar, aj = ctx.robot.jacobian_loop(aq, ctx.data)
-    if not parts:
-        rows = np.empty(0, dtype=int)
-        return rows, q[:0], start.rows(rows)
-    if len(parts) == 1:
-        rows, qf, pf, rf, jf, _ = parts[0]
-    else:
-        order = np.concatenate([part[0] for part in parts])
-        sort = np.argsort(order, kind='stable')
-        rows, qf, pf, rf, jf = (np.concatenate([part[k] for part in parts])[sort]
-                                for k in range(5))
-    djac = jf - start.jac[rows]
-    if not parts[0][5]:  # rows exact where they were keep their last change
-        first = np.isin(rows, parts[0][0])
-        djac[first] = start.djac[rows[first]]
-    return rows, qf, Evaluation(pf, rf, jf, djac)
+    cfg, robot = ctx.config, ctx.robot
+    m = len(q)
+    q = np.array(q, dtype=float, order='C')
+    p, r, jac = (np.array(a, dtype=float, order='C') for a in (start.p, start.r, start.jac))
+    pose = goal.rotation is not None
+    pos = as_arg(np.reshape(goal.position, (-1, 3)))
+    rot = as_arg(np.reshape(goal.rotation, (-1, 3, 3))) if pose else NO_ROTATION[None]
+    ok, steps = np.empty(m, dtype=bool), np.empty(m, dtype=np.int64)
+    follow_rows(robot.frames, robot.lower, robot.upper, q, p, r, jac,
+                as_arg(start.djac), pos, rot, pose,
+                goal.position.ndim == 2, cfg.position_tolerance ** 2,
+                cfg.orientation_tolerance ** 2, cfg.damping ** 2, cfg.max_step, iterations,
+                np.inf if deadline is None else deadline, ok, steps)
+    rows = np.flatnonzero(ok)
+    jac = jac[rows]
+    # a row exact where it was keeps its last change
+    djac = np.where(steps[rows, None, None] > 0, jac - start.jac[rows], start.djac[rows])
+    return rows, q[rows], Evaluation(p[rows], r[rows], jac, djac)

@@ -1,0 +1,137 @@
+"""Compiled forward kinematics and geometric Jacobians of a revolute serial chain.
+
+The chain is one array ``frames`` (n + 2, 4, 3) (:func:`chain_frames`): rows 0-2 of
+``frames[i]`` are joint ``i``'s rotation in its parent joint's frame and row 3 its translation
+[m]; ``frames[n]`` is the base (the world in the base frame), ``frames[n + 1]`` the tip in the
+last joint's frame. Every joint turns about its own z axis (:class:`~sik_ros.chain.SerialChain`),
+so a joint's rotation mixes two columns of the running rotation. The kernels keep the running
+placement in scalars (no allocation per joint) and write into arrays the caller owns.
+"""
+
+import math
+
+from numba import njit
+import numpy as np
+
+from sik_ros.chain import SerialChain
+
+
+def chain_frames(chain: SerialChain) -> np.ndarray:
+    """The kernels' ``frames`` array (n + 2, 4, 3) of a chain (C-contiguous float64)."""
+    n = chain.dof
+    frames = np.zeros((n + 2, 4, 3))
+    frames[:n, :3] = chain.joint_rotations
+    frames[:n, 3] = chain.joint_translations
+    frames[n, :3], frames[n, 3] = chain.base_rotation, chain.base_translation
+    frames[n + 1, :3], frames[n + 1, 3] = chain.tip_rotation, chain.tip_translation
+    return np.ascontiguousarray(frames)
+
+
+@njit(cache=True, nogil=True)
+def place(frames, q, p, r, jac, with_jac):  # pragma: no cover (compiled)
+    """Tip position ``p`` (3,) [m], rotation ``r`` (3, 3) and, ``with_jac``, the Jacobian.
+
+    ``jac`` (6, n): the tip's linear [m/rad] then angular velocity per joint velocity, in the
+    base frame, taken at the tip (Pinocchio's ``LOCAL_WORLD_ALIGNED``).
+    """
+    n = q.shape[0]
+    b = frames[n]
+    r00, r01, r02 = b[0, 0], b[0, 1], b[0, 2]
+    r10, r11, r12 = b[1, 0], b[1, 1], b[1, 2]
+    r20, r21, r22 = b[2, 0], b[2, 1], b[2, 2]
+    px, py, pz = b[3, 0], b[3, 1], b[3, 2]
+    for i in range(n):
+        f = frames[i]
+        t0, t1, t2 = f[3, 0], f[3, 1], f[3, 2]
+        px += r00 * t0 + r01 * t1 + r02 * t2
+        py += r10 * t0 + r11 * t1 + r12 * t2
+        pz += r20 * t0 + r21 * t1 + r22 * t2
+        a00 = r00 * f[0, 0] + r01 * f[1, 0] + r02 * f[2, 0]
+        a01 = r00 * f[0, 1] + r01 * f[1, 1] + r02 * f[2, 1]
+        a02 = r00 * f[0, 2] + r01 * f[1, 2] + r02 * f[2, 2]
+        a10 = r10 * f[0, 0] + r11 * f[1, 0] + r12 * f[2, 0]
+        a11 = r10 * f[0, 1] + r11 * f[1, 1] + r12 * f[2, 1]
+        a12 = r10 * f[0, 2] + r11 * f[1, 2] + r12 * f[2, 2]
+        a20 = r20 * f[0, 0] + r21 * f[1, 0] + r22 * f[2, 0]
+        a21 = r20 * f[0, 1] + r21 * f[1, 1] + r22 * f[2, 1]
+        a22 = r20 * f[0, 2] + r21 * f[1, 2] + r22 * f[2, 2]
+        c, s = math.cos(q[i]), math.sin(q[i])
+        r00, r01, r02 = c * a00 + s * a01, c * a01 - s * a00, a02
+        r10, r11, r12 = c * a10 + s * a11, c * a11 - s * a10, a12
+        r20, r21, r22 = c * a20 + s * a21, c * a21 - s * a20, a22
+        if with_jac:
+            jac[0, i], jac[1, i], jac[2, i] = px, py, pz  # the joint's origin, for now
+            jac[3, i], jac[4, i], jac[5, i] = r02, r12, r22
+    t = frames[n + 1]
+    px += r00 * t[3, 0] + r01 * t[3, 1] + r02 * t[3, 2]
+    py += r10 * t[3, 0] + r11 * t[3, 1] + r12 * t[3, 2]
+    pz += r20 * t[3, 0] + r21 * t[3, 1] + r22 * t[3, 2]
+    p[0], p[1], p[2] = px, py, pz
+    for k in range(3):
+        r[0, k] = r00 * t[0, k] + r01 * t[1, k] + r02 * t[2, k]
+        r[1, k] = r10 * t[0, k] + r11 * t[1, k] + r12 * t[2, k]
+        r[2, k] = r20 * t[0, k] + r21 * t[1, k] + r22 * t[2, k]
+    if with_jac:
+        for i in range(n):
+            dx, dy, dz = px - jac[0, i], py - jac[1, i], pz - jac[2, i]
+            ax, ay, az = jac[3, i], jac[4, i], jac[5, i]
+            jac[0, i] = ay * dz - az * dy
+            jac[1, i] = az * dx - ax * dz
+            jac[2, i] = ax * dy - ay * dx
+
+
+#: The kernels' argument types (C-contiguous float64 arrays), compiled when this module loads.
+F1, F2, F3 = 'float64[::1]', 'float64[:, ::1]', 'float64[:, :, ::1]'
+
+
+@njit(f'void({F3}, {F2}, {F2}, {F3})', cache=True, nogil=True)
+def fk_many(frames, q, p, r):  # pragma: no cover (compiled)
+    """Tip positions ``p`` (M, 3) [m] and rotations ``r`` (M, 3, 3) of ``q`` (M, n) [rad]."""
+    dummy = np.empty((6, 0))
+    for k in range(q.shape[0]):
+        place(frames, q[k], p[k], r[k], dummy, False)
+
+
+@njit(f'void({F3}, {F2}, {F2}, {F3}, {F3})', cache=True, nogil=True)
+def jac_many(frames, q, p, r, jac):  # pragma: no cover (compiled)
+    """:func:`fk_many` and the Jacobians ``jac`` (M, 6, n) (see :func:`place`)."""
+    for k in range(q.shape[0]):
+        place(frames, q[k], p[k], r[k], jac[k], True)
+
+
+@njit(cache=True, nogil=True)
+def rotation_error(goal, r, out):  # pragma: no cover (compiled)
+    """``out`` (3,): the rotation vector log(goal r^T) [rad]; returns its norm [rad]."""
+    g = goal
+    m00 = g[0, 0] * r[0, 0] + g[0, 1] * r[0, 1] + g[0, 2] * r[0, 2]
+    m01 = g[0, 0] * r[1, 0] + g[0, 1] * r[1, 1] + g[0, 2] * r[1, 2]
+    m02 = g[0, 0] * r[2, 0] + g[0, 1] * r[2, 1] + g[0, 2] * r[2, 2]
+    m10 = g[1, 0] * r[0, 0] + g[1, 1] * r[0, 1] + g[1, 2] * r[0, 2]
+    m11 = g[1, 0] * r[1, 0] + g[1, 1] * r[1, 1] + g[1, 2] * r[1, 2]
+    m12 = g[1, 0] * r[2, 0] + g[1, 1] * r[2, 1] + g[1, 2] * r[2, 2]
+    m20 = g[2, 0] * r[0, 0] + g[2, 1] * r[0, 1] + g[2, 2] * r[0, 2]
+    m21 = g[2, 0] * r[1, 0] + g[2, 1] * r[1, 1] + g[2, 2] * r[1, 2]
+    m22 = g[2, 0] * r[2, 0] + g[2, 1] * r[2, 1] + g[2, 2] * r[2, 2]
+    vx, vy, vz = 0.5 * (m21 - m12), 0.5 * (m02 - m20), 0.5 * (m10 - m01)
+    sin = math.sqrt(vx * vx + vy * vy + vz * vz)
+    cos = min(max((m00 + m11 + m22 - 1.0) * 0.5, -1.0), 1.0)
+    angle = math.atan2(sin, cos)
+    if sin < 1e-6 and cos < 0.0:
+        # near pi the skew part vanishes: the axis from (m + I) / 2 = a a^T, its largest
+        # diagonal entry's column
+        if m00 >= m11 and m00 >= m22:
+            top = math.sqrt(max((m00 + 1.0) * 0.5, 1e-300))
+            ax, ay, az = top, (m10 + m01) * 0.25 / top, (m20 + m02) * 0.25 / top
+        elif m11 >= m22:
+            top = math.sqrt(max((m11 + 1.0) * 0.5, 1e-300))
+            ax, ay, az = (m01 + m10) * 0.25 / top, top, (m21 + m12) * 0.25 / top
+        else:
+            top = math.sqrt(max((m22 + 1.0) * 0.5, 1e-300))
+            ax, ay, az = (m02 + m20) * 0.25 / top, (m12 + m21) * 0.25 / top, top
+        if ax * vx + ay * vy + az * vz < 0.0:
+            ax, ay, az = -ax, -ay, -az
+        out[0], out[1], out[2] = ax * angle, ay * angle, az * angle
+        return angle
+    scale = angle / sin if sin > 1e-9 else 1.0
+    out[0], out[1], out[2] = vx * scale, vy * scale, vz * scale
+    return sin * scale

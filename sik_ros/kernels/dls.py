@@ -1,0 +1,281 @@
+"""Compiled damped least squares: refinement and path following, row by row.
+
+Every row (a starting configuration) takes steps ``J^T (J J^T + lambda^2 I)^-1 e`` on the
+chain's Jacobian (:mod:`sik_ros.kernels.chain`) until it stops; then the next row starts. Joints
+at a limit that the descent direction pushes further out leave the step (active set), a step is
+scaled down to ``max_step`` on its largest joint, and while solving (not following a path) a
+periodic joint stepping past a limit is turned back by 2 pi. A row stops when it converges, when
+it stalls or stays far from the goal, when it heads for a solution an earlier row found
+(pruning), or at the deadline; :func:`refine_rows` stops every row once ``enough`` distinct rows
+converged. The kernels release the GIL: threads solve in parallel.
+"""
+
+import math
+
+from numba import njit
+import numpy as np
+
+from sik_ros.kernels.chain import F1, F2, F3, place, rotation_error
+from sik_ros.kernels.clock import monotonic
+
+#: Row outcomes of :func:`refine_rows` (``status``).
+UNTOUCHED, CONVERGED, GIVEN_UP, ITERATIONS, PRUNED, DEADLINE = range(6)
+#: Metres of position error one radian of orientation error counts as in a row's score.
+ORIENTATION_WEIGHT = 0.1
+#: The positions of :func:`refine_rows`'s ``reals`` and ``ints`` arguments.
+REALS = ('position_tolerance', 'orientation_tolerance', 'damping2', 'max_step', 'stall_ratio',
+         'prune_radius', 'distinct_threshold', 'deadline')
+INTS = ('iterations', 'stall_window', 'stall_after', 'give_up_after', 'enough', 'prune',
+        'roll_free')
+
+
+@njit(cache=True, nogil=True)
+def goal_error(pos, rot, pose, p, r, err):  # pragma: no cover (compiled)
+    """``err`` (6,): the position error (and rotation vector) to the goal; their norms."""
+    err[0], err[1], err[2] = pos[0] - p[0], pos[1] - p[1], pos[2] - p[2]
+    perr = math.sqrt(err[0] * err[0] + err[1] * err[1] + err[2] * err[2])
+    oerr = rotation_error(rot, r, err[3:]) if pose else 0.0
+    return perr, oerr
+
+
+@njit(cache=True, nogil=True)
+def limited_step(q, jac, err, dims, lower, upper, periodic, turn, lam2, max_step,
+                 jm, a, x):  # pragma: no cover (compiled)
+    """``q`` (n,) after one damped least squares step on ``err``, within the limits (in place).
+
+    ``jm`` (6, n), ``a`` (6, 6), ``x`` (6,): work arrays. ``jac`` is left as it is.
+    """
+    n = q.shape[0]
+    for j in range(n):
+        free = not (turn and periodic[j])
+        blocked = False
+        if free and (q[j] <= lower[j] + 1e-9 or q[j] >= upper[j] - 1e-9):
+            g = 0.0
+            for i in range(dims):
+                g += jac[i, j] * err[i]
+            blocked = (q[j] <= lower[j] + 1e-9 and g < 0.0) or \
+                (q[j] >= upper[j] - 1e-9 and g > 0.0)
+        for i in range(dims):
+            jm[i, j] = 0.0 if blocked else jac[i, j]
+    # Cholesky of J J^T + lambda^2 I, in place in ``a``
+    for i in range(dims):
+        for k in range(i + 1):
+            s = 0.0
+            for j in range(n):
+                s += jm[i, j] * jm[k, j]
+            a[i, k] = s
+        a[i, i] += lam2
+    for j in range(dims):
+        s = a[j, j]
+        for k in range(j):
+            s -= a[j, k] * a[j, k]
+        d = math.sqrt(s)
+        a[j, j] = d
+        for i in range(j + 1, dims):
+            s = a[i, j]
+            for k in range(j):
+                s -= a[i, k] * a[j, k]
+            a[i, j] = s / d
+    for i in range(dims):
+        s = err[i]
+        for k in range(i):
+            s -= a[i, k] * x[k]
+        x[i] = s / a[i, i]
+    for i in range(dims - 1, -1, -1):
+        s = x[i]
+        for k in range(i + 1, dims):
+            s -= a[k, i] * x[k]
+        x[i] = s / a[i, i]
+    biggest = 0.0
+    for j in range(n):
+        s = 0.0
+        for i in range(dims):
+            s += jm[i, j] * x[i]
+        jm[0, j] = s  # the step, kept in the first row
+        biggest = max(biggest, abs(s))
+    scale = 1.0 / max(1.0, biggest / max_step)
+    for j in range(n):
+        v = q[j] + jm[0, j] * scale
+        if turn and periodic[j]:
+            if v < lower[j]:
+                v += 2.0 * math.pi
+            elif v > upper[j]:
+                v -= 2.0 * math.pi
+        q[j] = min(max(v, lower[j]), upper[j])
+
+
+@njit(cache=True, nogil=True)
+def _near_better(q, row, score, status, radius, cols):  # pragma: no cover (compiled)
+    """Whether an earlier row (not given up) with a lower score lies within ``radius``."""
+    for k in range(row):
+        if status[k] == GIVEN_UP or status[k] == UNTOUCHED or score[k] > score[row]:
+            continue
+        d = 0.0
+        for j in range(cols):
+            v = q[row, j] - q[k, j]
+            d += v * v
+        if d < radius * radius:
+            return True
+    return False
+
+
+@njit(f'boolean({F3}, {F1}, {F1}, boolean[::1], {F2}, {F1}, {F2}, boolean, {F1}, int64[::1], '
+      f'int64[::1], {F1}, {F1}, int8[::1])', cache=True, nogil=True)
+def refine_rows(frames, lower, upper, periodic, q, pos, rot, pose, reals, ints, prune_at,
+                perr, oerr, status):  # pragma: no cover (compiled)
+    """Damped least squares from each row of ``q`` (M, n) towards a goal, in place.
+
+    Args:
+        frames: the chain (:func:`~sik_ros.kernels.chain.chain_frames`).
+        lower, upper: joint limits (n,) [rad]; periodic: (n,) bool, joints spanning a turn.
+        q: starts (M, n) [rad], refined in place, row by row in order.
+        pos: goal position (3,) [m]; rot: goal rotation (3, 3) (read when ``pose``).
+        reals: float64 values named by :data:`REALS` (``damping2``: the damping squared;
+            ``deadline``: a ``time.perf_counter()`` value, inf for none).
+        ints: int64 values named by :data:`INTS` (``enough`` 0: no early stop; ``prune`` and
+            ``roll_free`` 0 or 1: the last joint left out of the distances).
+        prune_at: iterations at which a row near an earlier, better one stops (int64).
+        perr, oerr: out (M,): the rows' position [m] and orientation [rad] errors.
+        status: out (M,) int8, each row's outcome (:data:`CONVERGED`, ...).
+
+    Returns:
+        whether the deadline stopped refinement before every row had finished.
+    """
+    tol_p, tol_o, lam2, max_step = reals[0], reals[1], reals[2], reals[3]
+    stall_ratio, radius, distinct, deadline = reals[4], reals[5], reals[6], reals[7]
+    iterations, window, stall_after, give_up_after = ints[0], ints[1], ints[2], ints[3]
+    enough, prune, roll_free = ints[4], ints[5] != 0, ints[6] != 0
+    m, n = q.shape
+    dims = 6 if pose else 3
+    cols = n - 1 if roll_free else n
+    timed = deadline < np.inf
+    p, r = np.empty(3), np.empty((3, 3))
+    jac, jm, a = np.empty((6, n)), np.empty((6, n)), np.empty((6, 6))
+    err, x = np.empty(6), np.empty(6)
+    history = np.empty(max(window, 1))
+    score = np.full(m, np.inf)
+    found = np.empty(m, dtype=np.int64)
+    stale = np.ones(m, dtype=np.bool_)
+    nfound = 0
+    cut = False
+    for row in range(m):
+        status[row] = UNTOUCHED
+        perr[row], oerr[row] = np.inf, 0.0
+    for row in range(m):
+        if cut or (enough > 0 and nfound >= enough):
+            break
+        qi = q[row]
+        status[row] = ITERATIONS
+        history[:] = np.inf
+        for it in range(iterations):
+            if prune:
+                hit = False
+                for v in prune_at:
+                    hit = hit or v == it
+                if hit and _near_better(q, row, score, status, radius, cols):
+                    status[row] = PRUNED
+                    break
+            if timed and monotonic() > deadline:
+                cut = True
+                status[row] = DEADLINE
+                break
+            place(frames, qi, p, r, jac, True)
+            pe, oe = goal_error(pos, rot, pose, p, r, err)
+            perr[row], oerr[row] = pe, oe
+            stale[row] = False
+            s = pe + ORIENTATION_WEIGHT * oe
+            score[row] = s
+            done = pe < tol_p * 0.5 and (not pose or oe < tol_o * 0.5)
+            stuck = pe > 10.0 * tol_p or (pose and oe > 10.0 * tol_o)
+            stalled = False
+            if window > 0:
+                if it >= max(window, stall_after):
+                    # hardly closer than ``window`` iterations ago
+                    stalled = not done and s > stall_ratio * history[it % window]
+                history[it % window] = s
+            if it >= give_up_after or stalled:
+                stuck = stalled if it < give_up_after else (stuck or stalled)
+                if stuck and not done:
+                    status[row] = GIVEN_UP
+                    break
+            if done:
+                status[row] = CONVERGED
+                break
+            limited_step(qi, jac, err, dims, lower, upper, periodic, True, lam2, max_step,
+                         jm, a, x)
+            stale[row] = True
+        if status[row] == CONVERGED and enough > 0:
+            new = True
+            for k in range(nfound):
+                d = 0.0
+                for j in range(cols):
+                    v = qi[j] - q[found[k], j]
+                    d += v * v
+                if d < distinct * distinct:
+                    new = False
+                    break
+            if new:
+                found[nfound] = row
+                nfound += 1
+    for row in range(m):
+        if stale[row]:
+            place(frames, q[row], p, r, jac, False)
+            perr[row], oerr[row] = goal_error(pos, rot, pose, p, r, err)
+    return cut
+
+
+@njit(f'void({F3}, {F1}, {F1}, {F2}, {F2}, {F3}, {F3}, {F3}, {F2}, {F3}, boolean, boolean, '
+      f'float64, float64, float64, float64, int64, float64, boolean[::1], int64[::1])',
+      cache=True, nogil=True)
+def follow_rows(frames, lower, upper, q, p, r, jac, djac, pos, rot, pose, per_row, tol2,
+                otol2, lam2, max_step, iterations, deadline, ok,
+                steps):  # pragma: no cover (compiled)
+    """Rows near their goal refined onto it, their evaluations carried along (in place).
+
+    Each row's error comes from its evaluation ``p`` (M, 3), ``r`` (M, 3, 3), ``jac``
+    (M, 6, n); a row within the tolerances (squared: ``tol2`` [m^2], ``otol2`` [rad^2]) stops
+    there, the others take a step (the first on ``jac + djac / 2``, the Jacobian extrapolated
+    to the step's midpoint), no turns of periodic joints, and are evaluated again (``q``, ``p``,
+    ``r``, ``jac`` updated in place), at most ``iterations`` steps. Goals: ``pos`` (G, 3),
+    ``rot`` (G, 3, 3), one per row (``per_row``) or one for all.
+
+    Outputs ``ok`` (M,): the row ended within the tolerances; ``steps`` (M,): the steps it took.
+    """
+    m, n = q.shape
+    dims = 6 if pose else 3
+    timed = deadline < np.inf
+    jm, a = np.empty((6, n)), np.empty((6, 6))
+    err, x = np.empty(6), np.empty(6)
+    j0 = np.empty((6, n))
+    periodic = np.zeros(n, dtype=np.bool_)
+    late = False
+    for row in range(m):
+        g = row if per_row else 0
+        ok[row], steps[row] = False, 0
+        for it in range(iterations + 1):
+            err[0] = pos[g, 0] - p[row, 0]
+            err[1] = pos[g, 1] - p[row, 1]
+            err[2] = pos[g, 2] - p[row, 2]
+            good = err[0] * err[0] + err[1] * err[1] + err[2] * err[2] <= tol2
+            if pose:
+                oe = rotation_error(rot[g], r[row], err[3:])
+                good = good and oe * oe <= otol2
+            if good:
+                ok[row] = True
+                break
+            if it == iterations:
+                break
+            if timed and (late or monotonic() > deadline):
+                late = True
+                break
+            if it == 0:
+                for i in range(dims):
+                    for j in range(n):
+                        j0[i, j] = jac[row, i, j] + 0.5 * djac[row, i, j]
+                limited_step(q[row], j0, err, dims, lower, upper, periodic, False, lam2,
+                             max_step, jm, a, x)
+            else:
+                limited_step(q[row], jac[row], err, dims, lower, upper, periodic, False, lam2,
+                             max_step, jm, a, x)
+            place(frames, q[row], p[row], r[row], jac[row], True)
+            steps[row] += 1

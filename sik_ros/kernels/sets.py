@@ -1,0 +1,77 @@
+"""Compiled greedy choices among a few hundred rows: far-apart subsets and distinct rows.
+
+Both walk the rows in order and compare each with the ones chosen so far, one call instead of a
+NumPy call per pick; distances are plain Euclidean ones (L2 over the columns compared).
+"""
+
+import math
+
+from numba import njit
+import numpy as np
+
+
+@njit('int64[::1](float64[:, ::1], int64, int64, float64, int64, float64)', cache=True,
+      nogil=True)
+def farthest_rows(points, k, first, spacing, at_least, same):  # pragma: no cover (compiled)
+    """Indices of up to ``k`` rows chosen greedily far apart, ``first`` first.
+
+    With ``spacing`` > 0 the choice stops once ``at_least`` rows are chosen and the farthest
+    row left is within ``spacing`` of a chosen one, or when it is within ``same`` of one.
+    """
+    n, d = points.shape
+    dist = np.empty(n)
+    chosen = np.empty(min(k, n), dtype=np.int64)
+    chosen[0] = first
+    count = 1
+    for j in range(n):
+        s = 0.0
+        for c in range(d):
+            v = points[j, c] - points[first, c]
+            s += v * v
+        dist[j] = math.sqrt(s)
+    while count < min(k, n):
+        i = 0
+        for j in range(1, n):
+            if dist[j] > dist[i]:
+                i = j
+        if spacing > 0.0 and (dist[i] <= same or (dist[i] < spacing and count >= at_least)):
+            break
+        chosen[count] = i
+        count += 1
+        for j in range(n):
+            s = 0.0
+            for c in range(d):
+                v = points[j, c] - points[i, c]
+                s += v * v
+            s = math.sqrt(s)
+            if s < dist[j]:
+                dist[j] = s
+    return chosen[:count].copy()
+
+
+@njit('boolean[::1](float64[:, ::1], float64, int64, boolean[::1])', cache=True, nogil=True)
+def distinct_rows(q, threshold, cols, periodic):  # pragma: no cover (compiled)
+    """Keep-mask of rows (in order) at least ``threshold`` from every earlier kept one [rad].
+
+    Over the first ``cols`` columns; a ``periodic`` joint's difference is taken at its nearest
+    2 pi turn.
+    """
+    m = q.shape[0]
+    keep = np.zeros(m, dtype=np.bool_)
+    t2 = threshold * threshold
+    for i in range(m):
+        ok = True
+        for j in range(i):
+            if not keep[j]:
+                continue
+            s = 0.0
+            for c in range(cols):
+                v = q[i, c] - q[j, c]
+                if periodic[c]:
+                    v -= 2.0 * math.pi * np.rint(v * (0.5 / math.pi))
+                s += v * v
+            if s < t2:
+                ok = False
+                break
+        keep[i] = ok
+    return keep

@@ -1,0 +1,99 @@
+"""What a path request asks for and gets: settings, beams, joint paths and results."""
+
+from dataclasses import dataclass, field
+from typing import List
+
+import numpy as np
+
+from sik_ros.solver.config import PATH_DEFAULTS
+
+
+#: Interpolation points checked on every edge (fractions of the edge).
+EDGE_CHECKS = (0.25, 0.5, 0.75)
+
+#: Most refinement steps of a track onto its next waypoint (a few suffice from a step away).
+TRACK_ITERATIONS = 10
+
+#: Table postures nearest the seed among which a position path's starts are chosen.
+NEAR_POOL = 48
+
+#: Most refinement steps of a position path's starts onto the first waypoint (docs/design.md).
+START_ITERATIONS = 25
+
+#: The beam of pose paths (see :class:`PathSettings`; the choice in docs/design.md).
+POSE_BEAM = {'starts': 10, 'tracks': 10, 'ladder': 16}
+
+#: The beam of position paths. A position waypoint leaves a redundant arm ``n - 3`` dimensions
+#: of self-motion, so a track is seldom lost and a narrow beam keeps the paths as short
+#: (docs/design.md).
+POSITION_BEAM = {'starts': 4, 'tracks': 4, 'ladder': 64}
+
+
+@dataclass
+class JointPath:
+    """One joint path through every waypoint (or through the feasible prefix).
+
+    Attributes:
+        q: joint positions (N, n) [rad], within the limits.
+        position_errors: (N,) [m]; orientation_errors: (N,) [rad].
+        max_step: largest joint change between consecutive waypoints [rad].
+        travel: total joint travel, the sum of the steps' L2 norms [rad].
+        min_obstacle_distance: smallest clearance along the path [m] (+inf without obstacles).
+        cost: the ranking cost (travel plus the start's distance from the seed).
+    """
+
+    q: np.ndarray
+    position_errors: np.ndarray
+    orientation_errors: np.ndarray
+    max_step: float
+    travel: float
+    min_obstacle_distance: float
+    cost: float
+
+
+@dataclass
+class PathResult:
+    """The answer to a path request: ranked joint paths, best first."""
+
+    success: bool
+    fraction: float
+    paths: List[JointPath] = field(default_factory=list)
+    elapsed: float = 0.0
+    timed_out: bool = False
+    message: str = ''
+
+
+@dataclass(frozen=True)
+class PathSettings:
+    """How a path is planned (see :meth:`SelectiveIK.solve_path`).
+
+    ``starts``: distinct solutions asked for at the first waypoint (and where every track is
+    lost); ``tracks``: the beam, the cheapest candidates kept per waypoint (both raised to
+    ``num_paths`` when below it); ``ladder``: every ``ladder``-th waypoint is joined to the
+    previous one by the whole ladder (tracks may switch, merge, be refilled by new starts); the
+    waypoints between are solved in one batch, each track continuing itself (:func:`_chunk`).
+    ``near_seed``: a position path with a seed starts from the seed and the table's postures
+    nearest it (else from the seed and the solver's first solutions, spread over the
+    postures: :func:`_starts`). The defaults are :data:`POSE_BEAM`'s; :meth:`for_paths`
+    takes them from :data:`POSE_BEAM` or :data:`POSITION_BEAM` by the paths' kind.
+    """
+
+    num_paths: int = PATH_DEFAULTS.num_paths
+    max_joint_step: float = PATH_DEFAULTS.max_joint_step
+    path_tolerance: float = PATH_DEFAULTS.path_tolerance
+    orientation_path_tolerance: float = 0.05
+    starts: int = POSE_BEAM['starts']
+    tracks: int = POSE_BEAM['tracks']
+    ladder: int = POSE_BEAM['ladder']
+    seed_weight: float = 1.0
+    near_seed: bool = True
+
+    def __post_init__(self):
+        """Starts and tracks enough for ``num_paths`` paths from distinct starts."""
+        object.__setattr__(self, 'starts', max(self.starts, self.num_paths))
+        object.__setattr__(self, 'tracks', max(self.tracks, self.num_paths))
+
+    @classmethod
+    def for_paths(cls, pose: bool, **kw) -> 'PathSettings':
+        """The settings of pose paths (``pose``) or position paths, the beam by their kind."""
+        return cls(**{**(POSE_BEAM if pose else POSITION_BEAM), **kw})

@@ -1,0 +1,120 @@
+"""Compiled kernels: refinement row by row, its stopping rules, and the small network calls."""
+
+import time
+
+import numpy as np
+import pytest
+
+from sik_ros.kernels.dls import CONVERGED, PRUNED, UNTOUCHED
+from sik_ros.solver import SelectiveIK
+
+
+@pytest.fixture(scope='module')
+def bundled():
+    """The bundled Panda solver (its networks, its chain)."""
+    return SelectiveIK.load('panda')
+
+
+def _refine(ik, q, pos, rot, **kw):
+    """The kernel's answer through :func:`sik_ros.solver.refine.refine` (module, not facade)."""
+    import importlib
+    from sik_ros.solver.context import Goal
+    refine = importlib.import_module('sik_ros.solver.refine')
+    return refine.refine(ik._ctx, q, Goal(pos, rot), **kw)
+
+
+def _target(robot, seed):
+    """A configuration in the middle half of the joint ranges and its tip pose."""
+    mid, half = (robot.lower + robot.upper) / 2, (robot.upper - robot.lower) / 4
+    q = np.random.default_rng(seed).uniform(mid - half, mid + half, (1, robot.dof))
+    p, r = robot.fk_rot(q)
+    return q[0], p[0], r[0]
+
+
+def test_refined_rows_reach_the_goal_within_the_limits(bundled):
+    """Rows started near a pose end within the tolerances by FK, inside the joint limits."""
+    robot = bundled.robot
+    q_goal, p, r = _target(robot, 0)
+    starts = np.clip(q_goal + np.random.default_rng(1).normal(0, 0.05, (6, robot.dof)),
+                     robot.lower, robot.upper)
+    out = _refine(bundled, starts, p, r)
+    perr, oerr = bundled.errors(out.q, p, r)
+    np.testing.assert_allclose(out.perr, perr, atol=1e-12)
+    np.testing.assert_allclose(out.oerr, oerr, atol=1e-7)  # arccos there: 1e-8 near 0
+    assert (perr <= 1e-4).all() and (oerr <= 1e-3).all()
+    assert (out.q >= robot.lower).all() and (out.q <= robot.upper).all()
+    assert not out.cut_short
+
+
+def test_enough_stops_after_the_first_exact_rows(bundled):
+    """With ``enough=1`` the rows after the first exact one are returned as they started."""
+    from sik_ros.kernels import refine_rows  # noqa: F401 (the kernel behind refine)
+    robot = bundled.robot
+    q_goal, p, r = _target(robot, 2)
+    starts = np.stack([q_goal + 0.05, q_goal - 0.05, q_goal + 0.1])
+    starts = np.clip(starts, robot.lower, robot.upper)
+    out = _refine(bundled, starts, p, r, enough=1)
+    assert out.perr[0] <= 1e-4 and out.oerr[0] <= 1e-3
+    np.testing.assert_array_equal(out.q[1:], starts[1:])
+    # their errors are those of the starts
+    np.testing.assert_allclose(out.perr[1:], bundled.errors(starts[1:], p, r)[0], atol=1e-12)
+
+
+def test_a_past_deadline_leaves_every_row_as_it_started(bundled):
+    """A deadline already past: no iteration runs, the call says it was cut short."""
+    robot = bundled.robot
+    q_goal, p, r = _target(robot, 3)
+    starts = np.clip(q_goal + 0.3, robot.lower, robot.upper)[None]
+    out = _refine(bundled, starts, p, r, deadline=time.perf_counter() - 1.0)
+    assert out.cut_short
+    np.testing.assert_array_equal(out.q, starts)
+
+
+def test_a_row_heading_for_an_earlier_solution_is_pruned(bundled):
+    """With ``prune`` a second start near the first one's solution stops at a prune step."""
+    from sik_ros.kernels.dls import INTS, REALS
+    from sik_ros.kernels import refine_rows
+    robot, cfg = bundled.robot, bundled.config
+    q_goal, p, r = _target(robot, 4)
+    start = np.clip(q_goal + 0.02, robot.lower, robot.upper)
+    # the second start far from the goal but within the prune radius of the first's solution
+    q = np.ascontiguousarray(np.stack([start, np.clip(q_goal + 0.05, robot.lower,
+                                                      robot.upper)]))
+    q[1] += np.where(np.arange(robot.dof) == 0, 0.08, 0.0)
+    settings = dict(position_tolerance=1e-12, orientation_tolerance=1e-12, damping2=1e-6,
+                    max_step=1e-3, stall_ratio=0.7, prune_radius=1.0, distinct_threshold=0.5,
+                    deadline=np.inf, iterations=12, stall_window=0, stall_after=0,
+                    give_up_after=100, enough=0, prune=1, roll_free=0)
+    perr, oerr, status = np.empty(2), np.empty(2), np.empty(2, dtype=np.int8)
+    q_in = q.copy()
+    refine_rows(robot.frames, robot.lower, robot.upper, robot.periodic, q_in, p, r, True,
+                np.array([settings[k] for k in REALS], dtype=float),
+                np.array([settings[k] for k in INTS], dtype=np.int64),
+                np.array(cfg.prune_at, dtype=np.int64), perr, oerr, status)
+    # tiny steps never reach 1e-12: the first row runs out, the second meets it at step 3
+    assert status[0] not in (UNTOUCHED, PRUNED, CONVERGED)
+    assert status[1] == PRUNED
+
+
+def test_small_network_calls_match_numpy(bundled):
+    """The compiled network (a few rows) equals the NumPy matrix products to float32 rounding."""
+    from sik_ros.solver.codec import _twins, NumpyMLP
+    for gm in bundled.models.values():
+        for net in _twins(gm.model):
+            width = net.layers[0][0].shape[0]
+            x = np.random.default_rng(5).normal(size=(3, width)).astype(np.float32)
+            plain = NumpyMLP.__call__(NumpyMLP(net.layers), np.repeat(x, 3, axis=0))[::3]
+            np.testing.assert_allclose(net(x), plain, rtol=1e-4, atol=1e-5)
+
+
+def test_cache_folder_falls_back_to_a_temporary_one(monkeypatch):
+    """With the package's folder and the user cache read-only, numba caches in the temp dir."""
+    import tempfile
+    from numba.core import config
+    import sik_ros.kernels as kernels
+    monkeypatch.setattr(config, 'CACHE_DIR', '')
+    kernels._cache_folder()
+    assert config.CACHE_DIR == ''  # writable here: numba's own choice is kept
+    monkeypatch.setattr(kernels, '_writable', lambda folder: False)
+    kernels._cache_folder()
+    assert config.CACHE_DIR.startswith(tempfile.gettempdir())
