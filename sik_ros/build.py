@@ -192,15 +192,20 @@ class Builder:
         """Model and training configs per goal kind, the schedule sized to ``seconds``."""
         from sik_ros.training import TrainConfig
         import torch
-        from sik_ros.models import ModelConfig
+        from sik_ros.models import branch_bits, ModelConfig
         from sik_ros.training import Trainer
         enc, dec = PRESETS[self.cfg.preset]
         ds = Dataset.load(self.work / 'dataset', self.robot)
         rows = len(ds)
         out = {}
         for goal, latent in latent_dims(self.robot).items():
+            # the pose model's index: the learned part and the arm's branch code (its
+            # shoulder and wrist flips), which tells the separate pieces of a pose's
+            # self-motion (or a 6-joint arm's isolated branches) apart
+            bits = branch_bits(self.robot.chain, self.robot.lower, self.robot.upper) \
+                if goal == 'pose' else ()
             model = ModelConfig(kind='sik', goal=goal, dof=self.robot.dof, latent_dim=latent,
-                                encoder=enc, decoder=dec)
+                                encoder=enc, decoder=dec, branches=bits)
             probe = TrainConfig(steps=100, batch_size=self.cfg.batch_size, fk_weight=0.005,
                                 val_rows=min(1000, rows // 10), device=self.cfg.device)
             threads = torch.get_num_threads()
@@ -219,7 +224,8 @@ class Builder:
                                 device=self.cfg.device)
             out[goal] = {'model': asdict(model), 'train': asdict(train)}
             self.say(f'{goal} model: {steps:,} steps of {self.cfg.batch_size} at '
-                     f'{1e3 * per_step:.0f} ms each (measured), index of {latent}')
+                     f'{1e3 * per_step:.0f} ms each (measured), index of {latent}'
+                     + (f' and a branch code of {len(bits)} bits' if bits else ''))
         return out
 
     def train(self, seconds: float) -> Dict:

@@ -25,7 +25,7 @@ def encode_dataset(model, cfg: ModelConfig, norm: Normalizer, ds: Dataset,
                    batch: int = 65536, progress: Progress = None):
     """Posture index of every dataset row, (N, latent) float32."""
     from scipy.spatial.transform import Rotation
-    out = np.empty((len(ds), cfg.latent_dim), dtype=np.float32)
+    out = np.empty((len(ds), cfg.index_dim), dtype=np.float32)
     for s in range(0, len(ds), batch):
         pos = np.asarray(ds.position[s:s + batch])
         rot = Rotation.from_quat(np.asarray(ds.quaternion[s:s + batch])).as_matrix() \

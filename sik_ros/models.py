@@ -6,6 +6,7 @@ continuous 6-d orientation representation).
 """
 
 from dataclasses import asdict, dataclass, field
+import math
 from typing import Dict, Optional, Tuple
 
 import numpy as np
@@ -40,6 +41,11 @@ class ModelConfig:
         encoder: hidden widths of the encoder.
         decoder: hidden widths of the decoder (and of the FCN).
         anfis_mfs: membership functions per input (ANFIS).
+        branches: the branch code beside the learned index (SIK): per bit ``(joint, scale,
+            offset)``, the bit being the sign of ``sin(x[joint] * scale + offset)`` for the
+            normalised joint ``x`` (that is, of ``sin(q - s)`` with ``s`` the angle at which
+            the joint's neighbouring axes line up: the shoulder and wrist flips of an arm,
+            :func:`branch_bits`). The posture index is the learned part followed by the bits.
     """
 
     kind: str = 'sik'
@@ -49,6 +55,7 @@ class ModelConfig:
     encoder: Tuple[int, ...] = PRESETS['default'][0]
     decoder: Tuple[int, ...] = PRESETS['default'][1]
     anfis_mfs: int = 2
+    branches: Tuple[Tuple[int, float, float], ...] = ()
 
     def __post_init__(self):
         """Validate the fields."""
@@ -61,6 +68,17 @@ class ModelConfig:
                                   f'{self.latent_dim}')
         if self.dof < 1:
             raise InvalidArgument(f'dof must be positive; got {self.dof}')
+        for bit in self.branches:
+            if len(bit) != 3 or not 0 <= int(bit[0]) < self.dof:
+                raise InvalidArgument(f'a branch bit is (joint, scale, offset) with a joint '
+                                      f'below {self.dof}; got {bit!r}')
+        if self.branches and self.kind != 'sik':
+            raise InvalidArgument(f'a branch code needs a sik model; got {self.kind!r}')
+
+    @property
+    def index_dim(self) -> int:
+        """Size of the posture index: the learned part and the branch bits."""
+        return self.latent_dim + len(self.branches)
 
     @property
     def goal_dim(self) -> int:
@@ -73,6 +91,7 @@ class ModelConfig:
         d = dict(d)
         d['encoder'] = tuple(d['encoder'])
         d['decoder'] = tuple(d['decoder'])
+        d['branches'] = tuple((int(j), float(a), float(b)) for j, a, b in d.get('branches', ()))
         return cls(**d)
 
 
@@ -157,14 +176,29 @@ class SIK(nn.Module):
         self.variational = cfg.kind == 'psik'
         out = cfg.latent_dim * (2 if self.variational else 1)
         self.encoder = mlp((cfg.goal_dim + cfg.dof,) + cfg.encoder, out)
-        self.decoder = mlp((cfg.goal_dim + cfg.latent_dim,) + cfg.decoder, cfg.dof)
+        self.decoder = mlp((cfg.goal_dim + cfg.index_dim,) + cfg.decoder, cfg.dof)
+        bits = np.array(cfg.branches, dtype=np.float32).reshape(-1, 3)
+        self.register_buffer('branch_joint', torch.as_tensor(bits[:, 0].astype(np.int64)),
+                             persistent=False)
+        self.register_buffer('branch_affine', torch.as_tensor(bits[:, 1:]), persistent=False)
+
+    def branch_code(self, x: torch.Tensor) -> torch.Tensor:
+        """The branch bits (N, bits) of normalised joints, each -1 or 1."""
+        a = self.branch_affine.to(x.dtype)
+        s = torch.sin(x[:, self.branch_joint] * a[:, 0] + a[:, 1])
+        return torch.where(s < 0, -torch.ones_like(s), torch.ones_like(s))
 
     def encode(self, goal: torch.Tensor, x: torch.Tensor):
-        """Posture index (mean) and log-variance (None for SIK) of normalised (goal, joints)."""
+        """Posture index (mean) and log-variance (None for SIK) of normalised (goal, joints).
+
+        With a branch code the index is the encoder's output followed by the bits.
+        """
         h = self.encoder(torch.cat([goal, x], dim=1))
         if self.variational:
             mu, logvar = h.chunk(2, dim=1)
             return mu, logvar.clamp(-12.0, 8.0)
+        if len(self.cfg.branches):
+            h = torch.cat([h, self.branch_code(x)], dim=1)
         return h, None
 
     def decode(self, goal: torch.Tensor, z: torch.Tensor) -> torch.Tensor:
@@ -178,6 +212,55 @@ class SIK(nn.Module):
         if self.variational and self.training:
             z = mu + torch.randn_like(mu) * torch.exp(0.5 * logvar)
         return self.decode(goal, z), mu, logvar
+
+
+def branch_bits(chain: SerialChain, lower: np.ndarray, upper: np.ndarray,
+                offset: float = 0.1, edge: float = 0.05) -> Tuple[Tuple[int, float, float], ...]:
+    """The branch code of an arm: its flip joints, as :attr:`ModelConfig.branches`.
+
+    A joint whose two neighbours' axes line up (parallel and within ``offset`` [m] of each
+    other) at some angle ``s`` is a flip joint (a 7-joint arm's shoulder and wrist, a UR arm's
+    wrist): ``q`` and its mirror about ``s`` lie on separate pieces of the self-motion of a
+    pose, which one continuous index cannot tell apart. The bit is the sign of ``sin(q - s)``;
+    it counts when ``sin(q - s)`` changes sign inside the joint's limits (away from the last
+    ``edge`` of the range at either end). The angles are taken with the other joints at zero,
+    which does not matter: the angle between a joint's neighbours depends on that joint alone.
+
+    Args:
+        chain: the arm's chain.
+        lower: joint lower limits (n,) [rad].
+        upper: joint upper limits (n,) [rad].
+        offset: farthest the lined-up axes may be apart [m].
+        edge: fraction of a joint's range at either end where a crossing does not count.
+
+    Returns:
+        ``(joint, scale, offset)`` per bit, in the networks' normalised joint units.
+    """
+    n = chain.dof
+    t = np.linspace(-np.pi, np.pi, 721)
+    bits = []
+    for j in range(1, n - 1):
+        q = np.zeros((len(t), n))
+        q[:, j] = t
+        _, _, o, a = chain_forward(chain, q, frames=True)
+        off = 1 - np.abs((a[:, j - 1] * a[:, j + 1]).sum(1))
+        if off.max() < 1e-6:  # always parallel: no flip at one angle
+            continue
+        dist = np.linalg.norm(np.cross(o[:, j + 1] - o[:, j - 1], a[:, j - 1]), axis=1)
+        hits = np.flatnonzero((off < 1e-6) & (dist <= offset))
+        if not len(hits):
+            continue
+        s = float(t[hits[0]])
+        lo, hi = float(lower[j]), float(upper[j])
+        margin = edge * (hi - lo)
+        # the multiples of pi from s strictly inside the limits, where the sign changes
+        first = math.ceil((lo + margin - s) / math.pi)
+        last = math.floor((hi - margin - s) / math.pi)
+        if last < first:
+            continue
+        mid, half = (lo + hi) / 2, (hi - lo) / 2
+        bits.append((j, half, mid - s))
+    return tuple(bits)
 
 
 def kl_normal(mu: torch.Tensor, logvar: torch.Tensor) -> torch.Tensor:

@@ -67,6 +67,9 @@ class TrainConfig:
             that posture at the moved goal joins the FK term. It keeps an FK-driven decoder
             from ignoring the index (docs/training.md).
         cycle_shift: standard deviation of the goal offset of the cycle term [m].
+        cycle_turn: pose goals: the cycle term also turns the goal's orientation about a
+            random axis by an angle of this standard deviation [rad] (an index from a table
+            row of a nearby orientation decoded at the goal must reach it).
         init: model file the weights started from (``--init``; provenance only).
     """
 
@@ -93,6 +96,7 @@ class TrainConfig:
     sampler: str = 'dataset'
     cycle_weight: float = 0.0
     cycle_shift: float = 0.02
+    cycle_turn: float = 0.0
     init: str = ''
 
     def __post_init__(self):
@@ -237,7 +241,11 @@ class Trainer:
             # and reach the moved goal (FK term)
             shift = torch.randn(len(pos), 3, generator=self.gen).to(self.device)
             pos_other = pos + self.cfg.cycle_shift * shift
-            goal_other = torch.cat([pos_other, goal[:, 3:]], 1)
+            rot6_other = rot6
+            if self.model_cfg.goal == 'pose' and self.cfg.cycle_turn > 0:
+                rot6_other = turned_rot6(rot6, self.cfg.cycle_turn, self.gen)
+            goal_other = torch.cat([pos_other, rot6_other], 1) \
+                if self.model_cfg.goal == 'pose' else pos_other
             g_other = self.norm.goal_to_net(goal_other)
             z = mu.detach()
             x_other = self.model.decode(g_other, z)
@@ -245,7 +253,7 @@ class Trainer:
             spread = z.var(dim=0).sum().clamp_min(1e-8)
             out['cycle'] = ((z_back - z) ** 2).sum(1).mean() / spread
             if self.cfg.fk_weight > 0:
-                out['fk_other'] = self._fk_error(x_other, pos_other, rot6)
+                out['fk_other'] = self._fk_error(x_other, pos_other, rot6_other)
         fk_weight = self.cfg.fk_weight if fk_on else 0.0
         total = out['recon'] + fk_weight * (out.get('fk', 0.0) + out.get('fk_other', 0.0))
         if 'cycle' in out:
@@ -461,12 +469,18 @@ class Trainer:
         """Start from the weights of another checkpoint or exported model (a warm start).
 
         The model config, the robot and the normaliser must match; the optimiser, the step
-        count and the schedule start afresh.
+        count and the schedule start afresh. A SIK model with a smaller posture index (fewer
+        learned elements, no branch code) also serves: its weights are copied in, the new
+        index elements' decoder inputs start at zero weight (the decoder starts as the old
+        one) and the encoder's new outputs at a tenth of their initial weights.
         """
         found = ModelConfig.from_dict(ckpt['model_config'])
+        state = ckpt['model_state']
         if found != self.model_cfg:
-            raise ArtifactMismatch(f'--init {source} model config', asdict(self.model_cfg),
-                                   ckpt['model_config'])
+            if not widens(found, self.model_cfg):
+                raise ArtifactMismatch(f'--init {source} model config', asdict(self.model_cfg),
+                                       ckpt['model_config'])
+            state = widened_state(self.model.state_dict(), state, found, self.model_cfg)
         check_robot_manifest(f'--init {source}', self.robot.manifest(), ckpt['robot'])
         norm = normalizer_from_dict(ckpt['normalizer'])
         mine = np.concatenate([self.norm.lower, self.norm.upper, self.norm.position_center,
@@ -477,7 +491,7 @@ class Trainer:
             raise ArtifactMismatch(f'--init {source} normaliser (another dataset)',
                                    asdict(self.norm), ckpt['normalizer'])
         self.norm = norm  # bit for bit the one the weights were trained with
-        self.model.load_state_dict(ckpt['model_state'])
+        self.model.load_state_dict(state)
 
     def restore(self, ckpt: Dict) -> None:
         """Continue from a checkpoint of the same model on the same robot and dataset."""
@@ -500,6 +514,63 @@ class Trainer:
             self.gen.manual_seed(self.cfg.seed + 1 + 7919 * self.rank + self.step)
         if 'pso' in ckpt:
             self._pso = {k: v.clone() for k, v in ckpt['pso'].items()}
+
+
+def turned_rot6(rot6: torch.Tensor, std: float, gen: torch.Generator) -> torch.Tensor:
+    """Rotations (two columns, (N, 6)) turned about random axes by angles of ``std`` [rad]."""
+    n = len(rot6)
+    a, b = rot6[:, :3], rot6[:, 3:]
+    c = torch.linalg.cross(a, b)
+    r = torch.stack([a, b, c], dim=2)
+    w = torch.randn(n, 3, generator=gen).to(rot6.device) * std  # rotation vectors
+    theta = torch.linalg.norm(w, dim=1, keepdim=True).clamp_min(1e-12)
+    k = w / theta
+    kx = torch.zeros(n, 3, 3, device=rot6.device, dtype=rot6.dtype)
+    kx[:, 0, 1], kx[:, 0, 2], kx[:, 1, 2] = -k[:, 2], k[:, 1], -k[:, 0]
+    kx = kx - kx.transpose(1, 2)
+    s, cth = torch.sin(theta)[:, :, None], torch.cos(theta)[:, :, None]
+    turn = torch.eye(3, dtype=rot6.dtype, device=rot6.device) + s * kx + (1 - cth) * kx @ kx
+    out = turn @ r
+    return torch.cat([out[:, :, 0], out[:, :, 1]], 1)
+
+
+def widens(old: ModelConfig, new: ModelConfig) -> bool:
+    """Whether ``new`` is ``old`` with a wider posture index (more learned elements or bits)."""
+    same = replace(new, latent_dim=old.latent_dim, branches=old.branches) == old
+    return (same and old.kind == 'sik' and new.latent_dim >= old.latent_dim
+            and tuple(new.branches[:len(old.branches)]) == tuple(old.branches))
+
+
+def widened_state(fresh: Dict, old: Dict, old_cfg: ModelConfig, cfg: ModelConfig) -> Dict:
+    """``old`` weights in a model with a wider index (``fresh``: its initial state dict).
+
+    The decoder's first layer keeps its goal and old index columns; the new learned elements'
+    and bits' columns are zero. The encoder's last layer keeps its old outputs; new outputs
+    take a tenth of their initial weights.
+    """
+    out = {k: v.clone() for k, v in fresh.items()}
+    enc_last = 'encoder.%d.' % max(int(k.split('.')[1]) for k in old if k.startswith('encoder.'))
+    for key, value in old.items():
+        target = out[key]
+        if target.shape == value.shape:
+            out[key] = value.clone()
+        elif key == 'decoder.0.weight':
+            w = torch.zeros_like(target)
+            g = cfg.goal_dim
+            w[:, :g + old_cfg.latent_dim] = value[:, :g + old_cfg.latent_dim]
+            bits = len(old_cfg.branches)
+            if bits:  # the old bits keep theirs, after the wider learned part
+                w[:, g + cfg.latent_dim:g + cfg.latent_dim + bits] = \
+                    value[:, g + old_cfg.latent_dim:]
+            out[key] = w
+        elif key.startswith(enc_last):
+            w = target * 0.1
+            w[:value.shape[0]] = value
+            out[key] = w
+        else:
+            raise ArtifactMismatch(f'weights {key} of the smaller model', tuple(target.shape),
+                                   tuple(value.shape))
+    return out
 
 
 def with_overrides(cfg: TrainConfig, **kw) -> TrainConfig:

@@ -121,3 +121,49 @@ def test_the_solver_runs_the_networks_in_numpy_as_torch_does(kind):
                                rtol=1e-5, atol=1e-5)
     odd = torch.nn.Sequential(torch.nn.Linear(3, 4), torch.nn.ReLU(), torch.nn.Linear(4, 2))
     assert NumpyMLP.of(odd) is None
+
+
+def test_branch_bits_are_the_arms_flip_joints(panda, ur5):
+    """The Panda's shoulder (joint 2) and wrist (joint 6) flips; the UR5's wrist (joint 5).
+
+    The Panda's elbow lines its neighbours up only outside its limits (q4 < 0); a bit is the
+    sign of sin(q - s) with s the lining-up angle (0 or pi), in normalised joint units.
+    """
+    from sik_ros.models import branch_bits
+    bits = branch_bits(panda.chain, panda.lower, panda.upper)
+    assert [b[0] for b in bits] == [1, 5]
+    assert [b[0] for b in branch_bits(ur5.chain, ur5.lower, ur5.upper)] == [4]
+    q = np.random.default_rng(0).uniform(panda.lower, panda.upper, (200, 7))
+    x = (q - (panda.lower + panda.upper) / 2) / ((panda.upper - panda.lower) / 2)
+    for j, scale, offset in bits:
+        s = np.sin(x[:, j] * scale + offset)
+        # the sign flips where the joint crosses its lining-up angle: q2 = 0, q6 = pi
+        cross = 0.0 if j == 1 else np.pi
+        assert np.all(np.sign(s) == np.sign(s[0]) * np.sign(q[:, j] - cross)
+                      * np.sign(q[0, j] - cross))
+
+
+def test_the_branch_code_follows_the_learned_index(panda):
+    """With a branch code the index is the encoder's output and the bits (torch and NumPy)."""
+    from dataclasses import asdict
+    from sik_ros.models import branch_bits
+    from sik_ros.solver.codec import branch_code, branch_codes, NumpyMLP
+    bits = branch_bits(panda.chain, panda.lower, panda.upper)
+    enc, dec = PRESETS['tiny']
+    cfg = ModelConfig(goal='pose', latent_dim=1, encoder=enc, decoder=dec, branches=bits)
+    assert cfg.index_dim == 3 and ModelConfig.from_dict(asdict(cfg)) == cfg
+    model = build_model(cfg).eval()
+    torch.manual_seed(1)
+    g, x = torch.randn(9, 9), torch.rand(9, 7) * 2 - 1
+    with torch.no_grad():
+        z, _ = model.encode(g, x)
+        out = model.decode(g, z)
+    assert z.shape == (9, 3) and set(z[:, 1:].unique().tolist()) <= {-1.0, 1.0}
+    h = NumpyMLP.of(model.encoder)(torch.cat([g, x], 1).numpy())
+    np.testing.assert_allclose(h[:, 0], z[:, 0].numpy(), rtol=1e-5, atol=1e-5)
+    np.testing.assert_array_equal(branch_code(bits, x.numpy()), z[:, 1:].numpy())
+    assert out.shape == (9, 7)
+    codes = sorted(map(tuple, branch_codes(bits).tolist()))
+    assert codes == [(-1, -1), (-1, 1), (1, -1), (1, 1)]
+    with pytest.raises(InvalidArgument):
+        ModelConfig(kind='psik', branches=bits)

@@ -456,3 +456,30 @@ def test_restarts_for_free_solutions_leave_obstacles_to_algorithm_2(ik, targets,
     assert exact and all(s.min_obstacle_distance <= 0 for s in exact)
     assert not any(s.self_collision for s in exact)
     assert pipeline.FREE_RESTARTS not in [call.get('keep') for call in restarts]
+
+
+@pytest.mark.parametrize('goal', ['position', 'pose'])
+def test_a_seeded_raw_solve_answers_the_seeds_own_posture_first(ik, goal):
+    """refine=False with a seed: its own posture index decoded is the first answer.
+
+    The paper's "keep the posture": the index of the current state, decoded at the goal; the
+    other raw answers follow it, none of nearly the same posture.
+    """
+    from scipy.spatial.transform import Rotation
+    rng = np.random.default_rng(4)
+    checked = 0
+    for q in rng.uniform(ik.robot.lower, ik.robot.upper, (6, ik.robot.dof)):
+        p, quat = ik.fk(q)
+        rot = Rotation.from_quat(quat).as_matrix() if goal == 'pose' else None
+        res = ik.solve(p, quat if goal == 'pose' else None, seed=q, refine=False,
+                       num_solutions=4)
+        own = ik.decode(goal, p, rot, ik.encode(goal, p, rot, q[None]))[0]
+        first = res.solutions[0]
+        if ik.checker.self_collision(own[None])[0]:  # a colliding own posture does not lead
+            assert not np.allclose(first.q, own, atol=1e-6) or first.self_collision
+            continue
+        checked += 1
+        np.testing.assert_allclose(first.q, own, atol=1e-6)
+        for s in res.solutions[1:]:
+            assert np.linalg.norm(s.q - first.q) >= ik.config.distinct_threshold
+    assert checked >= 2

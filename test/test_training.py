@@ -225,6 +225,42 @@ def test_init_starts_from_a_model_and_refuses_another_config(panda, uniform_smal
             load_checkpoint(tmp_path / 'a.pt'), 'a.pt')
 
 
+def test_init_widens_the_index_of_a_smaller_model(panda, uniform_small, tmp_path):
+    """--init from a model with a smaller index: the wider one starts as the same decoder.
+
+    A 1-d pose model grows a second learned element and the Panda's branch code; whatever the
+    new elements' values, the decoder's output is the old model's at the old index, and the
+    encoder's old output is kept.
+    """
+    from sik_ros.models import branch_bits
+    small = ModelConfig(goal='pose', latent_dim=1, encoder=PRESETS['tiny'][0],
+                        decoder=PRESETS['tiny'][1])
+    a = trainer(panda, uniform_small, tmp_path / 'a', model=small, steps=20)
+    a.run()
+    export_model(a.checkpoint(), tmp_path / 'a.pt')
+    wide = ModelConfig(goal='pose', latent_dim=2, encoder=PRESETS['tiny'][0],
+                       decoder=PRESETS['tiny'][1],
+                       branches=branch_bits(panda.chain, panda.lower, panda.upper))
+    b = trainer(panda, uniform_small, tmp_path / 'b', model=wide, steps=20)
+    b.initialise(load_checkpoint(tmp_path / 'a.pt'), 'a.pt')
+    g, x = torch.randn(6, 9), torch.rand(6, 7) * 2 - 1
+    with torch.no_grad():
+        z_old, _ = a.model.encode(g, x)
+        z_new, _ = b.model.encode(g, x)
+        new = torch.cat([z_old, torch.randn(6, 1), torch.sign(torch.randn(6, 2))], 1)
+        np.testing.assert_allclose(b.model.decode(g, new).numpy(),
+                                   a.model.decode(g, z_old).numpy(), rtol=1e-5, atol=1e-6)
+    assert z_new.shape == (6, 4)
+    np.testing.assert_allclose(z_new[:, :1].numpy(), z_old.numpy(), rtol=1e-6)
+    back = ModelConfig(goal='pose', latent_dim=1, encoder=PRESETS['tiny'][0],
+                       decoder=PRESETS['tiny'][1])
+    b.run()
+    export_model(b.checkpoint(), tmp_path / 'b.pt')
+    with pytest.raises(ArtifactMismatch, match='model config'):
+        trainer(panda, uniform_small, tmp_path / 'c', model=back).initialise(
+            load_checkpoint(tmp_path / 'b.pt'), 'b.pt')
+
+
 def test_a_run_stopped_by_time_ends_with_its_validation(panda, uniform_small, tmp_path):
     """A run stopped between validations (max_time) still reports validation figures."""
     t = trainer(panda, uniform_small, tmp_path, steps=60, eval_every=30)

@@ -1,6 +1,7 @@
 """``sik-train``: train a SIK, PSIK, FCN or ANFIS model on a dataset, resumably."""
 
 import argparse
+from dataclasses import replace
 import json
 from pathlib import Path
 import sys
@@ -14,7 +15,7 @@ from sik_ros.checkpoints import export_model, load_checkpoint, model_signature
 from sik_ros.cli import argv_or_default, Parser, run_cli
 from sik_ros.dataset import Dataset
 from sik_ros.errors import ArtifactExists, InvalidArgument
-from sik_ros.models import DEFAULT_LATENT, ModelConfig, PRESETS
+from sik_ros.models import branch_bits, DEFAULT_LATENT, ModelConfig, PRESETS
 from sik_ros.robots import robot_from_manifest
 from sik_ros.training import TrainConfig, Trainer, with_overrides
 
@@ -29,6 +30,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument('--goal', choices=('position', 'pose'), default='position')
     p.add_argument('--latent-dim', type=int, help='posture index size (default: 4 position, '
                    '1 pose)')
+    p.add_argument('--branches', action='store_true',
+                   help='a branch code beside the learned index (SIK): the signs that tell '
+                   'the arm\'s shoulder and wrist flips apart (pose goals: the separate '
+                   'pieces of the self-motion)')
     p.add_argument('--preset', choices=sorted(PRESETS), default='default',
                    help='layer widths (paper: the paper\'s sizes)')
     p.add_argument('--steps', type=int, help='optimiser steps (PSO iterations for ANFIS)')
@@ -45,6 +50,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument('--cycle-weight', type=float,
                    help='cycle term: another index decoded at each goal must re-encode to it '
                    'and reach the goal (keeps an FK-trained decoder from ignoring the index)')
+    p.add_argument('--cycle-turn', type=float,
+                   help='pose goals: the cycle term also turns the goal orientation by about '
+                   'this angle [rad]')
     p.add_argument('--init', help='start from the weights of this checkpoint or model file '
                    '(same model config, robot and dataset normaliser)')
     p.add_argument('--uni-position', action='store_true',
@@ -85,7 +93,8 @@ def main(argv: Optional[List[str]] = None) -> int:
             # a resumed run may extend its schedule or switch the FK term on later
             train_cfg = with_overrides(train_cfg, steps=args.steps, fk_weight=args.fk_weight,
                                        fk_start=args.fk_start, rot_weight=args.rot_weight,
-                                       cycle_weight=args.cycle_weight)
+                                       cycle_weight=args.cycle_weight,
+                                       cycle_turn=args.cycle_turn)
         else:
             if (out / 'last.pt').exists():
                 raise ArtifactExists(f'{out}/last.pt exists: use --resume, or another --out')
@@ -100,13 +109,19 @@ def main(argv: Optional[List[str]] = None) -> int:
                 eval_every=args.eval_every, checkpoint_every=args.checkpoint_every,
                 seed=args.seed, threads=args.threads, device=args.device,
                 uni_position=args.uni_position or None, bf16=args.bf16,
-                sampler=args.sampler, cycle_weight=args.cycle_weight, init=args.init)
+                sampler=args.sampler, cycle_weight=args.cycle_weight,
+                cycle_turn=args.cycle_turn, init=args.init)
             if args.model in ('fcn', 'anfis') and args.fk_weight is None:
                 train_cfg = with_overrides(train_cfg, fk_weight=0.0)
         robot = robot_from_manifest(Dataset.load(args.dataset).manifest['robot'],
                                     f'dataset {args.dataset}')
         if model_cfg.dof != robot.dof:
             model_cfg = ModelConfig(**{**model_cfg.__dict__, 'dof': robot.dof})
+        if args.branches and not args.resume:
+            if args.model != 'sik':
+                raise InvalidArgument('--branches needs --model sik')
+            model_cfg = replace(model_cfg, branches=branch_bits(robot.chain, robot.lower,
+                                                                robot.upper))
         ds = Dataset.load(args.dataset, robot)
         trainer = Trainer(robot, ds, model_cfg, train_cfg, out)
         if ckpt is not None:

@@ -340,6 +340,11 @@ class Orientation:
     angle_refined: float
 
 
+#: Table rows nearest a pose goal's orientation that the orientation study's postures come
+#: from, for a pose model whose index has several elements.
+ORIENTED_POOL = 24
+
+
 def orientation_study(ik: SelectiveIK, targets: int = 4, postures: int = 5,
                       seed: int = 5, min_height: float = 0.1) -> Orientation:
     """Experiment 5: pose goals (position and orientation held) with the pose model.
@@ -347,7 +352,9 @@ def orientation_study(ik: SelectiveIK, targets: int = 4, postures: int = 5,
     Targets are reachable poses: FK of seeded uniform joint samples, the first ``targets`` whose
     tip is higher than ``min_height`` [m] above the base (above the table). Per target, the indices
     are the 0, 25, 50, 75 and 100 % quantiles (``postures`` of them) of the table's indices near
-    the target's position (for a 1-d index, evenly spread along its range).
+    the target's position (for a 1-d index, evenly spread along its range); for an index of
+    several elements, ``postures`` far-apart ones among the :data:`ORIENTED_POOL` table rows
+    nearest the target's orientation.
     """
     rng = np.random.default_rng(seed)
     q_goal = rng.uniform(ik.robot.lower, ik.robot.upper, (50 * targets, ik.robot.dof))
@@ -356,8 +363,23 @@ def orientation_study(ik: SelectiveIK, targets: int = 4, postures: int = 5,
     pos_all, rot_all = pos_all[above], rot_all[above]
     out = []
     for pos, rot in zip(pos_all, rot_all):
-        pool = table_pool(ik.models['pose'].table, pos, ik.config.k_cells).astype(np.float64)
-        z = np.quantile(pool, np.linspace(0, 1, postures), axis=0)
+        table = ik.models['pose'].table
+        pool = table_pool(table, pos, ik.config.k_cells).astype(np.float64)
+        quat = Rotation.from_matrix(rot).as_quat()
+        if ik.models['pose'].cfg.latent_dim > 1 and table.orientations is not None:
+            # an index of several elements stands for a posture of the whole position's
+            # self-motion: the table rows nearest the goal's orientation (as the solver looks
+            # them up), far apart
+            rows = table.oriented_rows(pos, quat, ORIENTED_POOL, ik.config.oriented_cells)
+            pool = table.indices[rows].astype(np.float64)
+            z = pool[farthest_point_subset(pool, postures)]
+        elif getattr(ik.models['pose'].cfg, 'branches', ()):
+            # a branch code is a sign, not a quantity: the table's own indices at the
+            # quantiles of the first learned element, each with its code
+            order = np.argsort(pool[:, 0], kind='stable')
+            z = pool[order[np.round(np.linspace(0, len(pool) - 1, postures)).astype(int)]]
+        else:
+            z = np.quantile(pool, np.linspace(0, 1, postures), axis=0)
         q_raw = ik.decode('pose', pos, rot, z)
         q_ref, _, _ = ik.refine(q_raw, pos, rot)
         rec = {}

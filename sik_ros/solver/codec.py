@@ -128,4 +128,23 @@ def encode(ctx: Context, goal: Goal, q: np.ndarray) -> np.ndarray:
     centre, half = _limits(ctx, goal)
     x = (q.astype(np.float32) - centre) / half
     h = twins[0](np.concatenate([_goal_rows(ctx, goal, len(q)), x], axis=1))
-    return h[:, :gm.model.cfg.latent_dim].astype(np.float64)
+    z = h[:, :gm.model.cfg.latent_dim].astype(np.float64)
+    if gm.model.cfg.branches:
+        z = np.concatenate([z, branch_code(gm.model.cfg.branches, x)], axis=1)
+    return z
+
+
+def branch_code(branches, x: np.ndarray) -> np.ndarray:
+    """The branch bits (M, bits) of normalised joints (M, n), as :meth:`SIK.branch_code`."""
+    b = np.asarray(branches, dtype=np.float64).reshape(-1, 3)
+    s = np.sin(x[:, b[:, 0].astype(int)] * b[:, 1] + b[:, 2])
+    return np.where(s < 0, -1.0, 1.0)
+
+
+def branch_codes(branches) -> np.ndarray:
+    """Every combination of the branch bits, (2 ** bits, bits) (one empty row: none)."""
+    n = len(branches)
+    if n == 0:
+        return np.zeros((1, 0))
+    grid = (np.arange(2 ** n)[:, None] >> np.arange(n)[None]) & 1
+    return np.where(grid > 0, 1.0, -1.0)
