@@ -17,9 +17,8 @@ The work directory (``<out>.build`` by default) holds the dataset and the runs; 
 the bundle is built.
 """
 
-from dataclasses import asdict, dataclass
+from dataclasses import asdict
 import json
-import math
 import multiprocessing
 from pathlib import Path
 import time
@@ -30,6 +29,7 @@ import numpy as np
 from sik_ros.artifacts import atomic_directory, read_json, write_json_atomic
 from sik_ros.bundle import build_bundle, read_bundle_manifest
 from sik_ros.dataset import collect, Dataset, finest_interval, MAX_ROWS
+from sik_ros.defaults import BuildConfig  # noqa: F401 (part of this module's API)
 from sik_ros.errors import ArtifactMismatch, InvalidArgument
 from sik_ros.kinematics import Robot
 from sik_ros.models import PRESETS
@@ -37,44 +37,6 @@ from sik_ros.robots import robot_from_manifest
 
 GOALS = ('position', 'pose')
 Say = Callable[[str], None]
-
-
-@dataclass(frozen=True)
-class BuildConfig:
-    """What a build does; a rerun must ask for the same (``time`` may change).
-
-    Attributes:
-        time: total wall-clock budget [s]; training gets what the other stages leave.
-        sampler: ``uniform`` or ``grid`` (the finest interval whose grid fits ``rows``).
-        rows: uniform samples, or the grid's row budget.
-        preset: layer widths (:data:`sik_ros.models.PRESETS`).
-        device: ``cpu`` or ``cuda``.
-        batch_size: samples per training step.
-        check_targets: targets per goal kind of the self-check.
-        seed: seed of the sampler, the training and the self-check.
-    """
-
-    time: float = 1800.0
-    sampler: str = 'uniform'
-    rows: int = 3_000_000
-    preset: str = 'default'
-    device: str = 'cpu'
-    batch_size: int = 2048
-    check_targets: int = 200
-    seed: int = 0
-
-    def __post_init__(self):
-        """Validate the fields."""
-        if not (math.isfinite(self.time) and self.time > 0):
-            raise InvalidArgument(f'--time must be a positive number of seconds; got {self.time}')
-        if self.sampler not in ('uniform', 'grid'):
-            raise InvalidArgument(f'--sampler must be uniform or grid; got {self.sampler!r}')
-        if not 1000 <= self.rows <= MAX_ROWS:
-            raise InvalidArgument(f'--rows must be in 1,000..{MAX_ROWS:,}; got {self.rows:,}')
-        if self.preset not in PRESETS:
-            raise InvalidArgument(f'--preset must be one of {sorted(PRESETS)}')
-        if self.device not in ('cpu', 'cuda'):
-            raise InvalidArgument(f'--device must be cpu or cuda; got {self.device!r}')
 
 
 def latent_dims(robot: Robot) -> Dict[str, int]:

@@ -1,14 +1,29 @@
-"""Defaults of the data, table and seed-table builders, in one light module.
+"""Defaults of the data, model, table and build settings, in one light module.
 
 The command-line tools read their defaults here to build their ``--help`` without loading
-NumPy's heavier neighbours, torch or Pinocchio; the library modules that use them
-(:mod:`~sik_ros.dataset`, :mod:`~sik_ros.index_table`, :mod:`~sik_ros.seed_table`) import them
-from here.
+torch or Pinocchio; the library modules that use them (:mod:`~sik_ros.dataset`,
+:mod:`~sik_ros.models`, :mod:`~sik_ros.index_table`, :mod:`~sik_ros.seed_table`,
+:mod:`~sik_ros.build`) import them from here.
 """
 
 from dataclasses import dataclass
+import math
 
 from sik_ros.errors import InvalidArgument
+
+#: Model kinds (``sik-train --model``) and goal kinds.
+MODEL_KINDS = ('sik', 'psik', 'fcn', 'anfis')
+GOAL_KINDS = ('position', 'pose')
+#: Posture index sizes per goal kind of the bundled Panda models.
+DEFAULT_LATENT = {'position': 4, 'pose': 1}
+
+#: Layer-width presets: (encoder hidden widths, decoder hidden widths).
+PRESETS = {
+    'paper': ((2048, 2048, 1024, 512), (512, 1024, 1024, 512)),
+    'default': ((256, 256, 256), (512, 512, 512, 512)),
+    'small': ((128, 128), (256, 256, 256)),
+    'tiny': ((32, 32), (64, 64)),
+}
 
 #: Default row budget of a collection (``sik-collect --max-rows``).
 MAX_ROWS = 20_000_000
@@ -34,3 +49,41 @@ class TableConfig:
         """Validate the fields."""
         if not (self.cell > 0 and self.dedup > 0 and self.max_per_cell >= 1):
             raise InvalidArgument(f'invalid table config {self}')
+
+
+@dataclass(frozen=True)
+class BuildConfig:
+    """What a build does; a rerun must ask for the same (``time`` may change).
+
+    Attributes:
+        time: total wall-clock budget [s]; training gets what the other stages leave.
+        sampler: ``uniform`` or ``grid`` (the finest interval whose grid fits ``rows``).
+        rows: uniform samples, or the grid's row budget.
+        preset: layer widths (:data:`sik_ros.models.PRESETS`).
+        device: ``cpu`` or ``cuda``.
+        batch_size: samples per training step.
+        check_targets: targets per goal kind of the self-check.
+        seed: seed of the sampler, the training and the self-check.
+    """
+
+    time: float = 1800.0
+    sampler: str = 'uniform'
+    rows: int = 3_000_000
+    preset: str = 'default'
+    device: str = 'cpu'
+    batch_size: int = 2048
+    check_targets: int = 200
+    seed: int = 0
+
+    def __post_init__(self):
+        """Validate the fields."""
+        if not (math.isfinite(self.time) and self.time > 0):
+            raise InvalidArgument(f'--time must be a positive number of seconds; got {self.time}')
+        if self.sampler not in ('uniform', 'grid'):
+            raise InvalidArgument(f'--sampler must be uniform or grid; got {self.sampler!r}')
+        if not 1000 <= self.rows <= MAX_ROWS:
+            raise InvalidArgument(f'--rows must be in 1,000..{MAX_ROWS:,}; got {self.rows:,}')
+        if self.preset not in PRESETS:
+            raise InvalidArgument(f'--preset must be one of {sorted(PRESETS)}')
+        if self.device not in ('cpu', 'cuda'):
+            raise InvalidArgument(f'--device must be cpu or cuda; got {self.device!r}')

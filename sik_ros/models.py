@@ -14,19 +14,9 @@ import torch
 from torch import nn
 
 from sik_ros.chain import chain_forward, SerialChain
+from sik_ros.defaults import (DEFAULT_LATENT, GOAL_KINDS, MODEL_KINDS,  # noqa: F401 (API)
+                              PRESETS)
 from sik_ros.errors import InvalidArgument
-
-MODEL_KINDS = ('sik', 'psik', 'fcn', 'anfis')
-GOAL_KINDS = ('position', 'pose')
-DEFAULT_LATENT = {'position': 4, 'pose': 1}
-
-#: Layer-width presets: (encoder hidden widths, decoder hidden widths).
-PRESETS = {
-    'paper': ((2048, 2048, 1024, 512), (512, 1024, 1024, 512)),
-    'default': ((256, 256, 256), (512, 512, 512, 512)),
-    'small': ((128, 128), (256, 256, 256)),
-    'tiny': ((32, 32), (64, 64)),
-}
 
 
 @dataclass(frozen=True)

@@ -16,6 +16,8 @@ ROSDEP_KEYS = {
     'mpl_toolkits': 'python3-matplotlib',
     'tqdm': 'python3-tqdm',
     'yaml': 'python3-yaml',
+    'numba': 'python3-numba',
+    'llvmlite': 'python3-numba',  # numba's compiler, which it brings along
 }
 #: Modules without a rosdep key -> the pip distribution pinned in requirements/main.txt.
 PIP_ONLY = {

@@ -7,17 +7,9 @@ from pathlib import Path
 import sys
 from typing import List, Optional
 
-from tqdm import tqdm
-
-from sik_ros import distributed
-from sik_ros.artifacts import write_text_atomic
-from sik_ros.checkpoints import export_model, load_checkpoint, model_signature
 from sik_ros.cli import argv_or_default, Parser, run_cli
-from sik_ros.dataset import Dataset
+from sik_ros.defaults import DEFAULT_LATENT, PRESETS
 from sik_ros.errors import ArtifactExists, InvalidArgument
-from sik_ros.models import branch_bits, DEFAULT_LATENT, ModelConfig, PRESETS
-from sik_ros.robots import robot_from_manifest
-from sik_ros.training import TrainConfig, Trainer, with_overrides
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -77,6 +69,15 @@ def main(argv: Optional[List[str]] = None) -> int:
     args = build_parser().parse_args(argv_or_default(argv))
 
     def body() -> int:
+        from tqdm import tqdm
+
+        from sik_ros import distributed
+        from sik_ros.artifacts import write_text_atomic
+        from sik_ros.checkpoints import export_model, load_checkpoint, model_signature
+        from sik_ros.dataset import Dataset
+        from sik_ros.models import branch_bits, ModelConfig
+        from sik_ros.robots import robot_from_manifest
+        from sik_ros.training import TrainConfig, Trainer, with_overrides
         # Ctrl-C, kill -INT and SIGTERM stop a run with a checkpoint of its last step
         # (run_cli turns both signals into a KeyboardInterrupt)
         rank, size = distributed.init(args.device or 'cpu')
