@@ -5,14 +5,12 @@ states, both configs, the normaliser and the dataset manifest, so it rebuilds it
 else and a resumed run continues exactly where it stopped.
 """
 
-from dataclasses import asdict, dataclass, replace
-import math
+from dataclasses import asdict
 from pathlib import Path
 import time
 from typing import Callable, Dict, Optional
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 import torch
 from torch.nn.parallel import DistributedDataParallel
 
@@ -23,139 +21,10 @@ from sik_ros.checkpoints import normalizer_from_dict
 from sik_ros.dataset import Dataset, dataset_summary
 from sik_ros.errors import ArtifactMismatch, InvalidArgument, TrainingDiverged
 from sik_ros.kinematics import Robot
-from sik_ros.models import (anfis_forward, build_model, kl_normal, make_goal, ModelConfig,
-                            Normalizer, TorchChain)
-
-
-SAMPLERS = ('dataset', 'uniform')
-
-
-@dataclass(frozen=True)
-class TrainConfig:
-    """How a model is trained; saved inside every checkpoint.
-
-    Attributes:
-        steps: optimiser steps (the learning-rate schedule spans them).
-        batch_size: samples per step.
-        lr: peak learning rate of Adam.
-        lr_min: final learning rate of the cosine schedule.
-        warmup: linear warm-up steps.
-        fk_weight: weight of the forward-kinematics consistency term (0 disables it).
-        fk_start: step from which the FK term is on (before it: the paper's joint loss only).
-        fk_scale: distance that counts as one unit in the FK term [m].
-        rot_weight: weight of the orientation part of the FK term (pose goals).
-        kl_weight: weight of the KL term (PSIK).
-        val_rows: rows held out for validation.
-        eval_every: steps between validations.
-        checkpoint_every: steps between checkpoints.
-        seed: seed of initialisation, batches and validation split.
-        threads: torch intra-op threads.
-        device: ``cpu`` or ``cuda``.
-        uni_position: keep one row per distinct position (the paper's uni-position dataset).
-        pso_particles: particles of the swarm (ANFIS).
-        pso_batch: samples per swarm evaluation (ANFIS).
-        bf16: run forward and backward under bfloat16 autocast (weights and optimiser stay
-            float32); about twice the samples/s on CPUs with bfloat16 units
-            (bench/train_step.py).
-        sampler: ``dataset`` (batches of the collected rows) or ``uniform`` (every batch drawn
-            afresh: joint angles uniform within the limits, their tips by torch FK; the
-            dataset still gives the normaliser and the validation rows).
-        cycle_weight: weight of the cycle term (SIK, PSIK): each sample's posture index is
-            decoded at its goal position moved by a random offset (``cycle_shift`` [m] per
-            axis, as an index from a nearby table cell is used), re-encoded, and must give
-            the index back (squared error over the batch's index variance); the FK error of
-            that posture at the moved goal joins the FK term. It keeps an FK-driven decoder
-            from ignoring the index (docs/training.md).
-        cycle_shift: standard deviation of the goal offset of the cycle term [m].
-        cycle_turn: pose goals: the cycle term also turns the goal's orientation about a
-            random axis by an angle of this standard deviation [rad] (an index from a table
-            row of a nearby orientation decoded at the goal must reach it).
-        init: model file the weights started from (``--init``; provenance only).
-    """
-
-    steps: int = 100_000
-    batch_size: int = 2048
-    lr: float = 1e-3
-    lr_min: float = 1e-5
-    warmup: int = 500
-    fk_weight: float = 1.0
-    fk_start: int = 0
-    fk_scale: float = 0.05
-    rot_weight: float = 1.0
-    kl_weight: float = 1e-3
-    val_rows: int = 20_000
-    eval_every: int = 1000
-    checkpoint_every: int = 2000
-    seed: int = 0
-    threads: int = 1
-    device: str = 'cpu'
-    uni_position: bool = False
-    pso_particles: int = 100
-    pso_batch: int = 4096
-    bf16: bool = False
-    sampler: str = 'dataset'
-    cycle_weight: float = 0.0
-    cycle_shift: float = 0.02
-    cycle_turn: float = 0.0
-    init: str = ''
-
-    def __post_init__(self):
-        """Validate the fields."""
-        for name in ('steps', 'batch_size', 'eval_every', 'checkpoint_every', 'threads'):
-            if getattr(self, name) < 1:
-                raise InvalidArgument(f'{name} must be at least 1; got {getattr(self, name)}')
-        if not (self.lr > 0 and math.isfinite(self.lr)):
-            raise InvalidArgument(f'lr must be a positive number; got {self.lr}')
-        if self.sampler not in SAMPLERS:
-            raise InvalidArgument(f'sampler must be one of {", ".join(SAMPLERS)}; '
-                                  f'got {self.sampler!r}')
-        if not (self.cycle_weight >= 0 and math.isfinite(self.cycle_weight)):
-            raise InvalidArgument(f'cycle_weight must be a non-negative number; '
-                                  f'got {self.cycle_weight}')
-        if self.device not in ('cpu', 'cuda'):
-            raise InvalidArgument(f'device must be cpu or cuda; got {self.device!r}')
-        if self.device == 'cuda' and not torch.cuda.is_available():
-            raise InvalidArgument('device cuda requested but no CUDA device is available')
-
-
-class TrainData:
-    """A dataset as float32 tensors: joints, goals, tip positions and rotations."""
-
-    def __init__(self, ds: Dataset, goal: str, uni_position: bool = False):
-        rows = np.arange(len(ds))
-        if uni_position:
-            key = np.round(np.asarray(ds.position) * 1e5).astype(np.int64) + (1 << 20)
-            keys = (key[:, 0] << 42) | (key[:, 1] << 21) | key[:, 2]
-            _, rows = np.unique(keys, return_index=True)
-        self.q = torch.from_numpy(np.asarray(ds.q)[rows].astype(np.float32))
-        pos = np.asarray(ds.position)[rows]
-        rot = Rotation.from_quat(np.asarray(ds.quaternion)[rows]).as_matrix()
-        self.position = torch.from_numpy(pos.astype(np.float32))
-        self.rot6 = torch.from_numpy(np.concatenate([rot[:, :, 0], rot[:, :, 1]], 1)
-                                     .astype(np.float32))
-        self.goal = torch.from_numpy(make_goal(goal, pos, rot).astype(np.float32))
-
-    def __len__(self) -> int:
-        """Number of rows."""
-        return len(self.q)
-
-
-def default_normalizer(robot: Robot, ds: Dataset) -> Normalizer:
-    """Joint limits and a workspace centre and scale taken from the dataset."""
-    pos = np.asarray(ds.position)
-    sub = pos[:: max(1, len(pos) // 200_000)]
-    center = sub.mean(axis=0)
-    scale = float(np.sqrt(((sub - center) ** 2).sum(axis=1).mean()))
-    return Normalizer(tuple(robot.lower.tolist()), tuple(robot.upper.tolist()),
-                      tuple(center.tolist()), scale)
-
-
-def lr_at(cfg: TrainConfig, step: int) -> float:
-    """Learning rate at a step: linear warm-up then cosine decay to ``lr_min``."""
-    if step < cfg.warmup:
-        return cfg.lr * (step + 1) / cfg.warmup
-    t = min(1.0, (step - cfg.warmup) / max(1, cfg.steps - cfg.warmup))
-    return cfg.lr_min + 0.5 * (cfg.lr - cfg.lr_min) * (1 + math.cos(math.pi * t))
+from sik_ros.models import anfis_forward, build_model, kl_normal, ModelConfig, TorchChain
+from sik_ros.train_config import lr_at, SAMPLERS, TrainConfig, with_overrides  # noqa: F401
+from sik_ros.training_data import (default_normalizer, TrainData, turned_rot6,  # noqa: F401
+                                   widened_state, widens)
 
 
 class Trainer:
@@ -514,65 +383,3 @@ class Trainer:
             self.gen.manual_seed(self.cfg.seed + 1 + 7919 * self.rank + self.step)
         if 'pso' in ckpt:
             self._pso = {k: v.clone() for k, v in ckpt['pso'].items()}
-
-
-def turned_rot6(rot6: torch.Tensor, std: float, gen: torch.Generator) -> torch.Tensor:
-    """Rotations (two columns, (N, 6)) turned about random axes by angles of ``std`` [rad]."""
-    n = len(rot6)
-    a, b = rot6[:, :3], rot6[:, 3:]
-    c = torch.linalg.cross(a, b)
-    r = torch.stack([a, b, c], dim=2)
-    w = torch.randn(n, 3, generator=gen).to(rot6.device) * std  # rotation vectors
-    theta = torch.linalg.norm(w, dim=1, keepdim=True).clamp_min(1e-12)
-    k = w / theta
-    kx = torch.zeros(n, 3, 3, device=rot6.device, dtype=rot6.dtype)
-    kx[:, 0, 1], kx[:, 0, 2], kx[:, 1, 2] = -k[:, 2], k[:, 1], -k[:, 0]
-    kx = kx - kx.transpose(1, 2)
-    s, cth = torch.sin(theta)[:, :, None], torch.cos(theta)[:, :, None]
-    turn = torch.eye(3, dtype=rot6.dtype, device=rot6.device) + s * kx + (1 - cth) * kx @ kx
-    out = turn @ r
-    return torch.cat([out[:, :, 0], out[:, :, 1]], 1)
-
-
-def widens(old: ModelConfig, new: ModelConfig) -> bool:
-    """Whether ``new`` is ``old`` with a wider posture index (more learned elements or bits)."""
-    same = replace(new, latent_dim=old.latent_dim, branches=old.branches) == old
-    return (same and old.kind == 'sik' and new.latent_dim >= old.latent_dim
-            and tuple(new.branches[:len(old.branches)]) == tuple(old.branches))
-
-
-def widened_state(fresh: Dict, old: Dict, old_cfg: ModelConfig, cfg: ModelConfig) -> Dict:
-    """``old`` weights in a model with a wider index (``fresh``: its initial state dict).
-
-    The decoder's first layer keeps its goal and old index columns; the new learned elements'
-    and bits' columns are zero. The encoder's last layer keeps its old outputs; new outputs
-    take a tenth of their initial weights.
-    """
-    out = {k: v.clone() for k, v in fresh.items()}
-    enc_last = 'encoder.%d.' % max(int(k.split('.')[1]) for k in old if k.startswith('encoder.'))
-    for key, value in old.items():
-        target = out[key]
-        if target.shape == value.shape:
-            out[key] = value.clone()
-        elif key == 'decoder.0.weight':
-            w = torch.zeros_like(target)
-            g = cfg.goal_dim
-            w[:, :g + old_cfg.latent_dim] = value[:, :g + old_cfg.latent_dim]
-            bits = len(old_cfg.branches)
-            if bits:  # the old bits keep theirs, after the wider learned part
-                w[:, g + cfg.latent_dim:g + cfg.latent_dim + bits] = \
-                    value[:, g + old_cfg.latent_dim:]
-            out[key] = w
-        elif key.startswith(enc_last):
-            w = target * 0.1
-            w[:value.shape[0]] = value
-            out[key] = w
-        else:
-            raise ArtifactMismatch(f'weights {key} of the smaller model', tuple(target.shape),
-                                   tuple(value.shape))
-    return out
-
-
-def with_overrides(cfg: TrainConfig, **kw) -> TrainConfig:
-    """A copy of a config with some fields replaced (None values ignored)."""
-    return replace(cfg, **{k: v for k, v in kw.items() if v is not None})
