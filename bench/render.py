@@ -382,6 +382,15 @@ def render_train_step(data: dict) -> str:
             f'\n\n' + table(['batch', 'threads', 'float32', 'bfloat16 autocast'], rows))
 
 
+def render_tracik_protocol(data: dict) -> str:
+    """bench/tracik_protocol.py: one pose solution from the mid-limits seed, 5 ms budget."""
+    r = data['results']
+    rows = [[name, pct(r[name]['success']), num(r[name]['mean_ms']), num(r[name]['median_ms']),
+             num(r[name]['p99_ms'])] for name in ('sik_ros', 'TRAC-IK')]
+    return (table(['solver', 'success', 'mean [ms]', 'median [ms]', 'p99 [ms]'], rows)
+            + f'\n\nMean time ratio sik_ros / TRAC-IK: **{num(r["mean_ratio"])}**.')
+
+
 # the README's one table ---------------------------------------------------------------------
 
 def render_summary(results: Dict[str, List[dict]]) -> Optional[str]:
@@ -441,6 +450,15 @@ def render_summary(results: Dict[str, List[dict]]) -> Optional[str]:
                          pct(o['success']), f'{peer} {pct(o["peer_success"])}',
                          f'{num(min(ratios))}-{num(max(ratios))}'])
         sources.append(paths)
+    protocol = results.get('tracik_protocol', [None])[0]
+    if protocol:
+        r = protocol['results']
+        ours, peer = r['sik_ros'], r['TRAC-IK']
+        rows.append(['Panda, TRAC-IK\'s protocol (random reachable poses, mid-limits seed, 5 ms): '
+                     'success; mean time', f'{pct(ours["success"])}; {num(ours["mean_ms"])} ms',
+                     f'TRAC-IK {pct(peer["success"])}; {num(peer["mean_ms"])} ms',
+                     f'**{num(r["mean_ratio"])}**'])
+        sources.append(protocol)
     service = next((d for d in results.get('service', []) if d['file'] == 'service'), None)
     if service:
         s = service['results']
@@ -474,7 +492,7 @@ RENDER: Dict[str, Callable] = {
     'collect': render_collect, 'solve': render_solve, 'solve_ab': render_ab,
     'arms': render_arms, 'paths': render_paths, 'paths_ab': render_paths_ab,
     'service_probe': render_service_probe, 'soak': render_soak, 'sweep': render_sweep,
-    'train_step': render_train_step}
+    'train_step': render_train_step, 'tracik_protocol': render_tracik_protocol}
 
 
 def load() -> Dict[str, List[dict]]:

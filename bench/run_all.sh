@@ -29,6 +29,7 @@ run() {  # run NAME ARGS...: python bench/<script> ARGS, printed output kept in 
 # hour (the full sizes of the scripts' docstrings take several times longer).
 run solve bench/solve.py --targets 100
 run paths bench/paths.py --paths 100
+run tracik_protocol bench/tracik_protocol.py --targets 10000
 run service bench/service.py --requests 1000 --duration 10
 run arms bench/arms.py --arms panda,ur5 --targets 50 --max-attempts 100
 run solve_ab-panda-pose bench/solve_ab.py a=. b=. --goal pose --targets 100
