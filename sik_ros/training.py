@@ -66,8 +66,16 @@ class Trainer:
         d = self.data
         return tuple(t[idx].to(self.device) for t in (d.q, d.goal, d.position, d.rot6))
 
-    def _fresh_batch(self, n: int):
-        """``n`` joint configurations uniform within the limits and their goals (torch FK)."""
+    def fresh_batch(self, n: int):
+        """``n`` joint configurations uniform within the limits and their goals (torch FK).
+
+        The batch the ``uniform`` sampler trains on; :meth:`losses` takes it as ``batch``.
+
+        Returns:
+            ``(q, goal, position, rot6)``: joint values (n, dof) [rad], the model's goals (the
+            position, or the position and rot6), tip positions (n, 3) [m] and the first two
+            columns of the tip rotations (n, 6).
+        """
         lo = torch.as_tensor(self.robot.lower, dtype=torch.float32)
         hi = torch.as_tensor(self.robot.upper, dtype=torch.float32)
         q = (lo + (hi - lo) * torch.rand(n, len(lo), generator=self.gen)).to(self.device)
@@ -248,7 +256,7 @@ class Trainer:
         for group in self.opt.param_groups:
             group['lr'] = lr_at(self.cfg, self.step)
         if self.cfg.sampler == 'uniform':
-            args = {'batch': self._fresh_batch(self.cfg.batch_size)}
+            args = {'batch': self.fresh_batch(self.cfg.batch_size)}
         else:
             pick = torch.randint(len(self.train_idx), (self.cfg.batch_size,),
                                  generator=self.gen)

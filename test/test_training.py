@@ -200,7 +200,7 @@ def test_fresh_samples_and_the_cycle_term_train_and_keep_the_index(
 def test_fresh_batches_are_within_the_limits_and_match_pinocchio(panda, uniform_small, tmp_path):
     """The uniform sampler's joints lie within the limits and its goals are Pinocchio's FK."""
     t = trainer(panda, uniform_small, tmp_path, sampler='uniform')
-    q, goal, pos, rot6 = t._fresh_batch(64)
+    q, goal, pos, rot6 = t.fresh_batch(64)
     assert torch.all(q >= torch.as_tensor(panda.lower, dtype=torch.float32))
     assert torch.all(q <= torch.as_tensor(panda.upper, dtype=torch.float32))
     data, fid = panda.model.createData(), find_frame(panda.model, panda.tip_frame)

@@ -186,13 +186,13 @@ def test_bad_bundle_is_one_line(tmp_path, capsys, args, words):
 def test_obstacles_and_path(panda_viewer, panda):
     """A box obstacle enters the ranking (clearance reported); a line path plays on the arm."""
     viewer = panda_viewer
-    viewer._add_box()
+    viewer.add_box()
     assert viewer.result.solutions
     assert all(np.isfinite(s.min_obstacle_distance) for s in viewer.result.solutions)
-    viewer._clear_boxes()
+    viewer.clear_boxes()
     assert all(np.isinf(s.min_obstacle_distance) for s in viewer.result.solutions)
     viewer.path_end.position = tuple(viewer.goal.position + np.array([0.0, 0.08, 0.0]))
-    viewer._plan_path()
+    viewer.plan_path()
     assert viewer.path_q is not None and viewer.path_q.shape == (20, 7)
     assert 'success' in viewer.path_text.content
     end, _ = panda.fk(viewer.path_q[-1])

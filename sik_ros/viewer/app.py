@@ -133,10 +133,10 @@ class Viewer:
         self.count.on_update(lambda _: self.update())
         self.layout.on_update(lambda _: self.draw())
         self.pick.on_update(lambda _: self.draw())
-        add.on_click(lambda _: self._add_box())
-        clear.on_click(lambda _: self._clear_boxes())
+        add.on_click(lambda _: self.add_box())
+        clear.on_click(lambda _: self.clear_boxes())
         self.show_path.on_update(lambda _: self._draw_path_line())
-        plan.on_click(lambda _: self._plan_path())
+        plan.on_click(lambda _: self.plan_path())
         play.on_click(lambda _: self._play())
         self.step.on_update(lambda _: self._show_step())
 
@@ -241,7 +241,8 @@ class Viewer:
 
     # -- obstacles ------------------------------------------------------------------------------
 
-    def _add_box(self) -> None:
+    def add_box(self) -> None:
+        """Add a box obstacle beside the goal, movable on the page, and solve again."""
         i = len(self._obstacles)
         center = self.goal.position + np.array([0.15, 0.0, 0.0]) + 0.05 * i
         box = self.server.scene.add_box(f'/obstacles/{i}/box', color=(200, 80, 80),
@@ -259,7 +260,8 @@ class Viewer:
         self._obstacles.append(tuple(entry))
         self.update()
 
-    def _clear_boxes(self) -> None:
+    def clear_boxes(self) -> None:
+        """Remove every box obstacle and solve again."""
         for _, box, controls in self._obstacles:
             box.remove()
             controls.remove()
@@ -278,7 +280,12 @@ class Viewer:
         self.server.scene.add_line_segments('/path_line', points, (240, 200, 0),
                                             thickness=0.006)
 
-    def _plan_path(self) -> None:
+    def plan_path(self) -> None:
+        """Plan a line from the goal to the end marker, from the shown solution.
+
+        Sets ``path_q`` (the best path's joint values, one row per waypoint [rad]) and the
+        path's summary on the page; a failed plan says why there and leaves ``path_q`` as is.
+        """
         self.show_path.value = True
         self._draw_path_line()
         seed = None
@@ -311,7 +318,7 @@ class Viewer:
 
     def _play(self) -> None:
         if self.path_q is None:
-            self._plan_path()
+            self.plan_path()
         if self.path_q is None:
             return
         for i in range(1, len(self.path_q) + 1):
