@@ -13,7 +13,7 @@ import re
 
 HEADER = """\
 # Every Python distribution in the set-up venv, pinned exactly (a pip constraints file).
-# Regenerate after changing requirements/main.txt: see the README, "Updating the pins".
+# Regenerate after changing requirements/main.txt: see docs/design.md, "Set-up".
 # torch is the CPU build: on these machines `torch==2.13.0` takes 2.13.0+cpu from the local disk.
 """
 
