@@ -36,6 +36,8 @@ E2E_TESTS = {
 E2E_FIXTURES = {'graph', 'ur5_bundle'}
 #: Modules whose tests take more than a few seconds alone (marker ``slow``).
 SLOW_MODULES = {'test_arms', 'test_colcon', 'test_eval', 'test_training'}
+#: Tests of other modules that take more than a few seconds alone.
+SLOW_TESTS = {'test_seed_table::test_a_seed_table_keeps_dataset_rows_and_round_trips'}
 
 
 def pytest_collection_modifyitems(config, items):
@@ -45,7 +47,7 @@ def pytest_collection_modifyitems(config, items):
         if (module in E2E_MODULES or f'{module}::{item.originalname}' in E2E_TESTS
                 or E2E_FIXTURES & set(getattr(item, 'fixturenames', ()))):
             item.add_marker(pytest.mark.e2e)
-        if module in SLOW_MODULES:
+        if module in SLOW_MODULES or f'{module}::{item.originalname}' in SLOW_TESTS:
             item.add_marker(pytest.mark.slow)
 
 
