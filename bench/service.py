@@ -17,7 +17,7 @@ alternating: ``--goals mixed``) and 16 ranked refined solutions:
   sent [MB].
 
 Usage: ``python bench/service.py [--quick] [--requests N] [--goals position|pose|mixed]
-[--clients N] [--duration S] [--model-dir DIR] [--json PATH]``. Prints a table; the
+[--clients N] [--duration S] [--model-dir DIR] [--domain ID] [--json PATH]``. Prints a table; the
 figures are never asserted (see docs/benchmarks.md).
 """
 
@@ -253,6 +253,9 @@ def main(argv: Optional[List[str]] = None) -> int:
     parser.add_argument('--goals', choices=('position', 'pose', 'mixed'), default='position',
                         help='goal kinds of the requests (mixed: alternating)')
     parser.add_argument('--model-dir', help='bundle directory (default: the bundled panda)')
+    parser.add_argument('--domain', type=int,
+                        help='ROS_DOMAIN_ID of the node, the empty service and the clients '
+                        '(default: a random one of 1 to 100)')
     parser.add_argument('-p', '--param', action='append', default=[],
                         help='a node parameter override name:=value (repeatable)')
     add_json_argument(parser)
@@ -262,7 +265,7 @@ def main(argv: Optional[List[str]] = None) -> int:
     bundle = args.model_dir or 'panda'
     goals = targets(n, kinds=args.goals)
 
-    env = launch.ros_env()
+    env = launch.ros_env(args.domain)
     proc = launch.launch_node(args.model_dir, args.param, env=env, stdout=subprocess.DEVNULL,
                               stderr=subprocess.STDOUT)
     floor_proc = start_floor(env)
