@@ -279,7 +279,23 @@ def render_paths_ab(data: dict) -> str:
 def render_service(files: List[dict]) -> str:
     """bench/service.py: the node over loopback DDS, one column per run."""
     def p(d: Optional[dict]) -> str:
-        return NA if not d else f'{num(d["p50_ms"])} / {num(d["p99_ms"])} ms'
+        if not d:
+            return NA
+        if 'p90_ms' not in d:  # a run from before p90 was recorded
+            return f'{num(d["p50_ms"])} / {NA} / {num(d["p99_ms"])} ms'
+        return f'{num(d["p50_ms"])} / {num(d["p90_ms"])} / {num(d["p99_ms"])} ms'
+
+    def ratio(r: dict) -> str:
+        x = r.get('ratio')
+        return NA if not x else f'**{num(x["p50"])}** / {num(x["p90"])}'
+
+    def rate(r: dict, clients: int) -> str:
+        cells = r.get('throughput', {}).get(str(clients))
+        if cells:
+            return f'{cells["sik"]:.0f} / {cells["floor"]:.0f} requests/s'
+        if clients == r['clients']:  # a run from before the empty service was measured
+            return f'{r["throughput_rps"]:.0f} / {NA} requests/s'
+        return NA
 
     cols = []
     for data in files:
@@ -287,22 +303,28 @@ def render_service(files: List[dict]) -> str:
         procs = [x.split(':=')[1] for x in r['params'] if x.startswith('solver_processes')]
         cols.append((f'{r["goals"]} goals' + (f', `solver_processes: {procs[0]}`'
                                               if procs else ''), r))
+    many = max(r['clients'] for _, r in cols)
     spec = [('sequential requests', lambda r: f'{r["requests"]:,}'),
-            ('round trip p50 / p99', lambda r: p(r['round_trip'])),
+            ('round trip p50 / p90 / p99', lambda r: p(r['round_trip'])),
             ('… of position goals', lambda r: p(r.get('round_trip_position'))),
             ('… of pose goals', lambda r: p(r.get('round_trip_pose'))),
-            ('solver in the node p50 / p99', lambda r: p(r['solver_in_node'])),
-            ('ROS overhead (round trip − solver) p50 / p99', lambda r: p(r['overhead'])),
-            ('solver alone in the benchmark process p50 / p99', lambda r: p(r['solver_alone'])),
-            ('throughput, concurrent clients',
-             lambda r: f'{r["throughput_rps"]:.0f} requests/s ({r["clients"]} clients)'),
+            ('empty service round trip p50 / p90 / p99 (same run, A B A B)',
+             lambda r: p(r.get('floor_round_trip'))),
+            ('round trip ÷ empty service, p50 / p90', ratio),
+            ('solver in the node p50 / p90 / p99', lambda r: p(r['solver_in_node'])),
+            ('ROS overhead (round trip − solver) p50 / p90 / p99', lambda r: p(r['overhead'])),
+            ('solver alone in the benchmark process p50 / p90 / p99',
+             lambda r: p(r['solver_alone'])),
+            ('throughput, 1 client: node / empty service', lambda r: rate(r, 1)),
+            (f'throughput, {many} clients: node / empty service', lambda r: rate(r, many)),
             ('node RSS growth (requests)',
              lambda r: f'{r["rss_growth_mb"]:+.1f} MB ({r["requests_total"]:,})'),
             ('SUCCESS answers', lambda r: pct(r['success']))]
     rows = [[name] + [fn(r) for _, r in cols] for name, fn in spec]
     return ('16 ranked refined solutions per request, goals at FK of random configurations, '
-            'sequential round trips from a background-spun `SolveIKClient`, then concurrent '
-            'clients:\n\n' + table([''] + [c for c, _ in cols], rows))
+            'sequential round trips from a background-spun `SolveIKClient`, each followed by '
+            'a call of the empty service, then concurrent clients (phases of the node and of '
+            'the empty service in turn):\n\n' + table([''] + [c for c, _ in cols], rows))
 
 
 def render_service_probe(data: dict) -> str:
@@ -462,10 +484,15 @@ def render_summary(results: Dict[str, List[dict]]) -> Optional[str]:
     service = next((d for d in results.get('service', []) if d['file'] == 'service'), None)
     if service:
         s = service['results']
-        rows.append(['`sik_node` over ROS 2, position goals: round trip p50 / p99; '
+        floor = s.get('floor_round_trip')
+        rows.append([f'`sik_node` over ROS 2, {s["goals"]} goals: round trip p50 / p99; '
                      f'throughput with {s["clients"]} clients',
                      f'{num(s["round_trip"]["p50_ms"])} / {num(s["round_trip"]["p99_ms"])} ms; '
-                     f'{s["throughput_rps"]:.0f} requests/s', NA, NA])
+                     f'{s["throughput_rps"]:.0f} requests/s',
+                     NA if not floor else f'empty rclpy service {num(floor["p50_ms"])} / '
+                     f'{num(floor["p99_ms"])} ms; '
+                     f'{s["throughput"][str(s["clients"])]["floor"]:.0f} requests/s',
+                     NA if not floor else f'**{num(s["ratio"]["p50"])}** (p50)'])
         sources.append(service)
     if not sources:
         return None

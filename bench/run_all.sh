@@ -30,11 +30,11 @@ run() {  # run NAME ARGS...: python bench/<script> ARGS, printed output kept in 
 run solve bench/solve.py --targets 100
 run paths bench/paths.py --paths 100
 run tracik_protocol bench/tracik_protocol.py --targets 10000
-run service bench/service.py --requests 1000 --duration 10
+run service bench/service.py --requests 1000 --duration 10 --goals mixed
 run arms bench/arms.py --arms panda,ur5 --targets 50 --max-attempts 100
 run solve_ab-panda-pose bench/solve_ab.py a=. b=. --goal pose --targets 100
 run paths_ab bench/paths_ab.py a=. b=. --paths 40
-run service-mixed bench/service.py --requests 1000 --duration 10 --goals mixed
+run service-position bench/service.py --requests 1000 --duration 10
 run soak bench/soak.py --requests 3000 --clients 16
 run service_probe bench/service_probe.py --requests 200
 run sweep bench/sweep.py --arms z1,so101 --targets 20 --attempts 100
@@ -43,5 +43,6 @@ run train_step bench/train_step.py --batches 2048 --threads 1,2 --steps 5 --repe
 run solve_ab-ur5-pose-busy bench/solve_ab.py a=. b=. --goal pose --targets 100 \
   --bundle bundles_bench/ur5 --busy 90
 run solve_ab-panda-position bench/solve_ab.py a=. b=. --goal position --targets 100
-run service-processes2 bench/service.py --requests 1000 --duration 10 -p solver_processes:=2
+run service-processes2 bench/service.py --requests 1000 --duration 10 --goals mixed \
+  -p solver_processes:=2
 "$PY" bench/render.py

@@ -73,14 +73,16 @@ class SolveIKClient:
             request: the request.
             timeout: the whole call's budget [s].
             attempt: how long one try waits before the request is sent again [s]; default:
-                the request's own timeout plus a second (or 2 s when it gives none).
+                the request's own timeout plus a second (or 2 s when it gives none, or has
+                no ``timeout`` field).
         """
         deadline = time.monotonic() + timeout
         if not self.client.service_is_ready() and not self.client.wait_for_service(
                 timeout_sec=timeout):
             return None
         if attempt is None:
-            given = request.timeout.sec + request.timeout.nanosec * 1e-9
+            budget = getattr(request, 'timeout', None)  # a SolveIK or SolvePath request's
+            given = 0.0 if budget is None else budget.sec + budget.nanosec * 1e-9
             attempt = given + 1.0 if given > 0 else 2.0
         while True:
             left = deadline - time.monotonic()

@@ -6,6 +6,7 @@ pure: they turn messages into arrays and :class:`~sik_ros.collision.Obstacle` ob
 back into ``sik_interfaces`` messages and RViz markers. Units are SI: metres, radians, seconds.
 """
 
+from array import array
 import math
 from typing import Dict, List, Optional, Sequence, Tuple
 
@@ -185,12 +186,17 @@ def known_clearance(distance: float) -> float:
 
 def solution_to_msg(solution: Solution, joint_names: Sequence[str], header: Header
                     ) -> IKSolution:
-    """One ranked library solution as an ``IKSolution`` (joint state stamped with ``header``)."""
+    """One ranked library solution as an ``IKSolution`` (joint state stamped with ``header``).
+
+    The arrays go into the ``array.array`` fields as bytes (one copy, no Python floats).
+    ``header`` is shared, not copied: an answer's messages are only read (serialised).
+    """
     msg = IKSolution()
-    msg.joint_state.header = header
-    msg.joint_state.name = list(joint_names)
-    msg.joint_state.position = solution.q.tolist()
-    msg.posture_index = solution.posture_index.tolist()
+    state = msg.joint_state
+    state.header = header
+    state.name = list(joint_names)
+    state.position = array('d', np.asarray(solution.q, dtype=float).tobytes())
+    msg.posture_index = array('f', np.asarray(solution.posture_index, dtype=np.float32).tobytes())
     msg.position_error = float(solution.position_error)
     msg.orientation_error = float(solution.orientation_error)
     msg.min_obstacle_distance = known_clearance(solution.min_obstacle_distance)
