@@ -7,6 +7,8 @@ import pytest
 
 from sik_ros.kernels.dls import CONVERGED, PRUNED, UNTOUCHED
 from sik_ros.solver import SelectiveIK
+from sik_ros.solver.context import Goal
+from sik_ros.solver.refine import errors, refine
 
 
 @pytest.fixture(scope='module')
@@ -16,11 +18,8 @@ def bundled():
 
 
 def _refine(ik, q, pos, rot, **kw):
-    """The kernel's answer through :func:`sik_ros.solver.refine.refine` (module, not facade)."""
-    import importlib
-    from sik_ros.solver.context import Goal
-    refine = importlib.import_module('sik_ros.solver.refine')
-    return refine.refine(ik._ctx, q, Goal(pos, rot), **kw)
+    """The kernel's answer through :func:`sik_ros.solver.refine.refine`."""
+    return refine(ik.context, q, Goal(pos, rot), **kw)
 
 
 def _target(robot, seed):
@@ -38,7 +37,7 @@ def test_refined_rows_reach_the_goal_within_the_limits(bundled):
     starts = np.clip(q_goal + np.random.default_rng(1).normal(0, 0.05, (6, robot.dof)),
                      robot.lower, robot.upper)
     out = _refine(bundled, starts, p, r)
-    perr, oerr = bundled.errors(out.q, p, r)
+    perr, oerr = errors(bundled.context, out.q, Goal(p, r))
     np.testing.assert_allclose(out.perr, perr, atol=1e-12)
     np.testing.assert_allclose(out.oerr, oerr, atol=1e-7)  # arccos there: 1e-8 near 0
     assert (perr <= 1e-4).all() and (oerr <= 1e-3).all()
@@ -57,7 +56,8 @@ def test_enough_stops_after_the_first_exact_rows(bundled):
     assert out.perr[0] <= 1e-4 and out.oerr[0] <= 1e-3
     np.testing.assert_array_equal(out.q[1:], starts[1:])
     # their errors are those of the starts
-    np.testing.assert_allclose(out.perr[1:], bundled.errors(starts[1:], p, r)[0], atol=1e-12)
+    start_perr = errors(bundled.context, starts[1:], Goal(p, r))[0]
+    np.testing.assert_allclose(out.perr[1:], start_perr, atol=1e-12)
 
 
 def test_a_past_deadline_leaves_every_row_as_it_started(bundled):

@@ -64,6 +64,17 @@ def distinct_mask(q: np.ndarray, threshold: float, ignore_last: bool = False,
                          n - 1 if ignore_last else n, turns)
 
 
+def posture_mask(ctx: Context, q: np.ndarray, kind: str,
+                 threshold: Optional[float] = None) -> np.ndarray:
+    """Greedy keep-mask of a ``kind`` goal's configurations (M, n) of distinct postures.
+
+    Rows at least ``threshold`` [rad] apart (default: ``config.distinct_threshold``), the last
+    joint left out where it only turns the tool (:meth:`Context.ignores_last`).
+    """
+    return distinct_mask(q, ctx.config.distinct_threshold if threshold is None else threshold,
+                         ctx.ignores_last(kind))
+
+
 def by_score(c: Candidates) -> Candidates:
     """Exact candidates first, then by score."""
     return c.take(np.lexsort((pose_score(c.perr, c.oerr), ~c.exact)))

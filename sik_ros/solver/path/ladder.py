@@ -9,10 +9,10 @@ from sik_ros.collision import Obstacle
 from sik_ros.rotations import rotation_angle
 from sik_ros.solver import pipeline  # noqa: I100 (a sibling module, not the package)
 from sik_ros.solver.context import Context, Goal
-from sik_ros.solver.path.edges import _continue, _edges, _reach
+from sik_ros.solver.path.edges import continue_tracks, edge_costs, reach_bounds
 from sik_ros.solver.path.settings import JointPath, PathResult, PathSettings
-from sik_ros.solver.path.starts import _starts
-from sik_ros.solver.path.tracking import _chunk, _turns, Poses
+from sik_ros.solver.path.starts import track_starts
+from sik_ros.solver.path.tracking import chunk, Poses, waypoint_turns
 from sik_ros.solver.ranking import distinct_mask
 from sik_ros.solver.refine import Evaluation
 
@@ -28,18 +28,18 @@ def solve_path(ctx: Context, goals: Sequence[Goal], q_seed: Optional[np.ndarray]
     spread over the postures (``wider.near_seed`` False), may be on a branch that gets
     through.
     """
-    result = _plan(ctx, goals, q_seed, obstacles, s, deadline)
+    result = plan(ctx, goals, q_seed, obstacles, s, deadline)
     if result.success or result.timed_out or wider is None:
         return result
-    again = _plan(ctx, goals, q_seed, obstacles, wider, deadline)
+    again = plan(ctx, goals, q_seed, obstacles, wider, deadline)
     best = again if again.fraction > result.fraction else result
     best.elapsed = result.elapsed + again.elapsed
     return best
 
 
-def _plan(ctx: Context, goals: Sequence[Goal], q_seed: Optional[np.ndarray],
-          obstacles: Sequence[Obstacle], s: PathSettings,
-          deadline: Optional[float]) -> PathResult:
+def plan(ctx: Context, goals: Sequence[Goal], q_seed: Optional[np.ndarray],
+         obstacles: Sequence[Obstacle], s: PathSettings,
+         deadline: Optional[float]) -> PathResult:
     """One planning of the ranked joint paths with the settings ``s``."""
     t0 = time.perf_counter()
     n = len(goals)
@@ -49,8 +49,8 @@ def _plan(ctx: Context, goals: Sequence[Goal], q_seed: Optional[np.ndarray],
     tips: List[Poses] = []               # their tip poses
     reached = 0
     timed_out = False
-    reach = _reach(ctx.robot.chain)
-    turns = _turns(goals)
+    reach = reach_bounds(ctx.robot.chain)
+    turns = waypoint_turns(goals)
     i = one_by_one = 0
     while i < n:
         goal = goals[i]
@@ -58,7 +58,7 @@ def _plan(ctx: Context, goals: Sequence[Goal], q_seed: Optional[np.ndarray],
             timed_out = True
             break
         if i == 0:
-            q, ev = _starts(ctx, goal, q_seed, obstacles, s.starts, deadline, s.near_seed)
+            q, ev = track_starts(ctx, goal, q_seed, obstacles, s.starts, deadline, s.near_seed)
             c0 = np.zeros(len(q)) if q_seed is None else \
                 s.seed_weight * np.linalg.norm(q - q_seed, axis=1)
             if len(q) == 0:
@@ -76,8 +76,8 @@ def _plan(ctx: Context, goals: Sequence[Goal], q_seed: Optional[np.ndarray],
         # already distinct: no ladder step before it)
         if ((i - 1) % s.ladder or i == 1) and i >= one_by_one:
             m = min(s.ladder - (i - 1) % s.ladder, n - i)
-            out = _chunk(ctx, prev, prev_ev, cost[-1][prev_idx], goals[i - 1],
-                         goals[i:i + m], turns[i - 1:i - 1 + m], reach, obstacles, s, deadline)
+            out = chunk(ctx, prev, prev_ev, cost[-1][prev_idx], goals[i - 1],
+                        goals[i:i + m], turns[i - 1:i - 1 + m], reach, obstacles, s, deadline)
             if out is None:
                 one_by_one = i + m  # no second try before the next ladder waypoint
             else:
@@ -87,9 +87,9 @@ def _plan(ctx: Context, goals: Sequence[Goal], q_seed: Optional[np.ndarray],
                 ev = out[2]
                 reached = i = i + m
                 continue
-        q, ev = _continue(ctx, prev, prev_ev, goal, deadline)
+        q, ev = continue_tracks(ctx, prev, prev_ev, goal, deadline)
         if len(q) < 2:  # tracks lost: new starts here, joined by the edges that allow it
-            fresh, fresh_ev = _starts(ctx, goal, None, obstacles, s.starts, deadline)
+            fresh, fresh_ev = track_starts(ctx, goal, None, obstacles, s.starts, deadline)
             q = np.concatenate([q, fresh])
             ev = Evaluation.concat(ev, fresh_ev)
         if len(q) == 0:
@@ -101,8 +101,8 @@ def _plan(ctx: Context, goals: Sequence[Goal], q_seed: Optional[np.ndarray],
             q, ev = q[clear], ev.rows(clear)
             if len(q) == 0:
                 break
-        total = _edges(ctx, prev, cost[-1][prev_idx], prev_ev, q, ev, goals[i - 1], goal,
-                       turns[i - 1], reach, s)
+        total = edge_costs(ctx, prev, cost[-1][prev_idx], prev_ev, q, ev, goals[i - 1], goal,
+                           turns[i - 1], reach, s)
         best = np.argmin(total, axis=0)
         c = total[best, np.arange(len(q))]
         if not np.isfinite(c).any():
@@ -114,7 +114,7 @@ def _plan(ctx: Context, goals: Sequence[Goal], q_seed: Optional[np.ndarray],
         reached = i = i + 1
     # a step that ran past the deadline (a solve, a clearance check) may have cut it short
     timed_out = timed_out or (reached < n and pipeline.past(deadline))
-    paths = _paths(ctx, goals, cand, back, cost, tips, obstacles, s)
+    paths = ranked_paths(ctx, goals, cand, back, cost, tips, obstacles, s)
     success = reached == n and bool(paths)
     fraction = reached / n if paths else 0.0
     msg = '' if success else (
@@ -125,8 +125,8 @@ def _plan(ctx: Context, goals: Sequence[Goal], q_seed: Optional[np.ndarray],
     return PathResult(success, fraction, paths, time.perf_counter() - t0, timed_out, msg)
 
 
-def _paths(ctx: Context, goals, cand, back, cost, tips, obstacles,
-           s: PathSettings) -> List[JointPath]:
+def ranked_paths(ctx: Context, goals, cand, back, cost, tips, obstacles,
+                 s: PathSettings) -> List[JointPath]:
     """The best paths to the last reached waypoint, from distinct starts, best first.
 
     Their errors come from the candidates' tip poses (``tips``, each waypoint's, computed by

@@ -71,10 +71,10 @@ class PathSettings:
     lost); ``tracks``: the beam, the cheapest candidates kept per waypoint (both raised to
     ``num_paths`` when below it); ``ladder``: every ``ladder``-th waypoint is joined to the
     previous one by the whole ladder (tracks may switch, merge, be refilled by new starts); the
-    waypoints between are solved in one batch, each track continuing itself (:func:`_chunk`).
+    waypoints between are solved in one batch, each track continuing itself (:func:`chunk`).
     ``near_seed``: a position path with a seed starts from the seed and the table's postures
     nearest it (else from the seed and the solver's first solutions, spread over the
-    postures: :func:`_starts`). The defaults are :data:`POSE_BEAM`'s; :meth:`for_paths`
+    postures: :func:`track_starts`). The defaults are :data:`POSE_BEAM`'s; :meth:`for_paths`
     takes them from :data:`POSE_BEAM` or :data:`POSITION_BEAM` by the paths' kind.
     """
 

@@ -6,7 +6,7 @@ import numpy as np
 
 from sik_ros.rotations import rotation_angle, rotation_log
 from sik_ros.solver.context import Context, Goal
-from sik_ros.solver.path.edges import _angular_speed, _certified, _on_segment
+from sik_ros.solver.path.edges import angular_speed, certified, on_segment
 from sik_ros.solver.path.settings import PathSettings, TRACK_ITERATIONS
 from sik_ros.solver.refine import dls_step, Evaluation, follow
 
@@ -15,9 +15,9 @@ Poses = Tuple[np.ndarray, np.ndarray]  # tip positions (M, 3) and rotations (M, 
 Chunk = Tuple[List[np.ndarray], List[np.ndarray], Evaluation, List[Poses]]
 
 
-def _chunk(ctx: Context, q: np.ndarray, ev: Evaluation, cost0: np.ndarray, ga: Goal,
-           goals: Sequence[Goal], turns: np.ndarray, reach: np.ndarray, obstacles,
-           s: PathSettings, deadline) -> Optional[Chunk]:
+def chunk(ctx: Context, q: np.ndarray, ev: Evaluation, cost0: np.ndarray, ga: Goal,
+          goals: Sequence[Goal], turns: np.ndarray, reach: np.ndarray, obstacles,
+          s: PathSettings, deadline) -> Optional[Chunk]:
     """The tracks ``q`` (T, n) through the next ``goals`` (m waypoints) at once, each its own.
 
     Along a path a track's next steps are nearly its last one, so all ``m`` are predicted
@@ -78,13 +78,13 @@ def _chunk(ctx: Context, q: np.ndarray, ev: Evaluation, cost0: np.ndarray, ga: G
     d = diff.reshape(-1, n)
     w_a = w_b = None
     if rot is not None:
-        w_a, w_b = _angular_speed(jac_before.reshape(-1, 6, n), d), _angular_speed(j, d)
-    proven = _certified(ctx, before.reshape(-1, n), flat, goals[0], np.repeat(turns, t),
-                        reach, s, w_a, w_b).reshape(m, t)
+        w_a, w_b = angular_speed(jac_before.reshape(-1, 6, n), d), angular_speed(j, d)
+    proven = certified(ctx, before.reshape(-1, n), flat, goals[0], np.repeat(turns, t),
+                       reach, s, w_a, w_b).reshape(m, t)
     for k in np.flatnonzero((ok & ~proven).any(axis=1)):
         cols = np.flatnonzero(ok[k] & ~proven[k])
-        ok[k, cols] = _on_segment(ctx, before[k, cols], qs[k, cols], goals[k - 1] if k else ga,
-                                  goals[k], s)
+        ok[k, cols] = on_segment(ctx, before[k, cols], qs[k, cols], goals[k - 1] if k else ga,
+                                 goals[k], s)
     if obstacles:
         live = np.flatnonzero(ok.reshape(-1))
         clear = np.zeros(m * t, dtype=bool)
@@ -101,7 +101,7 @@ def _chunk(ctx: Context, q: np.ndarray, ev: Evaluation, cost0: np.ndarray, ga: G
     return list(qs), list(costs), out_ev, tips
 
 
-def _turns(goals: Sequence[Goal]) -> np.ndarray:
+def waypoint_turns(goals: Sequence[Goal]) -> np.ndarray:
     """(N - 1,) the angles [rad] between consecutive waypoints' orientations (0: positions)."""
     if len(goals) < 2 or goals[0].rotation is None:
         return np.zeros(max(len(goals) - 1, 0))
