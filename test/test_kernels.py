@@ -5,6 +5,7 @@ import time
 import numpy as np
 import pytest
 
+from sik_ros.deadline import Deadline
 from sik_ros.kernels.dls import CONVERGED, PRUNED, UNTOUCHED
 from sik_ros.solver import SelectiveIK
 from sik_ros.solver.context import Goal
@@ -65,7 +66,7 @@ def test_a_past_deadline_leaves_every_row_as_it_started(bundled):
     robot = bundled.robot
     q_goal, p, r = _target(robot, 3)
     starts = np.clip(q_goal + 0.3, robot.lower, robot.upper)[None]
-    out = _refine(bundled, starts, p, r, deadline=time.perf_counter() - 1.0)
+    out = _refine(bundled, starts, p, r, deadline=Deadline(time.perf_counter() - 1.0))
     assert out.cut_short
     np.testing.assert_array_equal(out.q, starts)
 

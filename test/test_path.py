@@ -317,10 +317,10 @@ def test_position_starts_are_the_seed_and_the_table_postures_nearest_it(ik):
     _, alone, _ = follow(ctx, seed[None], Evaluation.of(ctx, seed[None]), goal,
                          settings.START_ITERATIONS)
     # the seed and three table postures; the seed and the solver's first four
-    for (q, _), most in ((starts.track_starts(ctx, goal, seed, [], 4, None), 4),
-                         (starts.track_starts(ctx, goal, seed, [], 4, None, near_seed=False), 5),
+    for (q, _), most in ((starts.track_starts(ctx, goal, seed, [], 4), 4),
+                         (starts.track_starts(ctx, goal, seed, [], 4, near_seed=False), 5),
                          (starts.track_starts(ik.with_config(cached_postures=False).context, goal,
-                                              seed, [], 4, None), 5)):
+                                              seed, [], 4), 5)):
         assert 2 <= len(q) <= most
         np.testing.assert_allclose(q[0], alone[0])
         p, _ = chain_forward(ik.robot.chain, q)
@@ -337,10 +337,10 @@ def test_position_starts_keep_clear_of_obstacles(ik):
     ctx = ik.context
     seed = np.array([1.0, 0.5, -0.8, -1.5, 0.4, 2.6, -1.2])
     goal = Goal(ik.fk(Q0)[0])
-    free, _ = starts.track_starts(ctx, goal, seed, [], 4, None)
+    free, _ = starts.track_starts(ctx, goal, seed, [], 4)
     _, _, origins, _ = chain_forward(ik.robot.chain, free[:1], frames=True)
     box = Obstacle('box', (0.1, 0.1, 0.1), tuple(origins[0, 3]))
     assert ik.checker.clearance(free[:1], [box])[0] <= 0
-    q, _ = starts.track_starts(ctx, goal, seed, [box], 4, None)
+    q, _ = starts.track_starts(ctx, goal, seed, [box], 4)
     assert len(q) >= 2
     assert np.all(ik.checker.clearance(q, [box]) > 0)

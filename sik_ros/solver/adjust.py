@@ -1,11 +1,11 @@
 """Algorithm 2 of the paper: adjust posture indices while the clearance from obstacles improves."""
 
-import time
 from typing import List, Optional, Sequence
 
 import numpy as np
 
 from sik_ros.collision import Obstacle
+from sik_ros.deadline import Deadline, NO_DEADLINE
 from sik_ros.solver.codec import decode
 from sik_ros.solver.context import Context, Goal
 from sik_ros.solver.ranking import converged
@@ -14,7 +14,7 @@ from sik_ros.solver.results import Solution
 
 
 def adjust_index(ctx: Context, goal: Goal, sols: Sequence[Solution],
-                 obstacles: Sequence[Obstacle], deadline: Optional[float] = None,
+                 obstacles: Sequence[Obstacle], deadline: Deadline = NO_DEADLINE,
                  step: float = 0.25) -> Optional[List[Solution]]:
     """Move posture indices element by element while the clearance improves.
 
@@ -34,7 +34,7 @@ def adjust_index(ctx: Context, goal: Goal, sols: Sequence[Solution],
     for s in starts:
         z = s.posture_index.astype(np.float64)
         best = s.min_obstacle_distance
-        while budget > 0 and not (deadline is not None and time.perf_counter() > deadline):
+        while budget > 0 and not deadline.expired():
             trials = []
             for d in range(len(z)):
                 for sign in (1.0, -1.0):

@@ -16,12 +16,12 @@
 """
 
 import math
-import time
 from typing import List, Optional, Sequence
 
 import numpy as np
 
 from sik_ros.collision import Obstacle
+from sik_ros.deadline import Deadline
 from sik_ros.objectives import Objective
 from sik_ros.solver.adjust import adjust_index
 from sik_ros.solver.batch import Candidates
@@ -91,11 +91,6 @@ def spare(cfg: SolverConfig, num: int) -> int:
     return min(cfg.early_stop_margin, num - 1)
 
 
-def past(deadline: Optional[float]) -> bool:
-    """Whether a ``time.perf_counter()`` deadline has passed."""
-    return deadline is not None and time.perf_counter() > deadline
-
-
 def fill_indices(ctx: Context, goal: Goal, sols: List[Solution]) -> None:
     """Posture indices of solutions that came without one: the encoding of their q."""
     if not sols:
@@ -139,7 +134,7 @@ def distinct_postures(ctx: Context, c: Candidates, goal: Goal,
 
 def seed_posture_first(ctx: Context, goal: Goal, own: Candidates, sols: List[Solution],
                        q_seed: np.ndarray, obstacles: Sequence[Obstacle], num: int,
-                       deadline: Optional[float]) -> List[Solution]:
+                       deadline: Deadline) -> List[Solution]:
     """A seeded raw answer: the seed's own posture index decoded first (the posture kept).
 
     Raw answers are otherwise ranked by their error; the paper's use of the index of the
@@ -157,7 +152,7 @@ def seed_posture_first(ctx: Context, goal: Goal, own: Candidates, sols: List[Sol
 
 
 def from_seed(ctx: Context, goal: Goal, q_seed: np.ndarray, obstacles: Sequence[Obstacle],
-              deadline: Optional[float]) -> Optional[IKResult]:
+              deadline: Deadline) -> Optional[IKResult]:
     """One solution refined from the seed alone, or None when it is not exact and free.
 
     A single solution ranked by its distance to the seed is nearly always the seed's own
@@ -180,7 +175,7 @@ def from_seed(ctx: Context, goal: Goal, q_seed: np.ndarray, obstacles: Sequence[
 
 def solve(ctx: Context, goal: Goal, num: int, q_seed: Optional[np.ndarray],
           obstacles: Sequence[Obstacle], refined: bool, objective: Optional[Objective],
-          deadline: Optional[float], first_found: bool = False) -> IKResult:
+          deadline: Deadline, first_found: bool = False) -> IKResult:
     """Ranked solutions for one checked goal (see the module's stages).
 
     With ``first_found`` (a path's starts) refinement stops at the first ``num`` distinct
@@ -233,7 +228,7 @@ def solve(ctx: Context, goal: Goal, num: int, q_seed: Optional[np.ndarray],
                    enough=enough)
         c = assess(r.q, c.z, r.perr, r.oerr, goal.kind, cfg)
         timed_out = r.cut_short
-        if goal.kind == POSE and not far and not c.exact.any() and not past(deadline) and \
+        if goal.kind == POSE and not far and not c.exact.any() and not deadline.expired() and \
                 seeds is None and oriented_count(cfg, num) < cfg.oriented_candidates:
             # a call asking for few solutions took few oriented postures: the others now (the
             # table ranks them by orientation, so the first ones are those already refined)
@@ -264,7 +259,7 @@ def solve(ctx: Context, goal: Goal, num: int, q_seed: Optional[np.ndarray],
     rounds = 0 if not refined or seeds is not None else \
         FREE_ROUNDS if goal.kind == POSITION else 1
     for stream in range(rounds):
-        if not c.exact.any() or past(deadline) or \
+        if not c.exact.any() or deadline.expired() or \
                 not all(s.self_collision for s in sols if s.converged):
             break
         # every exact solution found touches the arm itself (goals close to the base):
@@ -277,7 +272,7 @@ def solve(ctx: Context, goal: Goal, num: int, q_seed: Optional[np.ndarray],
     if not first_found or obstacles:
         fill_indices(ctx, goal, sols)
     if obstacles and refined and not any(s.converged and not s.in_collision for s in sols) \
-            and not past(deadline):
+            and not deadline.expired():
         extra = adjust_index(ctx, goal, sols, obstacles, deadline)
         if extra is not None:
             sols = merge(ctx, sols, extra, goal.kind, q_seed, obstacles, objective,

@@ -8,12 +8,12 @@ equivalent of it, and the cost: the objective for exact solutions, the weighted 
 inexact ones.
 """
 
-import time
 from typing import List, Optional, Sequence
 
 import numpy as np
 
 from sik_ros.collision import Obstacle
+from sik_ros.deadline import Deadline, NO_DEADLINE
 from sik_ros.kernels import as_arg
 from sik_ros.kernels.sets import distinct_rows
 from sik_ros.objectives import JointLimitMargin, Objective, SeedDistance
@@ -114,7 +114,7 @@ def equivalents(keys: np.ndarray, cost: np.ndarray) -> np.ndarray:
 
 def rank(ctx: Context, c: Candidates, q_seed: Optional[np.ndarray],
          obstacles: Sequence[Obstacle], objective: Optional[Objective],
-         limit: Optional[int] = None, deadline: Optional[float] = None) -> List[Solution]:
+         limit: Optional[int] = None, deadline: Deadline = NO_DEADLINE) -> List[Solution]:
     """Solutions ranked best first; with ``limit``, only the best ``limit`` of them.
 
     The order is lexicographic: tier (free and exact, free and inexact, colliding or
@@ -157,7 +157,7 @@ def rank(ctx: Context, c: Candidates, q_seed: Optional[np.ndarray],
     # 2 pi equivalents place the arm alike: one check per posture
     checked = {}
     for i in order(hit):
-        if free >= limit or (deadline is not None and time.perf_counter() > deadline):
+        if free >= limit or deadline.expired():
             break
         key = i if keys is None else keys[i].tobytes()
         if key not in checked:
@@ -182,7 +182,7 @@ def from_solutions(sols: Sequence[Solution]) -> Candidates:
 
 def merge(ctx: Context, sols: Sequence[Solution], extra: Sequence[Solution], kind: str,
           q_seed: Optional[np.ndarray], obstacles: Sequence[Obstacle],
-          objective: Optional[Objective], deadline: Optional[float] = None) -> List[Solution]:
+          objective: Optional[Objective], deadline: Deadline = NO_DEADLINE) -> List[Solution]:
     """Two lists of solutions ranked together, one per distinct posture."""
     c = best_distinct(from_solutions(list(sols) + list(extra)), ctx.config.distinct_threshold,
                       ctx.ignores_last(kind))

@@ -15,6 +15,7 @@ import numpy as np
 
 from sik_ros.bundle import GoalModel, load_bundle
 from sik_ros.collision import CollisionChecker, Obstacle
+from sik_ros.deadline import Deadline
 from sik_ros.errors import InvalidArgument
 from sik_ros.kinematics import Robot
 from sik_ros.objectives import Objective
@@ -183,7 +184,7 @@ class SelectiveIK:
         objective = check_objective(objective)
         refine = flag(refine, 'refine')
         timeout = seconds(timeout, 'timeout')
-        deadline = None if timeout is None else t0 + timeout
+        deadline = Deadline.after(timeout, t0)
         with self._lock:
             result = pipeline.solve(self._ctx, goal, num, q_seed, obstacles, refine, objective,
                                     deadline)
@@ -231,7 +232,7 @@ class SelectiveIK:
         # from starts spread over the postures
         wider = None if pose else PathSettings.for_paths(True, near_seed=False, **given)
         timeout = seconds(timeout, 'timeout')
-        deadline = None if timeout is None else t0 + timeout
+        deadline = Deadline.after(timeout, t0)
         with self._lock:
             result = _path.solve_path(self._ctx, goals, q_seed, obstacles, settings, deadline,
                                       wider)

@@ -6,8 +6,8 @@ from typing import List, Optional, Sequence
 import numpy as np
 
 from sik_ros.collision import Obstacle
+from sik_ros.deadline import Deadline
 from sik_ros.rotations import rotation_angle
-from sik_ros.solver import pipeline  # noqa: I100 (a sibling module, not the package)
 from sik_ros.solver.context import Context, Goal
 from sik_ros.solver.path.edges import continue_tracks, edge_costs, reach_bounds
 from sik_ros.solver.path.settings import JointPath, PathResult, PathSettings
@@ -18,7 +18,7 @@ from sik_ros.solver.refine import Evaluation
 
 
 def solve_path(ctx: Context, goals: Sequence[Goal], q_seed: Optional[np.ndarray],
-               obstacles: Sequence[Obstacle], s: PathSettings, deadline: Optional[float],
+               obstacles: Sequence[Obstacle], s: PathSettings, deadline: Deadline,
                wider: Optional[PathSettings] = None) -> PathResult:
     """The ranked joint paths through ``goals`` (checked waypoints), see the module's docstring.
 
@@ -39,7 +39,7 @@ def solve_path(ctx: Context, goals: Sequence[Goal], q_seed: Optional[np.ndarray]
 
 def plan(ctx: Context, goals: Sequence[Goal], q_seed: Optional[np.ndarray],
          obstacles: Sequence[Obstacle], s: PathSettings,
-         deadline: Optional[float]) -> PathResult:
+         deadline: Deadline) -> PathResult:
     """One planning of the ranked joint paths with the settings ``s``."""
     t0 = time.perf_counter()
     n = len(goals)
@@ -54,7 +54,7 @@ def plan(ctx: Context, goals: Sequence[Goal], q_seed: Optional[np.ndarray],
     i = one_by_one = 0
     while i < n:
         goal = goals[i]
-        if deadline is not None and time.perf_counter() > deadline:
+        if deadline.expired():
             timed_out = True
             break
         if i == 0:
@@ -113,7 +113,7 @@ def plan(ctx: Context, goals: Sequence[Goal], q_seed: Optional[np.ndarray],
         tips.append((ev.p, ev.r))
         reached = i = i + 1
     # a step that ran past the deadline (a solve, a clearance check) may have cut it short
-    timed_out = timed_out or (reached < n and pipeline.past(deadline))
+    timed_out = timed_out or (reached < n and deadline.expired())
     paths = ranked_paths(ctx, goals, cand, back, cost, tips, obstacles, s)
     success = reached == n and bool(paths)
     fraction = reached / n if paths else 0.0

@@ -4,6 +4,7 @@ from typing import Optional, Tuple
 
 import numpy as np
 
+from sik_ros.deadline import Deadline, NO_DEADLINE
 from sik_ros.solver import pipeline  # noqa: I100 (a sibling module, not the package)
 from sik_ros.solver.context import Context, Goal, POSITION
 from sik_ros.solver.explore import nearest_turns
@@ -12,7 +13,8 @@ from sik_ros.solver.ranking import distinct_mask
 from sik_ros.solver.refine import Evaluation, follow
 
 
-def track_starts(ctx: Context, goal: Goal, q_seed, obstacles, count: int, deadline,
+def track_starts(ctx: Context, goal: Goal, q_seed, obstacles, count: int,
+                 deadline: Deadline = NO_DEADLINE,
                  near_seed: bool = True) -> Tuple[np.ndarray, Evaluation]:
     """Distinct exact configurations at a waypoint, free of collisions, and their evaluations.
 
@@ -35,7 +37,7 @@ def track_starts(ctx: Context, goal: Goal, q_seed, obstacles, count: int, deadli
     if near is None:
         parts.append(solver_starts(ctx, goal, q_seed, obstacles, count, deadline, True))
     q, ev = distinct_union(ctx, *parts)
-    if len(q) < min(2, count) and not pipeline.past(deadline):
+    if len(q) < min(2, count) and not deadline.expired():
         # few of them reached the waypoint free of collisions: all the solver's then, as at a
         # pose waypoint
         q, ev = distinct_union(ctx, (q, ev), solver_starts(ctx, goal, q_seed, obstacles,
