@@ -20,6 +20,7 @@ from sik_ros.chain import chain_forward
 from sik_ros.defaults import MAX_ROWS
 from sik_ros.errors import CorruptArtifact, InvalidArgument
 from sik_ros.kinematics import Robot
+from sik_ros.periodic import TURN
 from sik_ros.rotations import rotation_to_quaternion
 
 ARRAYS = {'q': None, 'position': 3, 'quaternion': 4}
@@ -58,8 +59,8 @@ def grid_values(lower: np.ndarray, upper: np.ndarray, interval_deg: float,
     values = []
     for lo, hi, turn in zip(lower, upper, periodic):
         if turn:
-            start = (lo + hi) / 2 - math.pi
-            values.append(start + step * np.arange(math.ceil(2 * math.pi / step - 1e-9)))
+            start = (lo + hi) / 2 - TURN / 2  # one turn about the middle of the range
+            values.append(start + step * np.arange(math.ceil(TURN / step - 1e-9)))
         else:
             values.append(lo + step * np.arange(math.floor((hi - lo) / step + 1e-9) + 1))
     return values

@@ -17,6 +17,7 @@ import pinocchio as pin
 from sik_ros.chain import SerialChain
 from sik_ros.errors import FrameNotFound, InvalidArgument, InvalidModel
 from sik_ros.kernels import as_arg, chain_frames, fk_many, jac_many
+from sik_ros.periodic import periodic_joints
 from sik_ros.rotations import rotation_to_quaternion, z_to_axis
 
 _REVOLUTE_AXES = {
@@ -181,7 +182,7 @@ class Robot:
         #: joint velocity limits [rad/s] from the URDF (1 where it gives none)
         self.velocity_limits = np.where(np.isfinite(velocity) & (velocity > 0), velocity, 1.0)
         #: joints whose range spans a whole turn: q and q +- 2 pi are the same posture
-        self.periodic = self.upper - self.lower >= 2 * np.pi - 1e-6
+        self.periodic = periodic_joints(self.lower, self.upper)
         self.chain = self._extract_chain()
         #: the chain as the kernels take it (:func:`~sik_ros.kernels.chain.chain_frames`)
         self.frames = chain_frames(self.chain)

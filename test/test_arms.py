@@ -241,7 +241,7 @@ def test_position_path_starts_take_the_turns_nearest_the_seed(ur5_bundle, ur5):
 
     Each periodic joint within its limits, as a brute force over the turns finds.
     """
-    from sik_ros.solver.explore import nearest_turns
+    from sik_ros.periodic import nearest_turns
     from sik_ros.solver.path import starts
     ik = SelectiveIK.load(ur5_bundle[0])
     rng = np.random.default_rng(3)
@@ -254,7 +254,7 @@ def test_position_path_starts_take_the_turns_nearest_the_seed(ur5_bundle, ur5):
                 turns = row[j] + 2 * np.pi * np.arange(-2, 3)
                 turns = turns[(turns >= ur5.lower[j] - 1e-9) & (turns <= ur5.upper[j] + 1e-9)]
                 assert abs(row[j] - seed[j]) <= np.abs(turns - seed[j]).min() + 1e-9
-        np.testing.assert_array_equal(nearest_turns(ik.context, near, seed), near)
+        np.testing.assert_array_equal(nearest_turns(ik.robot, near, seed), near)
 
 
 def test_refinement_turns_a_periodic_joint_back_at_its_limit(ur5_bundle, ur5):

@@ -17,6 +17,7 @@ import numpy as np
 
 from sik_ros.kernels.chain import F1, F2, F3, place, rotation_error
 from sik_ros.kernels.clock import monotonic
+from sik_ros.periodic import TURN
 
 #: Row outcomes of :func:`refine_rows` (``status``).
 UNTOUCHED, CONVERGED, GIVEN_UP, ITERATIONS, PRUNED, DEADLINE = range(6)
@@ -98,9 +99,9 @@ def limited_step(q, jac, err, dims, lower, upper, periodic, turn, lam2, max_step
         v = q[j] + jm[0, j] * scale
         if turn and periodic[j]:
             if v < lower[j]:
-                v += 2.0 * math.pi
+                v += TURN
             elif v > upper[j]:
-                v -= 2.0 * math.pi
+                v -= TURN
         q[j] = min(max(v, lower[j]), upper[j])
 
 

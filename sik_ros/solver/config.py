@@ -5,6 +5,7 @@ import math
 from typing import Tuple
 
 from sik_ros.errors import InvalidArgument
+from sik_ros.periodic import TURN
 
 
 @dataclass(frozen=True)
@@ -161,7 +162,7 @@ class SolverConfig:
             if isinstance(value, bool) or not isinstance(value, int) or value < low:
                 raise InvalidArgument(f'SolverConfig.{name} must be an integer >= {low}; got '
                                       f'{value!r}')
-        if self.distinct_threshold >= 2 * math.pi:
+        if self.distinct_threshold >= TURN:
             # 2 pi equivalents of a posture are told apart by a whole turn of some joint
             raise InvalidArgument(f'SolverConfig.distinct_threshold must be below 2 pi; got '
                                   f'{self.distinct_threshold!r}')

@@ -24,6 +24,7 @@ import numpy as np
 from sik_ros.collision import Obstacle
 from sik_ros.deadline import Deadline
 from sik_ros.objectives import Objective
+from sik_ros.periodic import nearest_turns
 from sik_ros.seed_table import SeedTable
 from sik_ros.solver.adjust import adjust_index
 from sik_ros.solver.batch import Candidates
@@ -32,8 +33,8 @@ from sik_ros.solver.candidates import (oriented_postures, own_index, starting_po
 from sik_ros.solver.codec import decode, encode
 from sik_ros.solver.config import SolverConfig
 from sik_ros.solver.context import Context, Goal, POSE, POSITION
-from sik_ros.solver.explore import (branch_starts, nearest_turns, periodic_equivalents,
-                                    restart, seed_starts, unindexed, walk)
+from sik_ros.solver.explore import (branch_starts, periodic_equivalents, restart, seed_starts,
+                                    unindexed, walk)
 from sik_ros.solver.ranking import (assess, best_distinct, by_score, distinct_mask, merge,
                                     pose_score, rank)
 from sik_ros.solver.refine import errors, refine
@@ -122,7 +123,7 @@ def distinct_postures(ctx: Context, c: Candidates, goal: Goal,
     if not periodic.any():
         return best_distinct(c, cfg.distinct_threshold, ignore_last)
     centre = q_seed if q_seed is not None else (ctx.robot.lower + ctx.robot.upper) / 2
-    q = nearest_turns(ctx, c.q, centre)
+    q = nearest_turns(ctx.robot, c.q, centre)
     # exact ones nearest the seed first (of nearly one posture, the one kept), then by score
     near = np.linalg.norm(q - centre, axis=1)
     c = Candidates(q, c.z, c.perr, c.oerr, c.exact).take(
@@ -167,7 +168,7 @@ def from_seed(ctx: Context, goal: Goal, q_seed: np.ndarray, obstacles: Sequence[
     if not c.exact[0]:
         return None
     if ctx.robot.periodic.any():
-        c = Candidates(nearest_turns(ctx, c.q, q_seed), c.z, c.perr, c.oerr, c.exact)
+        c = Candidates(nearest_turns(ctx.robot, c.q, q_seed), c.z, c.perr, c.oerr, c.exact)
     sols = rank(ctx, c, q_seed, obstacles, None, limit=1, deadline=deadline)
     if not sols or sols[0].in_collision:
         return None

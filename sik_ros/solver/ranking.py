@@ -17,6 +17,7 @@ from sik_ros.deadline import Deadline, NO_DEADLINE
 from sik_ros.kernels import as_arg
 from sik_ros.kernels.sets import distinct_rows
 from sik_ros.objectives import JointLimitMargin, Objective, SeedDistance
+from sik_ros.periodic import posture_keys
 from sik_ros.solver.batch import Candidates
 from sik_ros.solver.config import SolverConfig
 from sik_ros.solver.context import Context, POSITION
@@ -84,13 +85,6 @@ def best_distinct(c: Candidates, threshold: float, ignore_last: bool) -> Candida
     """Exact candidates first, then by score; one per distinct posture."""
     c = by_score(c)
     return c.take(distinct_mask(c.q, threshold, ignore_last))
-
-
-def posture_keys(q: np.ndarray, periodic: np.ndarray) -> np.ndarray:
-    """(M, n) int64: equal rows for configurations that are exact 2 pi shifts of each other."""
-    wrapped = q.copy()
-    wrapped[:, periodic] = np.mod(q[:, periodic] + np.pi, 2 * np.pi)
-    return np.round(wrapped * 1e6).astype(np.int64)
 
 
 def equivalents(keys: np.ndarray, cost: np.ndarray) -> np.ndarray:

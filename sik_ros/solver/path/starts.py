@@ -5,9 +5,9 @@ from typing import Optional, Tuple
 import numpy as np
 
 from sik_ros.deadline import Deadline, NO_DEADLINE
+from sik_ros.periodic import nearest_turns
 from sik_ros.solver import pipeline  # noqa: I100 (a sibling module, not the package)
 from sik_ros.solver.context import Context, Goal, POSITION
-from sik_ros.solver.explore import nearest_turns
 from sik_ros.solver.path.settings import NEAR_POOL, START_ITERATIONS
 from sik_ros.solver.ranking import distinct_mask
 from sik_ros.solver.refine import Evaluation, follow
@@ -61,7 +61,7 @@ def table_near_seed(ctx: Context, goal: Goal, q_seed: np.ndarray, count: int
         return None
     rows = table.rows_near(goal.position, ctx.config.k_cells)
     q = np.clip(table.postures[rows].astype(np.float64), ctx.robot.lower, ctx.robot.upper)
-    q = nearest_turns(ctx, q, q_seed)
+    q = nearest_turns(ctx.robot, q, q_seed)
     if ctx.ignores_last(POSITION):
         q[:, -1] = q_seed[-1]
     q = q[np.argsort(np.linalg.norm(q - q_seed, axis=1), kind='stable')[:NEAR_POOL]]
