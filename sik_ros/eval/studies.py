@@ -24,6 +24,7 @@ from scipy.spatial.transform import Rotation
 from sik_ros.eval.baselines import Baseline, Method
 from sik_ros.eval.metrics import mean_cm, orientation_cosine, position_errors
 from sik_ros.eval.paper import DIVERSITY_TARGETS, RADII, SWEEP_TARGET
+from sik_ros.goal_error import goal_errors
 from sik_ros.index_table import farthest_point_subset, PostureTable
 from sik_ros.kinematics import Robot
 from sik_ros.solver import SelectiveIK
@@ -391,7 +392,7 @@ def orientation_study(ik: SelectiveIK, targets: int = 4, postures: int = 5,
         for tag, q in (('raw', q_raw), ('refined', q_ref)):
             p, r = ik.robot.fk_rot(q)
             cos, angle = orientation_cosine(rot, r)
-            rec.update({f'q_{tag}': q, f'err_{tag}': np.linalg.norm(p - pos, axis=1),
+            rec.update({f'q_{tag}': q, f'err_{tag}': goal_errors(p, r, pos)[0],
                         f'cos_{tag}': cos, f'angle_{tag}': angle})
         out.append(OrientedTarget(pos, Rotation.from_matrix(rot).as_quat(), z, **rec))
     means = {f'{key}_{tag}': float(np.mean([getattr(t, f'{key}_{tag}') for t in out]))

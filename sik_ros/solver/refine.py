@@ -15,9 +15,9 @@ from typing import Optional, Tuple
 import numpy as np
 
 from sik_ros.deadline import Deadline, NO_DEADLINE
+from sik_ros.goal_error import goal_errors
 from sik_ros.kernels import as_arg, follow_rows, refine_rows
 from sik_ros.kernels.dls import INTS, REALS
-from sik_ros.rotations import rotation_angle
 from sik_ros.solver.context import Context, Goal
 
 #: The rotation handed to the kernels with a position goal (not read).
@@ -76,12 +76,8 @@ class Evaluation:
 
 def errors(ctx: Context, q: np.ndarray, goal: Goal) -> Tuple[np.ndarray, np.ndarray]:
     """Position errors [m] and orientation errors [rad] (zeros for position goals), (M,)."""
-    robot = ctx.robot
-    p, r = robot.tip_poses(q, ctx.data)
-    perr = np.linalg.norm(p - goal.position, axis=1)
-    if goal.rotation is None:
-        return perr, np.zeros(len(q))
-    return perr, rotation_angle(goal.rotation, r)
+    p, r = ctx.robot.tip_poses(q, ctx.data)
+    return goal_errors(p, r, goal.position, goal.rotation)
 
 
 def dls_step(j: np.ndarray, err: np.ndarray, lam2: float, eye: np.ndarray) -> np.ndarray:

@@ -7,7 +7,7 @@ import numpy as np
 
 from sik_ros.collision import Obstacle
 from sik_ros.deadline import Deadline
-from sik_ros.rotations import rotation_angle
+from sik_ros.goal_error import goal_errors
 from sik_ros.solver.context import Context, Goal
 from sik_ros.solver.path.edges import continue_tracks, edge_costs, reach_bounds
 from sik_ros.solver.path.rungs import Plan, Rung, Tracks, waypoint_turns
@@ -174,12 +174,8 @@ def ranked_paths(p: Plan, rungs: Sequence[Rung]) -> List[JointPath]:
         if any(np.abs(q[0] - other).max() < 1e-6 for other in starts):
             continue  # the same start as a better path: not a distinct alternative
         starts.append(q[0])
-        perr = np.linalg.norm(ps[k] - positions, axis=1)
-        if rotations is None:
-            oerr = np.zeros(m)
-        else:
-            r = np.array([rungs[i].r[rows[i, k]] for i in range(m)])
-            oerr = rotation_angle(rotations, r)
+        r = None if rotations is None else np.array([rungs[i].r[rows[i, k]] for i in range(m)])
+        perr, oerr = goal_errors(ps[k], r, positions, rotations)
         out.append(joint_path(p, q, perr, oerr, float(cost[e])))
     return out
 
