@@ -303,8 +303,9 @@ def test_position_starts_are_the_seed_and_the_table_postures_nearest_it(ik):
     Without them (``near_seed`` False, the wider beam's second try), or with a table that
     keeps no postures, the solver's solutions join the seed's.
     """
+    from sik_ros.solver import config
     from sik_ros.solver.context import Goal
-    from sik_ros.solver.path import settings, starts
+    from sik_ros.solver.path import starts
     from sik_ros.solver.refine import Evaluation, follow
     ctx = ik.context
     seed = np.array([1.0, 0.5, -0.8, -1.5, 0.4, 2.6, -1.2])
@@ -315,7 +316,7 @@ def test_position_starts_are_the_seed_and_the_table_postures_nearest_it(ik):
     gaps = np.linalg.norm(near - seed, axis=1)
     assert np.all(np.diff(gaps) >= 0)
     _, alone, _ = follow(ctx, seed[None], Evaluation.of(ctx, seed[None]), goal,
-                         settings.START_ITERATIONS)
+                         config.START_ITERATIONS)
     # the seed and three table postures; the seed and the solver's first four
     for (q, _), most in ((starts.track_starts(ctx, goal, seed, [], 4), 4),
                          (starts.track_starts(ctx, goal, seed, [], 4, near_seed=False), 5),

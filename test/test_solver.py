@@ -15,6 +15,7 @@ from sik_ros.solver import SelectiveIK
 from sik_ros.solver.candidates import (align_last_joint, oriented_postures, starting_postures,
                                        table_candidates)
 from sik_ros.solver.codec import decode, encode
+from sik_ros.solver.config import FREE_RESTARTS
 from sik_ros.solver.context import Goal
 from sik_ros.solver.ranking import converged, posture_mask
 from sik_ros.solver.refine import refine
@@ -392,12 +393,10 @@ def test_a_goal_whose_first_solutions_all_collide_gets_a_free_one(panda, ik, res
     A waypoint of a feasible path (``bench/paths.py``'s generator) from a random current
     state: before the restarts, all 16 solutions were exact and self-colliding.
     """
-    import importlib
-    pipeline = importlib.import_module('sik_ros.solver.pipeline')
     pos = np.array([-0.0629, 0.0905, 0.4266])
     seed = np.array([1.281, -0.567, -2.602, -2.859, 2.083, 2.394, -2.018])
     res = ik.solve(pos, num_solutions=4, seed=seed)
-    assert pipeline.FREE_RESTARTS in [call.get('keep') for call in restarts]  # a round ran
+    assert FREE_RESTARTS in [call.get('keep') for call in restarts]  # a round ran
     free = [s for s in res.solutions if s.converged and not s.in_collision]
     assert free
     assert not ik.checker.self_collision(np.array([s.q for s in free])).any()
@@ -455,15 +454,13 @@ def test_restarts_for_free_solutions_leave_obstacles_to_algorithm_2(ik, targets,
     Algorithm 2 (adjusting the index) is the answer to obstacles; the restarts are for goals
     whose solutions collide with the arm itself.
     """
-    import importlib
-    pipeline = importlib.import_module('sik_ros.solver.pipeline')
     _, pos, _ = targets
     shoulder = Obstacle('sphere', (0.25,), (0.0, 0.0, 0.333))  # every posture passes through it
     res = ik.solve(pos[0], num_solutions=4, obstacles=[shoulder])
     exact = [s for s in res.solutions if s.converged]
     assert exact and all(s.min_obstacle_distance <= 0 for s in exact)
     assert not any(s.self_collision for s in exact)
-    assert pipeline.FREE_RESTARTS not in [call.get('keep') for call in restarts]
+    assert FREE_RESTARTS not in [call.get('keep') for call in restarts]
 
 
 @pytest.mark.parametrize('goal', ['position', 'pose'])

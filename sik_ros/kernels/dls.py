@@ -21,11 +21,9 @@ from sik_ros.periodic import TURN
 
 #: Row outcomes of :func:`refine_rows` (``status``).
 UNTOUCHED, CONVERGED, GIVEN_UP, ITERATIONS, PRUNED, DEADLINE = range(6)
-#: Metres of position error one radian of orientation error counts as in a row's score.
-ORIENTATION_WEIGHT = 0.1
 #: The positions of :func:`refine_rows`'s ``reals`` and ``ints`` arguments.
 REALS = ('position_tolerance', 'orientation_tolerance', 'damping2', 'max_step', 'stall_ratio',
-         'prune_radius', 'distinct_threshold', 'deadline')
+         'prune_radius', 'distinct_threshold', 'deadline', 'orientation_weight')
 INTS = ('iterations', 'stall_window', 'stall_after', 'give_up_after', 'enough', 'prune',
         'roll_free')
 
@@ -130,7 +128,7 @@ def _refine_row(frames, lower, upper, periodic, q, row, pos, rot, pose, reals, i
     ``history`` (window,): the row's recent scores; the rest: work arrays.
     """
     tol_p, tol_o, lam2, max_step = reals[0], reals[1], reals[2], reals[3]
-    radius, deadline = reals[5], reals[7]
+    radius, deadline, weight = reals[5], reals[7], reals[8]
     iterations, prune = ints[0], ints[5] != 0
     n = q.shape[1]
     dims = 6 if pose else 3
@@ -151,7 +149,7 @@ def _refine_row(frames, lower, upper, periodic, q, row, pos, rot, pose, reals, i
         pe, oe = goal_error(pos, rot, pose, p, r, err)
         perr[row], oerr[row] = pe, oe
         stale[row] = False
-        s = pe + ORIENTATION_WEIGHT * oe
+        s = pe + weight * oe
         score[row] = s
         done = pe < tol_p * 0.5 and (not pose or oe < tol_o * 0.5)
         stuck = pe > 10.0 * tol_p or (pose and oe > 10.0 * tol_o)
@@ -223,7 +221,8 @@ def refine_rows(frames, lower, upper, periodic, q, pos, rot, pose, reals, ints, 
         q: starts (M, n) [rad], refined in place, row by row in order.
         pos: goal position (3,) [m]; rot: goal rotation (3, 3) (read when ``pose``).
         reals: float64 values named by :data:`REALS` (``damping2``: the damping squared;
-            ``deadline``: a ``time.perf_counter()`` value, inf for none).
+            ``deadline``: a ``time.perf_counter()`` value, inf for none;
+            ``orientation_weight``: metres of a row's score per radian of orientation error).
         ints: int64 values named by :data:`INTS` (``enough`` 0: no early stop; ``prune`` and
             ``roll_free`` 0 or 1: the last joint left out of the distances).
         prune_at: iterations at which a row near an earlier, better one stops (int64).

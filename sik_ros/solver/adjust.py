@@ -7,6 +7,7 @@ import numpy as np
 from sik_ros.collision import Obstacle
 from sik_ros.deadline import Deadline, NO_DEADLINE
 from sik_ros.solver.codec import decode
+from sik_ros.solver.config import ADJUST_STEP
 from sik_ros.solver.context import Context, Goal
 from sik_ros.solver.ranking import converged
 from sik_ros.solver.refine import refine
@@ -15,7 +16,7 @@ from sik_ros.solver.results import Solution
 
 def adjust_index(ctx: Context, goal: Goal, sols: Sequence[Solution],
                  obstacles: Sequence[Obstacle], deadline: Deadline = NO_DEADLINE,
-                 step: float = 0.25) -> Optional[List[Solution]]:
+                 step: float = ADJUST_STEP) -> Optional[List[Solution]]:
     """Move posture indices element by element while the clearance improves.
 
     Starts from the best colliding solutions; each trial decodes and refines the neighbours of

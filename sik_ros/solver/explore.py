@@ -18,6 +18,7 @@ from sik_ros.periodic import equivalents
 from sik_ros.point_sets import pairwise_distances
 from sik_ros.seed_table import SeedTable
 from sik_ros.solver.batch import Candidates
+from sik_ros.solver.config import EQUIVALENTS_PER_SOLUTION, RESTART_SPREAD, RESTARTS
 from sik_ros.solver.context import Context, Goal
 from sik_ros.solver.ranking import assess, distinct_mask, pose_score
 from sik_ros.solver.refine import refine
@@ -28,7 +29,7 @@ def unindexed(q: np.ndarray, latent: int) -> np.ndarray:
     return np.full((len(q), latent), np.nan)
 
 
-def restart(ctx: Context, c: Candidates, goal: Goal, deadline, keep: int = 8,
+def restart(ctx: Context, c: Candidates, goal: Goal, deadline, keep: int = RESTARTS,
             stream: int = 0) -> Tuple[Candidates, bool]:
     """``c`` and new candidates from perturbed copies of its best and from random ones.
 
@@ -43,7 +44,8 @@ def restart(ctx: Context, c: Candidates, goal: Goal, deadline, keep: int = 8,
     key = zlib.crc32(goal.position.tobytes())
     rng = np.random.default_rng(key if stream == 0 else [key, stream])
     span = robot.upper - robot.lower
-    q2 = np.concatenate([c.q[best] + rng.normal(0, 0.15, (len(best), c.q.shape[1])) * span,
+    spread = rng.normal(0, RESTART_SPREAD, (len(best), c.q.shape[1]))
+    q2 = np.concatenate([c.q[best] + spread * span,
                          rng.uniform(robot.lower, robot.upper, (keep, c.q.shape[1]))])
     r = refine(ctx, np.clip(q2, robot.lower, robot.upper), goal, deadline)
     new = assess(r.q, unindexed(r.q, c.z.shape[1]), r.perr, r.oerr, goal.kind, ctx.config)
@@ -81,7 +83,8 @@ def seed_starts(ctx: Context, goal: Goal, seeds: SeedTable, count: int,
     return Candidates(q, unindexed(q, latent), inf, inf, np.zeros(len(q), dtype=bool))
 
 
-def periodic_equivalents(ctx: Context, c: Candidates, per_solution: int = 16,
+def periodic_equivalents(ctx: Context, c: Candidates,
+                         per_solution: int = EQUIVALENTS_PER_SOLUTION,
                          ignore_last: bool = False) -> Candidates:
     """``c`` and, after each row, its equivalents with periodic joints turned by +-2 pi.
 

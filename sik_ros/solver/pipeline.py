@@ -31,7 +31,8 @@ from sik_ros.solver.batch import Candidates
 from sik_ros.solver.candidates import (oriented_postures, own_index, starting_postures,
                                        table_candidates)
 from sik_ros.solver.codec import decode, encode
-from sik_ros.solver.config import SolverConfig
+from sik_ros.solver.config import (FAR_ITERATIONS, FREE_RESTARTS, FREE_ROUNDS, ORIENTED_MIN,
+                                   SolverConfig, START_MERGE)
 from sik_ros.solver.context import Context, Goal, POSE, POSITION
 from sik_ros.solver.explore import (branch_starts, periodic_equivalents, restart, seed_starts,
                                     unindexed, walk)
@@ -39,17 +40,6 @@ from sik_ros.solver.ranking import (assess, best_distinct, by_score, distinct_ma
                                     pose_score, rank)
 from sik_ros.solver.refine import errors, refine
 from sik_ros.solver.results import IKResult, Solution
-
-
-#: Oriented postures (pose goals) decoded at least, however few solutions a call asks for.
-ORIENTED_MIN = 8
-
-#: Perturbed copies (and as many random configurations) refined when every exact solution
-#: found collides with the arm itself, in at most ``FREE_ROUNDS`` rounds of fresh draws for
-#: position goals (one for pose goals, none for those the seed table gave starts); goals near
-#: the base axis may need more than one round (docs/design.md).
-FREE_RESTARTS = 16
-FREE_ROUNDS = 3
 
 
 def oriented_count(cfg: SolverConfig, num: int) -> int:
@@ -278,7 +268,8 @@ def refine_all(ctx: Context, call: Call, c: Candidates) -> Tuple[Candidates, boo
     """
     cfg, goal, num, deadline = ctx.config, call.goal, call.num, call.deadline
     # decoded postures that nearly coincide would refine to the same solution
-    c = c.take(distinct_mask(c.q, cfg.distinct_threshold * 0.5, ctx.ignores_last(goal.kind)))
+    c = c.take(distinct_mask(c.q, cfg.distinct_threshold * START_MERGE,
+                             ctx.ignores_last(goal.kind)))
     enough = early_stop(cfg, call)
     if call.seeds is not None:
         c = Candidates.concat(c, seed_starts(ctx, goal, call.seeds, cfg.seed_starts,
@@ -290,8 +281,8 @@ def refine_all(ctx: Context, call: Call, c: Candidates) -> Tuple[Candidates, boo
     # starts from the seed table are far apart already: merging the few heading for one
     # solution saves less than it costs (UR5 0.95x, Kinova 0.96x the time without, the
     # same branches; 300 pose goals each)
-    r = refine(ctx, c.q, goal, deadline, 5 if call.far else None, prune=call.seeds is None,
-               enough=enough)
+    r = refine(ctx, c.q, goal, deadline, FAR_ITERATIONS if call.far else None,
+               prune=call.seeds is None, enough=enough)
     c = assess(r.q, c.z, r.perr, r.oerr, goal.kind, cfg)
     timed_out = r.cut_short
     if goal.kind == POSE and not call.far and not c.exact.any() and \

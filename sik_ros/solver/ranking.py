@@ -19,14 +19,9 @@ from sik_ros.kernels.sets import distinct_rows
 from sik_ros.objectives import JointLimitMargin, Objective, SeedDistance
 from sik_ros.periodic import posture_keys
 from sik_ros.solver.batch import Candidates
-from sik_ros.solver.config import SolverConfig
+from sik_ros.solver.config import INEXACT_COST, ORIENTATION_WEIGHT, SolverConfig
 from sik_ros.solver.context import Context, POSITION
 from sik_ros.solver.results import COLLIDING, FREE_EXACT, FREE_INEXACT, Solution
-
-#: Metres of position error that one radian of orientation error counts as [m/rad].
-ORIENTATION_WEIGHT = 0.1
-#: Ranking cost of an inexact solution per metre of score [1/m].
-INEXACT_COST = 100.0
 
 
 def pose_score(perr: np.ndarray, oerr: np.ndarray) -> np.ndarray:

@@ -18,6 +18,7 @@ from sik_ros.deadline import Deadline, NO_DEADLINE
 from sik_ros.goal_error import goal_errors
 from sik_ros.kernels import as_arg, follow_rows, refine_rows
 from sik_ros.kernels.dls import INTS, REALS
+from sik_ros.solver.config import ORIENTATION_WEIGHT
 from sik_ros.solver.context import Context, Goal
 
 #: The rotation handed to the kernels with a position goal (not read).
@@ -118,7 +119,7 @@ def refine(ctx: Context, q: np.ndarray, goal: Goal, deadline: Deadline = NO_DEAD
                 'damping2': cfg.damping ** 2, 'max_step': cfg.max_step,
                 'stall_ratio': cfg.stall_ratio, 'prune_radius': cfg.prune_radius,
                 'distinct_threshold': cfg.distinct_threshold,
-                'deadline': deadline.at,
+                'deadline': deadline.at, 'orientation_weight': ORIENTATION_WEIGHT,
                 'iterations': iterations or cfg.refine_iterations,
                 'stall_window': cfg.stall_window, 'stall_after': cfg.stall_after,
                 'give_up_after': cfg.give_up_after, 'enough': enough or 0, 'prune': int(prune),

@@ -6,8 +6,9 @@ import numpy as np
 
 from sik_ros.chain import SerialChain
 from sik_ros.rotations import rotation_angle
+from sik_ros.solver.config import EDGE_CHECKS, TRACK_ITERATIONS
 from sik_ros.solver.context import Context, Goal
-from sik_ros.solver.path.settings import EDGE_CHECKS, PathSettings, TRACK_ITERATIONS
+from sik_ros.solver.path.settings import PathSettings
 from sik_ros.solver.refine import Evaluation, follow
 
 

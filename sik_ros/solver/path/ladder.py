@@ -8,6 +8,7 @@ import numpy as np
 from sik_ros.collision import Obstacle
 from sik_ros.deadline import Deadline
 from sik_ros.goal_error import goal_errors
+from sik_ros.solver.config import SAME_CANDIDATE, SAME_START
 from sik_ros.solver.context import Context, Goal
 from sik_ros.solver.path.edges import continue_tracks, edge_costs, reach_bounds
 from sik_ros.solver.path.rungs import Plan, Rung, Tracks, waypoint_turns
@@ -126,7 +127,7 @@ def next_rung(p: Plan, tracks: Tracks, i: int) -> Optional[Step]:
         ev = Evaluation.concat(ev, fresh_ev)
     if len(q) == 0:
         return None
-    unique = distinct_mask(q, 1e-3)
+    unique = distinct_mask(q, SAME_CANDIDATE)
     q, ev = q[unique], ev.rows(unique)
     if p.obstacles:
         clear = ctx.checker.clearance(q, p.obstacles, deadline) > 0
@@ -171,7 +172,7 @@ def ranked_paths(p: Plan, rungs: Sequence[Rung]) -> List[JointPath]:
         if len(out) >= p.s.num_paths:
             break
         q = qs[k]
-        if any(np.abs(q[0] - other).max() < 1e-6 for other in starts):
+        if any(np.abs(q[0] - other).max() < SAME_START for other in starts):
             continue  # the same start as a better path: not a distinct alternative
         starts.append(q[0])
         r = None if rotations is None else np.array([rungs[i].r[rows[i, k]] for i in range(m)])

@@ -7,8 +7,8 @@ import numpy as np
 from sik_ros.deadline import Deadline, NO_DEADLINE
 from sik_ros.periodic import nearest_turns
 from sik_ros.solver import pipeline  # noqa: I100 (a sibling module, not the package)
+from sik_ros.solver.config import NEAR_POOL, START_ITERATIONS
 from sik_ros.solver.context import Context, Goal, POSITION
-from sik_ros.solver.path.settings import NEAR_POOL, START_ITERATIONS
 from sik_ros.solver.ranking import distinct_mask
 from sik_ros.solver.refine import Evaluation, follow
 

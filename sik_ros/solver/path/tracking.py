@@ -6,10 +6,10 @@ import numpy as np
 
 from sik_ros.deadline import Deadline
 from sik_ros.rotations import rotation_log
+from sik_ros.solver.config import TRACK_ITERATIONS
 from sik_ros.solver.context import Context, Goal
 from sik_ros.solver.path.edges import angular_speed, certified, on_segment
 from sik_ros.solver.path.rungs import Plan, Rung, Tracks
-from sik_ros.solver.path.settings import TRACK_ITERATIONS
 from sik_ros.solver.refine import dls_step, Evaluation, follow
 
 
