@@ -31,7 +31,8 @@ from sik_ros.artifacts import check_robot_manifest
 from sik_ros.description import expand_xacro, is_xacro_text
 from sik_ros.errors import (ArtifactMismatch, CorruptArtifact, FrameNotFound, InvalidArgument,
                             InvalidModel, RobotNotFound)
-from sik_ros.kinematics import chain_joint, find_frame, rename_frame, Robot, sha256_file
+from sik_ros.kinematics import Robot, sha256_file
+from sik_ros.model_tree import chain_joint, find_frame, rename_frame
 from sik_ros.periodic import TURN
 
 #: Default base and tip frames of robots whose own choice differs from the inferred one.
