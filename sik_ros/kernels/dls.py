@@ -38,25 +38,11 @@ def goal_error(pos, rot, pose, p, r, err):  # pragma: no cover (compiled)
 
 
 @njit(cache=True, nogil=True)
-def limited_step(q, jac, err, dims, lower, upper, periodic, turn, lam2, max_step,
-                 jm, a, x):  # pragma: no cover (compiled)
-    """``q`` (n,) after one damped least squares step on ``err``, within the limits (in place).
+def damped_solve(jm, err, dims, n, lam2, a, x):  # pragma: no cover (compiled)
+    """``x`` (dims,) = (J J^T + lambda^2 I)^-1 ``err`` for ``J`` = ``jm[:dims, :n]``, in place.
 
-    ``jm`` (6, n), ``a`` (6, 6), ``x`` (6,): work arrays. ``jac`` is left as it is.
+    By Cholesky (``a`` (6, 6): work array, left holding the factor).
     """
-    n = q.shape[0]
-    for j in range(n):
-        free = not (turn and periodic[j])
-        blocked = False
-        if free and (q[j] <= lower[j] + 1e-9 or q[j] >= upper[j] - 1e-9):
-            g = 0.0
-            for i in range(dims):
-                g += jac[i, j] * err[i]
-            blocked = (q[j] <= lower[j] + 1e-9 and g < 0.0) or \
-                (q[j] >= upper[j] - 1e-9 and g > 0.0)
-        for i in range(dims):
-            jm[i, j] = 0.0 if blocked else jac[i, j]
-    # Cholesky of J J^T + lambda^2 I, in place in ``a``
     for i in range(dims):
         for k in range(i + 1):
             s = 0.0
@@ -85,6 +71,28 @@ def limited_step(q, jac, err, dims, lower, upper, periodic, turn, lam2, max_step
         for k in range(i + 1, dims):
             s -= a[k, i] * x[k]
         x[i] = s / a[i, i]
+
+
+@njit(cache=True, nogil=True)
+def limited_step(q, jac, err, dims, lower, upper, periodic, turn, lam2, max_step,
+                 jm, a, x):  # pragma: no cover (compiled)
+    """``q`` (n,) after one damped least squares step on ``err``, within the limits (in place).
+
+    ``jm`` (6, n), ``a`` (6, 6), ``x`` (6,): work arrays. ``jac`` is left as it is.
+    """
+    n = q.shape[0]
+    for j in range(n):
+        free = not (turn and periodic[j])
+        blocked = False
+        if free and (q[j] <= lower[j] + 1e-9 or q[j] >= upper[j] - 1e-9):
+            g = 0.0
+            for i in range(dims):
+                g += jac[i, j] * err[i]
+            blocked = (q[j] <= lower[j] + 1e-9 and g < 0.0) or \
+                (q[j] >= upper[j] - 1e-9 and g > 0.0)
+        for i in range(dims):
+            jm[i, j] = 0.0 if blocked else jac[i, j]
+    damped_solve(jm, err, dims, n, lam2, a, x)
     biggest = 0.0
     for j in range(n):
         s = 0.0
