@@ -124,7 +124,7 @@ class SeedTable:
             return np.empty((0, self.q.shape[1]))
         azimuth = 0.0
         if self._axis is not None:
-            key, azimuth = self._turned_key(position, quaternion)
+            key, azimuth = self.turned_key(position, quaternion)
         else:
             quat = np.asarray(quaternion, dtype=float)
             quat = -quat if quat[3] < 0 else quat  # as the table's
@@ -160,8 +160,8 @@ class SeedTable:
                                      at_least=START_LEAST)
         return q[pick]
 
-    def _turned_key(self, position: np.ndarray, quaternion: np.ndarray
-                    ) -> Tuple[np.ndarray, float]:
+    def turned_key(self, position: np.ndarray, quaternion: np.ndarray
+                   ) -> Tuple[np.ndarray, float]:
         """A goal's key in the axis frame turned to azimuth 0, and its azimuth [rad].
 
         :func:`to_axis_frame` then :func:`turned` for one pose, in Python floats (cheaper than

@@ -247,7 +247,7 @@ def test_position_path_starts_take_the_turns_nearest_the_seed(ur5_bundle, ur5):
     rng = np.random.default_rng(3)
     for q in rng.uniform(ur5.lower, ur5.upper, (5, 6)):
         seed = rng.uniform(ur5.lower, ur5.upper)
-        near = starts.near_seed(ik.context, Goal(ur5.fk(q)[0]), seed, 4)
+        near = starts.table_near_seed(ik.context, Goal(ur5.fk(q)[0]), seed, 4)
         assert len(near)
         for row in near:
             for j in range(6):

@@ -88,7 +88,7 @@ def test_the_goal_key_in_floats_is_the_tables_key_arithmetic(ur5, table):
     rng = np.random.default_rng(8)
     for q in rng.uniform(ur5.lower, ur5.upper, (50, 6)):
         p, quat = ur5.fk(q)
-        key, azimuth = table._turned_key(p, quat)
+        key, azimuth = table.turned_key(p, quat)
         pa, qa = to_axis_frame(first_axis(ur5), p[None], quat[None])
         assert azimuth == pytest.approx(np.arctan2(pa[0, 1], pa[0, 0]), abs=1e-12)
         pa, qa = turned(pa, qa, np.array([-azimuth]))

@@ -14,6 +14,7 @@ import zlib
 
 import numpy as np
 
+from sik_ros.deadline import Deadline
 from sik_ros.periodic import equivalents
 from sik_ros.point_sets import pairwise_distances
 from sik_ros.seed_table import SeedTable
@@ -29,7 +30,7 @@ def unindexed(q: np.ndarray, latent: int) -> np.ndarray:
     return np.full((len(q), latent), np.nan)
 
 
-def restart(ctx: Context, c: Candidates, goal: Goal, deadline, keep: int = RESTARTS,
+def restart(ctx: Context, c: Candidates, goal: Goal, deadline: Deadline, keep: int = RESTARTS,
             stream: int = 0) -> Tuple[Candidates, bool]:
     """``c`` and new candidates from perturbed copies of its best and from random ones.
 
@@ -105,7 +106,8 @@ def periodic_equivalents(ctx: Context, c: Candidates,
     return Candidates(q, out.z, out.perr, out.oerr, out.exact)
 
 
-def walk(ctx: Context, c: Candidates, goal: Goal, deadline, need: int) -> Candidates:
+def walk(ctx: Context, c: Candidates, goal: Goal, deadline: Deadline,
+         need: int) -> Candidates:
     """``c`` and the distinct exact solutions found along the self-motion of its exact ones.
 
     Each round moves every frontier solution ``walk_step`` [rad] along the unit null-space

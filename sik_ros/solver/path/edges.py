@@ -5,6 +5,7 @@ from typing import Tuple
 import numpy as np
 
 from sik_ros.chain import SerialChain
+from sik_ros.deadline import Deadline
 from sik_ros.rotations import rotation_angle
 from sik_ros.solver.config import EDGE_CHECKS, TRACK_ITERATIONS
 from sik_ros.solver.context import Context, Goal
@@ -13,7 +14,7 @@ from sik_ros.solver.refine import Evaluation, follow
 
 
 def continue_tracks(ctx: Context, q: np.ndarray, ev: Evaluation, goal: Goal,
-                    deadline) -> Tuple[np.ndarray, Evaluation]:
+                    deadline: Deadline) -> Tuple[np.ndarray, Evaluation]:
     """Each configuration refined onto the next waypoint: the exact ones and their evaluation.
 
     ``ev`` is the evaluation of ``q`` carried from the previous waypoint (not computed

@@ -71,7 +71,7 @@ def table_near_seed(ctx: Context, goal: Goal, q_seed: np.ndarray, count: int
 
 
 def followed(ctx: Context, q: np.ndarray, goal: Goal, obstacles,
-             deadline) -> Tuple[np.ndarray, Evaluation]:
+             deadline: Deadline) -> Tuple[np.ndarray, Evaluation]:
     """The rows of ``q`` that :func:`follow` takes onto ``goal`` free of collisions.
 
     They start tracks: no change of their Jacobian from a previous waypoint (the one from the
@@ -95,7 +95,7 @@ def distinct_union(ctx: Context, *parts: Tuple[np.ndarray, Evaluation]
     return q[keep], ev.rows(keep)
 
 
-def solver_starts(ctx: Context, goal: Goal, q_seed, obstacles, count: int, deadline,
+def solver_starts(ctx: Context, goal: Goal, q_seed, obstacles, count: int, deadline: Deadline,
                   first_found: bool) -> Tuple[np.ndarray, Evaluation]:
     """The solver's exact solutions free of collisions at a waypoint, and their evaluations."""
     res = pipeline.solve(ctx, goal, count, q_seed, obstacles, True, None, deadline,
