@@ -7,7 +7,7 @@ import numpy as np
 from sik_ros.collision import Obstacle
 from sik_ros.deadline import Deadline, NO_DEADLINE
 from sik_ros.solver.codec import decode
-from sik_ros.solver.config import ADJUST_STEP
+from sik_ros.solver.config import ADJUST_STARTS, ADJUST_STEP
 from sik_ros.solver.context import Context, Goal
 from sik_ros.solver.ranking import converged
 from sik_ros.solver.refine import refine
@@ -28,7 +28,7 @@ def adjust_index(ctx: Context, goal: Goal, sols: Sequence[Solution],
         the improving solutions found, last best, or None.
     """
     cfg = ctx.config
-    starts = [s for s in sols if s.converged][:3] or list(sols[:3])
+    starts = [s for s in sols if s.converged][:ADJUST_STARTS] or list(sols[:ADJUST_STARTS])
     budget = cfg.adjust_budget
     found: List[Solution] = []
     lo, hi = ctx.models[goal.kind].table.index_bounds

@@ -63,6 +63,9 @@ FREE_ROUNDS = 3
 EQUIVALENTS_PER_SOLUTION = 16
 #: Algorithm 2's move of one index element, as a share of its range in the table.
 ADJUST_STEP = 0.25
+#: Solutions Algorithm 2 starts from at most (the best exact ones, else the best): its budget
+#: of decodes is spent on the most promising.
+ADJUST_STARTS = 3
 #: Up to this many rows a network runs as one compiled call (measured on the Panda's networks,
 #: 256 and 512 wide: 0.4-0.7x NumPy's time for 1-3 rows, slower from 4, where BLAS's blocking
 #: pays).
