@@ -31,6 +31,8 @@ import torch  # noqa: E402
 
 from sik_ros import SelectiveIK  # noqa: E402
 from sik_ros.checkpoints import load_checkpoint  # noqa: E402
+from sik_ros.solver.context import tip_on_last_axis  # noqa: E402
+from sik_ros.solver.ranking import distinct_mask  # noqa: E402
 
 from peers import DLS, TracIK  # noqa: E402,I100 (bench/peers.py, beside this script)
 from report import add_json_argument, write_json  # noqa: E402 (bench/report.py)
@@ -40,7 +42,10 @@ DISTINCT = 0.5  # rad, as the solver's distinct_threshold
 
 def distinct(ik, qs, goal):
     """How many of ``qs`` are distinct, by the solver's own rule."""
-    return int(ik.distinct_mask(np.asarray(qs), goal, DISTINCT).sum()) if len(qs) else 0
+    if not len(qs):
+        return 0
+    roll_free = goal == 'position' and tip_on_last_axis(ik.robot)
+    return int(distinct_mask(np.asarray(qs), DISTINCT, roll_free).sum())
 
 
 def branches(qs):

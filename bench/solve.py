@@ -25,6 +25,11 @@ import torch  # noqa: E402
 
 from sik_ros.collision import CollisionChecker, Obstacle  # noqa: E402
 from sik_ros.solver import SelectiveIK  # noqa: E402
+from sik_ros.solver.candidates import (oriented_postures, starting_postures,  # noqa: E402
+                                       table_candidates)
+from sik_ros.solver.codec import decode  # noqa: E402
+from sik_ros.solver.context import Goal  # noqa: E402
+from sik_ros.solver.refine import errors  # noqa: E402
 
 from peers import DLS as PinocchioDLS, TracIK  # noqa: E402,I100 (bench/peers.py)
 from report import add_json_argument, write_json  # noqa: E402 (bench/report.py)
@@ -77,19 +82,20 @@ def bench_goal(ik, goal, positions, quats, peers, args):
         raw = ik.solve(p, quat, num_solutions=10, refine=False)
         rows['raw'] += [s.position_error for s in raw.solutions]
         rot = None if quat is None else Rotation.from_quat(quat).as_matrix()
-        z = ik.candidate_indices(goal, p, rot, None, 16)
-        perr, oerr = ik.errors(ik.decode(goal, p, rot, z), p, rot)
+        target = Goal(np.asarray(p, float), rot)
+        z = table_candidates(ik.context, target, None, 16)[0]
+        perr, oerr = errors(ik.context, decode(ik.context, target, z), target)
         rows['cand'] += perr.tolist()
         rows['cand_o'] += oerr.tolist()
         if position_goal and ik.models[goal].table.postures is not None:
             # where refinement starts: the table's decoded postures at the cells' centres
-            z, table_rows = ik.candidates(goal, p, None, None, 16, True, 0)
-            rows['cached'] += ik.errors(ik.starting_postures(goal, p, None, z, table_rows), p,
-                                        None)[0].tolist()
+            z, table_rows = table_candidates(ik.context, target, None, 16, True, 0)
+            q_start = starting_postures(ik.context, target, z, table_rows)
+            rows['cached'] += errors(ik.context, q_start, target)[0].tolist()
         if not position_goal:
-            q_or = ik.oriented_postures(p, rot, ik.config.oriented_candidates)
+            q_or = oriented_postures(ik.context, target, ik.config.oriented_candidates)
             if len(q_or):
-                perr, oerr = ik.errors(q_or, p, rot)
+                perr, oerr = errors(ik.context, q_or, target)
                 rows['or'] += perr.tolist()
                 rows['or_o'] += oerr.tolist()
         rows['raw_o'] += [s.orientation_error for s in raw.solutions]

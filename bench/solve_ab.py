@@ -53,9 +53,15 @@ def worker(root: str, bundle: str, goal: str, num: int, seeded: bool, seed: int,
     import torch
     from arms import branches
     from sik_ros import SelectiveIK
+    from sik_ros.solver.context import tip_on_last_axis
+    from sik_ros.solver.ranking import distinct_mask
     torch.set_num_threads(1)
     ik = SelectiveIK.load(bundle)
     robot = ik.robot
+    roll_free = goal == 'position' and tip_on_last_axis(robot)
+
+    def distinct(qs):  # the solver's own rule (in any checkout)
+        return distinct_mask(qs, ik.config.distinct_threshold, roll_free)
     rng = np.random.default_rng(seed)
     q = rng.uniform(robot.lower, robot.upper, (count, robot.dof))
     seeds = rng.uniform(robot.lower, robot.upper, (count, robot.dof))
@@ -91,8 +97,7 @@ def worker(root: str, bundle: str, goal: str, num: int, seeded: bool, seed: int,
                 attempts += 1
                 if ok:
                     found.append(qk)
-                    if len(found) >= num and ik.distinct_mask(np.array(found), goal).sum() \
-                            >= num:
+                    if len(found) >= num and distinct(np.array(found)).sum() >= num:
                         break
             t = time.perf_counter() - t0
             exact = np.array(found).reshape(-1, robot.dof)
@@ -105,7 +110,7 @@ def worker(root: str, bundle: str, goal: str, num: int, seeded: bool, seed: int,
             exact = np.array([s.q for s in res.solutions if s.converged]).reshape(-1, robot.dof)
             success = bool(res.success)
         print(json.dumps({'ok': success, 't': t * 1e3,
-                          'n': int(ik.distinct_mask(exact, goal).sum()) if len(exact) else 0,
+                          'n': int(distinct(exact).sum()) if len(exact) else 0,
                           'b': branches(exact)}), flush=True)
 
 

@@ -8,8 +8,7 @@ The public names below are loaded on first use (PEP 562), so that importing a li
 (``sik_ros.errors``, a CLI's ``--help``, the ROS client) does not load torch or Pinocchio.
 """
 
-from importlib import import_module
-from typing import Any
+from sik_ros._lazy import lazy_exports
 
 __version__ = '0.2.0'
 
@@ -29,17 +28,4 @@ _EXPORTS = {
 
 __all__ = sorted(_EXPORTS)
 
-
-def __getattr__(name: str) -> Any:
-    """Load a public name from its module on first use."""
-    module = _EXPORTS.get(name)
-    if module is None:
-        raise AttributeError(f'module {__name__!r} has no attribute {name!r}')
-    value = getattr(import_module(module), name)
-    globals()[name] = value
-    return value
-
-
-def __dir__():
-    """The module's names, the lazy public ones included."""
-    return sorted(set(globals()) | set(__all__))
+__getattr__, __dir__ = lazy_exports(__name__, globals(), _EXPORTS)

@@ -4,13 +4,13 @@ Distances and self-collision come from the robot's collision geometry through Pi
 """
 
 from dataclasses import dataclass
-import time
-from typing import Optional, Sequence
+from typing import Sequence
 
 import coal
 import numpy as np
 import pinocchio as pin
 
+from sik_ros.deadline import Deadline, NO_DEADLINE
 from sik_ros.errors import InvalidArgument
 from sik_ros.kinematics import Robot
 from sik_ros.validation import MAX_DISTANCE, quaternion, vector
@@ -149,14 +149,14 @@ class CollisionChecker:
         return out
 
     def clearance(self, q: np.ndarray, obstacles: Sequence[Obstacle],
-                  deadline: Optional[float] = None) -> np.ndarray:
+                  deadline: Deadline = NO_DEADLINE) -> np.ndarray:
         """Smallest signed distance from the robot to any obstacle [m], (N,); +inf if none.
 
         Negative values are penetration depths. A broad phase keeps the cost near-linear in the
         obstacles: bounding spheres give every robot part-obstacle pair a lower bound, and
         exact distances (coal's GJK/EPA) are computed in order of it until the bound exceeds
-        the smallest distance found. Configurations not reached by ``deadline`` (a
-        ``time.perf_counter()`` value) are NaN (unknown).
+        the smallest distance found. Configurations not reached by ``deadline`` are NaN
+        (unknown).
         """
         q = np.asarray(q, dtype=float)
         if not obstacles:
@@ -167,7 +167,7 @@ class CollisionChecker:
         out = np.full(len(q), np.nan)
         request, result = coal.DistanceRequest(), coal.DistanceResult()
         for i, qi in enumerate(q):
-            if deadline is not None and i and time.perf_counter() > deadline:
+            if i and deadline.expired():
                 break
             pin.updateGeometryPlacements(self.model, self.data, self.geom, self.geom_data, qi)
             placements = [self.geom_data.oMg[r] for r in range(self.n_robot)]

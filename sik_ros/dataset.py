@@ -20,6 +20,7 @@ from sik_ros.chain import chain_forward
 from sik_ros.defaults import MAX_ROWS
 from sik_ros.errors import CorruptArtifact, InvalidArgument
 from sik_ros.kinematics import Robot
+from sik_ros.periodic import TURN
 from sik_ros.rotations import rotation_to_quaternion
 
 ARRAYS = {'q': None, 'position': 3, 'quaternion': 4}
@@ -58,8 +59,8 @@ def grid_values(lower: np.ndarray, upper: np.ndarray, interval_deg: float,
     values = []
     for lo, hi, turn in zip(lower, upper, periodic):
         if turn:
-            start = (lo + hi) / 2 - math.pi
-            values.append(start + step * np.arange(math.ceil(2 * math.pi / step - 1e-9)))
+            start = (lo + hi) / 2 - TURN / 2  # one turn about the middle of the range
+            values.append(start + step * np.arange(math.ceil(TURN / step - 1e-9)))
         else:
             values.append(lo + step * np.arange(math.floor((hi - lo) / step + 1e-9) + 1))
     return values
@@ -239,6 +240,24 @@ class Dataset:
         return cls(path, manifest, **arrays)
 
 
+def sampled(robot: Robot, sampler: str, interval_deg: float, samples: int, seed: int,
+            chunk: int):
+    """A collection's row count, its chunks ``(q, p, quat)`` and its sampler parameters.
+
+    Raises:
+        InvalidArgument: an unknown sampler, or fewer than one uniform sample.
+    """
+    if sampler == 'grid':
+        return (grid_count(robot.lower, robot.upper, interval_deg, robot.periodic),
+                iter_grid(robot, interval_deg, chunk), {'interval_deg': interval_deg})
+    if sampler == 'uniform':
+        if samples < 1:
+            raise InvalidArgument(f'--samples must be at least 1; got {samples}')
+        params = {'samples': samples, 'seed': seed}
+        return samples, iter_uniform(robot, samples, seed, chunk), params
+    raise InvalidArgument(f'unknown sampler {sampler!r}; use grid or uniform')
+
+
 def collect(robot: Robot, out: Path, sampler: str = 'grid', interval_deg: float = 30.0,
             samples: int = 0, seed: int = 0, force: bool = False,
             progress: Optional[Callable[[int], None]] = None, chunk: int = 1 << 18,
@@ -260,18 +279,7 @@ def collect(robot: Robot, out: Path, sampler: str = 'grid', interval_deg: float 
     Returns:
         the dataset, loaded from its final location.
     """
-    if sampler == 'grid':
-        count = grid_count(robot.lower, robot.upper, interval_deg, robot.periodic)
-        chunks = iter_grid(robot, interval_deg, chunk)
-        params = {'interval_deg': interval_deg}
-    elif sampler == 'uniform':
-        if samples < 1:
-            raise InvalidArgument(f'--samples must be at least 1; got {samples}')
-        count = samples
-        chunks = iter_uniform(robot, samples, seed, chunk)
-        params = {'samples': samples, 'seed': seed}
-    else:
-        raise InvalidArgument(f'unknown sampler {sampler!r}; use grid or uniform')
+    count, chunks, params = sampled(robot, sampler, interval_deg, samples, seed, chunk)
     check_budget(robot, count, max_rows, free_disk(out), sampler)
     with atomic_directory(out, force=force) as tmp:
         arrays = {

@@ -9,88 +9,23 @@ tested against Pinocchio's own frame placements and Jacobians.
 
 import hashlib
 from pathlib import Path
-from typing import Optional, Sequence, Set, Tuple
+from typing import Optional, Sequence, Tuple
 
 import numpy as np
 import pinocchio as pin
 
 from sik_ros.chain import SerialChain
-from sik_ros.errors import FrameNotFound, InvalidArgument, InvalidModel
+from sik_ros.errors import InvalidArgument, InvalidModel
 from sik_ros.kernels import as_arg, chain_frames, fk_many, jac_many
+from sik_ros.model_tree import (chain_path, find_frame, pinocchio_reason, rename_frame,
+                                rename_link_joints, REVOLUTE_AXES)
+from sik_ros.periodic import periodic_joints
 from sik_ros.rotations import rotation_to_quaternion, z_to_axis
-
-_REVOLUTE_AXES = {
-    'JointModelRX': (1.0, 0.0, 0.0),
-    'JointModelRY': (0.0, 1.0, 0.0),
-    'JointModelRZ': (0.0, 0.0, 1.0),
-}
 
 
 def sha256_file(path: Path) -> str:
     """Hex SHA-256 of a file's bytes."""
     return hashlib.sha256(Path(path).read_bytes()).hexdigest()
-
-
-#: Frame types in the order an ambiguous frame name resolves to (a body before its joint).
-FRAME_PREFERENCE = ('BODY', 'OP_FRAME', 'FIXED_JOINT', 'JOINT', 'SENSOR')
-#: Joint types that can only be a floating or planar root: locked at their neutral value.
-ROOT_JOINTS = ('JointModelFreeFlyer', 'JointModelPlanar', 'JointModelSpherical',
-               'JointModelSphericalZYX', 'JointModelTranslation')
-
-
-def unused_name(taken: Set[str], name: str) -> str:
-    """``name``, or ``name_2``, ``name_3``, ... : the first not in ``taken`` (then added to it)."""
-    candidate, k = name, 2
-    while candidate in taken:
-        candidate, k = f'{name}_{k}', k + 1
-    taken.add(candidate)
-    return candidate
-
-
-def rename_frame(model: pin.Model, i: int, name: str) -> None:
-    """Give frame ``i`` of ``model`` a new name (Pinocchio's frames are copied out and back)."""
-    frame = model.frames[i]
-    frame.name = name
-    model.frames[i] = frame
-
-
-def pinocchio_reason(exc: Exception) -> str:
-    """A Pinocchio error's message on one line, without the C++ file and function it names."""
-    text = ' '.join(str(exc).split())
-    return text.rsplit('message: ', 1)[-1] if 'message: ' in text else text
-
-
-def find_frame(model: pin.Model, name: str) -> int:
-    """The id of the frame called ``name``; a body (or fixed frame) when several share it.
-
-    Raises:
-        FrameNotFound: no frame has that name (the message lists the frames).
-    """
-    ids = [i for i, f in enumerate(model.frames) if f.name == name]
-    if not ids:
-        raise FrameNotFound(name, [f.name for f in model.frames])
-    rank = {t: k for k, t in enumerate(FRAME_PREFERENCE)}
-    return min(ids, key=lambda i: (rank.get(str(model.frames[i].type).split('.')[-1], 99), i))
-
-
-def chain_joint(model: pin.Model, j: int) -> bool:
-    """Whether joint ``j`` is an arm joint of a chain (revolute), False for a root to lock.
-
-    Raises:
-        InvalidModel: a joint sik_ros cannot put in a chain (prismatic, continuous left as
-            such, composite), naming it.
-    """
-    kind = model.joints[j].shortname()
-    if kind in _REVOLUTE_AXES or kind == 'JointModelRevoluteUnaligned':
-        return True
-    if kind in ROOT_JOINTS:
-        return False
-    what = {'JointModelPX': 'prismatic', 'JointModelPY': 'prismatic', 'JointModelPZ':
-            'prismatic', 'JointModelPrismaticUnaligned': 'prismatic'}.get(kind, kind)
-    if kind.startswith('JointModelRUB'):
-        what = 'continuous (load it with sik_ros.robots.load_robot, which makes it periodic)'
-    raise InvalidModel(f'joint {model.names[j]!r} in the chain is {what}; sik_ros supports '
-                       f'chains of revolute joints')
 
 
 class Robot:
@@ -119,42 +54,12 @@ class Robot:
         self._package_dirs = list(package_dirs)
         self._collision_urdf = Path(collision_urdf) if collision_urdf else self.urdf_path
         self._srdf_path = srdf_path
-        base_joint = full_model.frames[find_frame(full_model, base_frame)].parentJoint
-        tip_joint = full_model.frames[find_frame(full_model, tip_frame)].parentJoint
-        path = []
-        j = tip_joint
-        while j > 0 and j != base_joint:
-            path.append(j)
-            j = full_model.parents[j]
-        if j != base_joint:
-            raise InvalidModel(f'tip frame {tip_frame!r} is not below base frame {base_frame!r} '
-                               f'in the kinematic tree')
-        path = [j for j in reversed(path) if chain_joint(full_model, j)]
-        if not path:
-            raise InvalidModel(f'no revolute joint moves tip frame {tip_frame!r} relative to '
-                               f'{base_frame!r}')
+        path = chain_path(full_model, base_frame, tip_frame)
         # everything else is locked: joints off the chain (grippers, other limbs), those above
         # the base, and a floating or planar root
         lock = [j for j in range(1, full_model.njoints) if j not in path]
         q_ref = pin.neutral(full_model)
-        # A joint that shares a link's name makes Pinocchio's model reduction refuse the name.
-        # A locked joint becomes a fixed frame of its name, so it is renamed for good; an arm
-        # joint is renamed for the reduction only and gets its name back after it. New names
-        # are ones no frame or joint has.
-        bodies = {f.name for f in full_model.frames if f.type == pin.FrameType.BODY}
-        taken = {f.name for f in full_model.frames} | set(full_model.names)
-        kept_names = {}
-        for j in range(1, full_model.njoints):
-            name_j = full_model.names[j]
-            if name_j not in bodies or not lock:
-                continue
-            new_name = unused_name(taken, f'{name_j}{"_locked" if j in lock else "_joint"}')
-            for i, frame in enumerate(full_model.frames):
-                if frame.name == name_j and frame.type == pin.FrameType.JOINT:
-                    rename_frame(full_model, i, new_name)
-            full_model.names[j] = new_name
-            if j not in lock:
-                kept_names[new_name] = name_j
+        kept_names = rename_link_joints(full_model, lock)
         self._locked = lock
         self._q_ref_full = q_ref
         try:
@@ -181,7 +86,7 @@ class Robot:
         #: joint velocity limits [rad/s] from the URDF (1 where it gives none)
         self.velocity_limits = np.where(np.isfinite(velocity) & (velocity > 0), velocity, 1.0)
         #: joints whose range spans a whole turn: q and q +- 2 pi are the same posture
-        self.periodic = self.upper - self.lower >= 2 * np.pi - 1e-6
+        self.periodic = periodic_joints(self.lower, self.upper)
         self.chain = self._extract_chain()
         #: the chain as the kernels take it (:func:`~sik_ros.kernels.chain.chain_frames`)
         self.frames = chain_frames(self.chain)
@@ -200,8 +105,8 @@ class Robot:
                 raise InvalidModel(f'{self.name}: the reduced model is not a serial chain')
             joint = m.joints[j]
             kind = joint.shortname()
-            if kind in _REVOLUTE_AXES:
-                axis = np.array(_REVOLUTE_AXES[kind])
+            if kind in REVOLUTE_AXES:
+                axis = np.array(REVOLUTE_AXES[kind])
             elif kind == 'JointModelRevoluteUnaligned':
                 axis = np.array(joint.extract().axis, dtype=float)
             else:

@@ -19,7 +19,6 @@ loads it back and refuses a URDF that moved or changed.
 
 from collections import Counter
 import functools
-import math
 import os
 from pathlib import Path
 import re
@@ -32,7 +31,9 @@ from sik_ros.artifacts import check_robot_manifest
 from sik_ros.description import expand_xacro, is_xacro_text
 from sik_ros.errors import (ArtifactMismatch, CorruptArtifact, FrameNotFound, InvalidArgument,
                             InvalidModel, RobotNotFound)
-from sik_ros.kinematics import chain_joint, find_frame, rename_frame, Robot, sha256_file
+from sik_ros.kinematics import Robot, sha256_file
+from sik_ros.model_tree import chain_joint, find_frame, rename_frame
+from sik_ros.periodic import TURN
 
 #: Default base and tip frames of robots whose own choice differs from the inferred one.
 KNOWN_FRAMES = {
@@ -47,7 +48,7 @@ TIP_NAMES = (r'^tool0$', r'tcp', r'end_?effector', r'eef', r'(^|_)ee(_|$)', r'to
 #: Joints that are part of a hand, not of the arm (never counted for the default tip).
 GRIPPER_JOINT = re.compile(r'finger|gripper|hand|thumb|knuckle|jaw', re.IGNORECASE)
 #: Range given to continuous joints [rad].
-CONTINUOUS_RANGE = 2 * math.pi
+CONTINUOUS_RANGE = TURN
 
 
 def prepare_urdf(text: str) -> Tuple[str, List[str]]:

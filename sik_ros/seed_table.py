@@ -39,6 +39,7 @@ from sik_ros.dataset import Dataset
 from sik_ros.defaults import SEED_TABLE_ROWS
 from sik_ros.errors import ArtifactMismatch, CorruptArtifact, InvalidArgument
 from sik_ros.kinematics import Robot
+from sik_ros.periodic import into_limits, TURN, within
 from sik_ros.point_sets import farthest_point_subset
 from sik_ros.rotations import rotation_to_quaternion, z_to_axis
 
@@ -123,7 +124,7 @@ class SeedTable:
             return np.empty((0, self.q.shape[1]))
         azimuth = 0.0
         if self._axis is not None:
-            key, azimuth = self._turned_key(position, quaternion)
+            key, azimuth = self.turned_key(position, quaternion)
         else:
             quat = np.asarray(quaternion, dtype=float)
             quat = -quat if quat[3] < 0 else quat  # as the table's
@@ -134,7 +135,7 @@ class SeedTable:
         # quarter more (SO-100, a 4 rad first joint: one look-up in most calls, where starting
         # from ``k`` took two or more in half of them)
         wanted = k
-        share = (self._upper - self._lower) / (2 * np.pi)
+        share = (self._upper - self._lower) / TURN
         if self._axis is not None and share < 1.0:
             wanted = min(len(self.q), math.ceil(1.25 * k / max(share, 1e-3)))
         while True:
@@ -145,9 +146,8 @@ class SeedTable:
             q = q.copy()
             q[:, 0] += azimuth
             # the first joint back within its limits by a whole turn where one does it
-            q[q[:, 0] < self._lower - 1e-9, 0] += 2 * np.pi
-            q[q[:, 0] > self._upper + 1e-9, 0] -= 2 * np.pi
-            fits = (q[:, 0] >= self._lower - 1e-9) & (q[:, 0] <= self._upper + 1e-9)
+            into_limits(q[:, 0], self._lower, self._upper)
+            fits = within(q[:, 0], self._lower, self._upper)
             if fits.sum() >= k or wanted >= len(self.q):
                 q = q[fits][:k]
                 q[:, 0] = np.clip(q[:, 0], self._lower, self._upper)
@@ -160,8 +160,8 @@ class SeedTable:
                                      at_least=START_LEAST)
         return q[pick]
 
-    def _turned_key(self, position: np.ndarray, quaternion: np.ndarray
-                    ) -> Tuple[np.ndarray, float]:
+    def turned_key(self, position: np.ndarray, quaternion: np.ndarray
+                   ) -> Tuple[np.ndarray, float]:
         """A goal's key in the axis frame turned to azimuth 0, and its azimuth [rad].
 
         :func:`to_axis_frame` then :func:`turned` for one pose, in Python floats (cheaper than

@@ -29,6 +29,7 @@ from typing import Any, Callable, Dict, List, Optional
 from threadpoolctl import threadpool_limits
 
 from sik_ros import errors
+from sik_ros.deadline import Deadline
 from sik_ros.errors import SikError, SolverCrashed, SolverTimeout, SolverUnavailable
 from sik_ros.solver import IKResult, PathResult, SelectiveIK, SolverConfig
 
@@ -262,12 +263,12 @@ class SolverPool:
                 a process is missing and none is idle; SolverCrashed; SolverTimeout.
         """
         timeout = kwargs.get('timeout')
-        deadline = None if timeout is None else time.monotonic() + timeout + WATCHDOG_MARGIN
+        deadline = Deadline.after(None if timeout is None else timeout + WATCHDOG_MARGIN)
         for attempt in range(2):
             worker = self._take(deadline)
             try:
                 worker.conn.send((method, settings, args, kwargs))
-                left = None if deadline is None else max(0.0, deadline - time.monotonic())
+                left = max(0.0, deadline.remaining()) if deadline.bounded else None
                 if not worker.conn.poll(left):
                     self._replace_later(worker, 'it did not answer within a request\'s deadline')
                     worker = None
@@ -277,7 +278,7 @@ class SolverPool:
             except (EOFError, OSError) as exc:
                 self._replace_later(worker, 'it died while serving a request')
                 worker = None
-                if attempt == 0 and (deadline is None or time.monotonic() < deadline):
+                if attempt == 0 and not deadline.expired():
                     continue  # once more, on another process
                 raise SolverCrashed('the solver process serving this request died; it is '
                                     'being replaced') from exc
@@ -289,7 +290,7 @@ class SolverPool:
             return payload
         raise SolverCrashed('no solver process could serve this request')  # pragma: no cover
 
-    def _take(self, deadline: Optional[float]) -> '_Worker':
+    def _take(self, deadline: Deadline) -> '_Worker':
         """An idle, living process; dead ones met on the way are replaced in the background.
 
         Raises:
@@ -304,7 +305,7 @@ class SolverPool:
                     raise SolverUnavailable(
                         f'{self._missing} of {len(self._all)} solver processes are being '
                         f'restarted and the others are busy') from None
-                left = None if deadline is None else max(0.0, deadline - time.monotonic())
+                left = max(0.0, deadline.remaining()) if deadline.bounded else None
                 try:
                     worker = self._idle.get(timeout=left)
                 except queue.Empty:

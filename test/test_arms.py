@@ -16,6 +16,9 @@ from sik_ros.errors import ArtifactMismatch, InvalidModel
 from sik_ros.kinematics import Robot
 from sik_ros.robots import build_model, chain_differences, load_robot, robot_from_manifest
 from sik_ros.solver import SelectiveIK
+from sik_ros.solver.context import Goal
+from sik_ros.solver.ranking import posture_mask
+from sik_ros.solver.refine import refine
 
 CLI = [sys.executable, '-m']
 
@@ -208,7 +211,7 @@ def test_sik_build_makes_a_bundle_that_solves_with_2pi_equivalents(ur5_bundle, u
             d = np.linalg.norm(qs[:, None] - qs[None], axis=2) + np.eye(len(qs)) * 9
             assert d.min() >= 0.5  # distinct
             # by the solver's own rule too (position goals: without the tool-roll joint)
-            assert ik.distinct_mask(qs, goal).all()
+            assert posture_mask(ik.context, qs, goal).all()
             if goal == 'pose':  # a pose has a few branches: their 2 pi equivalents follow them
                 wrapped = np.angle(np.exp(1j * (qs[:, None] - qs[None])))
                 same = np.all(np.abs(wrapped) < 1e-3, axis=2) & ~np.eye(len(qs), dtype=bool)
@@ -238,21 +241,20 @@ def test_position_path_starts_take_the_turns_nearest_the_seed(ur5_bundle, ur5):
 
     Each periodic joint within its limits, as a brute force over the turns finds.
     """
-    from sik_ros.solver.context import Goal
-    from sik_ros.solver.explore import nearest_turns
+    from sik_ros.periodic import nearest_turns
     from sik_ros.solver.path import starts
     ik = SelectiveIK.load(ur5_bundle[0])
     rng = np.random.default_rng(3)
     for q in rng.uniform(ur5.lower, ur5.upper, (5, 6)):
         seed = rng.uniform(ur5.lower, ur5.upper)
-        near = starts._near_seed(ik._ctx, Goal(ur5.fk(q)[0]), seed, 4)
+        near = starts.table_near_seed(ik.context, Goal(ur5.fk(q)[0]), seed, 4)
         assert len(near)
         for row in near:
             for j in range(6):
                 turns = row[j] + 2 * np.pi * np.arange(-2, 3)
                 turns = turns[(turns >= ur5.lower[j] - 1e-9) & (turns <= ur5.upper[j] + 1e-9)]
                 assert abs(row[j] - seed[j]) <= np.abs(turns - seed[j]).min() + 1e-9
-        np.testing.assert_array_equal(nearest_turns(ik._ctx, near, seed), near)
+        np.testing.assert_array_equal(nearest_turns(ik.robot, near, seed), near)
 
 
 def test_refinement_turns_a_periodic_joint_back_at_its_limit(ur5_bundle, ur5):
@@ -269,7 +271,8 @@ def test_refinement_turns_a_periodic_joint_back_at_its_limit(ur5_bundle, ur5):
     start = goal_q.copy()
     start[3] = 0.217 + 2 * np.pi - 0.3
     assert start[3] < ur5.upper[3]
-    q, perr, oerr = ik.refine(start[None], p[0], rot[0])
+    r = refine(ik.context, start[None], Goal(p[0], rot[0]))
+    q, perr, oerr = r.q, r.perr, r.oerr
     assert perr[0] <= 1e-4 and oerr[0] <= 1e-3
     assert abs(q[0, 3] - 0.217) < 1e-3 and np.all(q[0] <= ur5.upper)
     # one step on the wrist joint alone, past the limit: turned back, or clamped

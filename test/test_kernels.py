@@ -5,8 +5,11 @@ import time
 import numpy as np
 import pytest
 
+from sik_ros.deadline import Deadline
 from sik_ros.kernels.dls import CONVERGED, PRUNED, UNTOUCHED
 from sik_ros.solver import SelectiveIK
+from sik_ros.solver.context import Goal
+from sik_ros.solver.refine import errors, refine
 
 
 @pytest.fixture(scope='module')
@@ -16,11 +19,8 @@ def bundled():
 
 
 def _refine(ik, q, pos, rot, **kw):
-    """The kernel's answer through :func:`sik_ros.solver.refine.refine` (module, not facade)."""
-    import importlib
-    from sik_ros.solver.context import Goal
-    refine = importlib.import_module('sik_ros.solver.refine')
-    return refine.refine(ik._ctx, q, Goal(pos, rot), **kw)
+    """The kernel's answer through :func:`sik_ros.solver.refine.refine`."""
+    return refine(ik.context, q, Goal(pos, rot), **kw)
 
 
 def _target(robot, seed):
@@ -38,7 +38,7 @@ def test_refined_rows_reach_the_goal_within_the_limits(bundled):
     starts = np.clip(q_goal + np.random.default_rng(1).normal(0, 0.05, (6, robot.dof)),
                      robot.lower, robot.upper)
     out = _refine(bundled, starts, p, r)
-    perr, oerr = bundled.errors(out.q, p, r)
+    perr, oerr = errors(bundled.context, out.q, Goal(p, r))
     np.testing.assert_allclose(out.perr, perr, atol=1e-12)
     np.testing.assert_allclose(out.oerr, oerr, atol=1e-7)  # arccos there: 1e-8 near 0
     assert (perr <= 1e-4).all() and (oerr <= 1e-3).all()
@@ -57,7 +57,8 @@ def test_enough_stops_after_the_first_exact_rows(bundled):
     assert out.perr[0] <= 1e-4 and out.oerr[0] <= 1e-3
     np.testing.assert_array_equal(out.q[1:], starts[1:])
     # their errors are those of the starts
-    np.testing.assert_allclose(out.perr[1:], bundled.errors(starts[1:], p, r)[0], atol=1e-12)
+    start_perr = errors(bundled.context, starts[1:], Goal(p, r))[0]
+    np.testing.assert_allclose(out.perr[1:], start_perr, atol=1e-12)
 
 
 def test_a_past_deadline_leaves_every_row_as_it_started(bundled):
@@ -65,7 +66,7 @@ def test_a_past_deadline_leaves_every_row_as_it_started(bundled):
     robot = bundled.robot
     q_goal, p, r = _target(robot, 3)
     starts = np.clip(q_goal + 0.3, robot.lower, robot.upper)[None]
-    out = _refine(bundled, starts, p, r, deadline=time.perf_counter() - 1.0)
+    out = _refine(bundled, starts, p, r, deadline=Deadline(time.perf_counter() - 1.0))
     assert out.cut_short
     np.testing.assert_array_equal(out.q, starts)
 
@@ -83,8 +84,8 @@ def test_a_row_heading_for_an_earlier_solution_is_pruned(bundled):
     q[1] += np.where(np.arange(robot.dof) == 0, 0.08, 0.0)
     settings = dict(position_tolerance=1e-12, orientation_tolerance=1e-12, damping2=1e-6,
                     max_step=1e-3, stall_ratio=0.7, prune_radius=1.0, distinct_threshold=0.5,
-                    deadline=np.inf, iterations=12, stall_window=0, stall_after=0,
-                    give_up_after=100, enough=0, prune=1, roll_free=0)
+                    deadline=np.inf, orientation_weight=0.1, iterations=12, stall_window=0,
+                    stall_after=0, give_up_after=100, enough=0, prune=1, roll_free=0)
     perr, oerr, status = np.empty(2), np.empty(2), np.empty(2, dtype=np.int8)
     q_in = q.copy()
     refine_rows(robot.frames, robot.lower, robot.upper, robot.periodic, q_in, p, r, True,

@@ -16,6 +16,7 @@ import yaml
 
 from sik_ros.ros import params
 from sik_ros.ros.params import NodeParams, SPEC, SPECS, validate
+from sik_ros.solver.config import PathDefaults, SolverConfig
 
 REPO = Path(__file__).resolve().parents[1]
 #: The node's parameters: name, type, default (base and tip frames default to the bundle's).
@@ -113,6 +114,19 @@ def test_numeric_descriptors_carry_a_range():
 def test_panda_yaml_names_exactly_the_declared_parameters():
     """config/panda.yaml sets every declared parameter, and nothing else."""
     assert set(yaml_parameters()) == {s.name for s in SPECS}
+
+
+def test_panda_yaml_solver_values_are_the_library_defaults():
+    """The parameters that set solver settings default to SolverConfig's values, as the yaml.
+
+    (Path defaults are no node parameters: a request's 0 means PATH_DEFAULTS'.)
+    """
+    values, solver = yaml_parameters(), SolverConfig()
+    shared = {f.name for f in dataclasses.fields(SolverConfig)} & set(values)
+    assert shared >= {'max_solutions_cap', 'position_tolerance', 'orientation_tolerance'}
+    for name in shared:
+        assert values[name] == SPEC[name].default == getattr(solver, name), name
+    assert not {f.name for f in dataclasses.fields(PathDefaults)} & set(values)
 
 
 def test_panda_yaml_values_are_valid():

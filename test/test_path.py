@@ -121,10 +121,10 @@ def test_the_edge_bound_holds_along_whole_edges(arm, request):
     """The tip never leaves the chord by more than the bound that lets edges skip FK checks.
 
     Dense FK along random joint-space edges (small to large) against ``M / 8`` of
-    :func:`_reach`, and the tool's turn from the nearer end against :func:`turn_bound` (from
+    :func:`reach_bounds`, and the tool's turn from the nearer end against :func:`turn_bound` (from
     the ends' angular speeds) and against ``S / 2``.
     """
-    from sik_ros.solver.path.edges import _reach, turn_bound
+    from sik_ros.solver.path.edges import reach_bounds, turn_bound
     robot = request.getfixturevalue(arm)
     rng = np.random.default_rng(4)
     qa = rng.uniform(robot.lower, robot.upper, (400, robot.dof))
@@ -135,7 +135,7 @@ def test_the_edge_bound_holds_along_whole_edges(arm, request):
     p, r = p.reshape(len(qa), len(t), 3), r.reshape(len(qa), len(t), 3, 3)
     chord = p[:, :1] + t[None, :, None] * (p[:, -1:] - p[:, :1])
     v = np.abs(dq)
-    bend = np.einsum('ki,ij,kj->k', v, _reach(robot.chain), v)
+    bend = np.einsum('ki,ij,kj->k', v, reach_bounds(robot.chain), v)
     assert (np.linalg.norm(p - chord, axis=2).max(axis=1) <= bend / 8 + 1e-12).all()
     small = np.abs(dq).max(axis=1) < 0.02
     turn_a = np.arccos(np.clip((np.einsum('kij,ktij->kt', r[:, 0], r) - 1) / 2, -1, 1))
@@ -158,18 +158,18 @@ def test_edges_skipping_fk_checks_give_the_same_paths(ik, monkeypatch):
     """With every edge checked by FK (no bound), a path comes out the same, bit for bit."""
     from sik_ros.solver.path import edges, tracking
     positions, quats = line(ik, 0.25, 25, (0.0, 1.0, 0.3))
-    proven, certified = [], edges._certified
+    proven, certified = [], edges.certified
 
     def counting(*args):
         out = certified(*args)
         proven.append(int(out.sum()))
         return out
     for module in (edges, tracking):  # the ladder's edges and the batches' steps
-        monkeypatch.setattr(module, '_certified', counting)
+        monkeypatch.setattr(module, 'certified', counting)
     fast = ik.solve_path(positions, quats, seed=Q0)
     assert sum(proven) > 0  # the bound did spare FK checks
     for module in (edges, tracking):
-        monkeypatch.setattr(module, '_certified',
+        monkeypatch.setattr(module, 'certified',
                             lambda ctx, qa, *a: np.zeros(len(qa), bool))
     slow = ik.solve_path(positions, quats, seed=Q0)
     assert fast.success and slow.success
@@ -188,7 +188,7 @@ def test_tracks_carry_their_evaluations_and_step_once(ik):
     import importlib
     refine = importlib.import_module('sik_ros.solver.refine')
     from sik_ros.solver.context import Goal
-    ctx = ik._ctx
+    ctx = ik.context
     positions, quats = line(ik, 0.3, 21, (0.3, 1.0, 0.2))
     rot = Rotation.from_quat(quats).as_matrix()
     q = ik.solve(positions[0], quats[0], num_solutions=8).solutions
@@ -224,13 +224,13 @@ def test_waypoints_between_ladder_ones_are_solved_in_batches(ik, monkeypatch):
     import sik_ros.solver.path as path_mod
     from sik_ros.solver.path import ladder
     positions, quats = line(ik, 0.3, 41, (0.2, 1.0, -0.3))
-    batches, chunk = [], ladder._chunk
+    batches, chunk = [], ladder.chunk
 
     def counting(*args):
         out = chunk(*args)
         batches.append(out is not None)
         return out
-    monkeypatch.setattr(ladder, '_chunk', counting)
+    monkeypatch.setattr(ladder, 'chunk', counting)
     fast = ik.solve_path(positions, quats, seed=Q0)
     assert sum(batches) >= 2  # 40 waypoints after the first: 2 ladder ones, 3 batches
     assert fast.success
@@ -281,13 +281,13 @@ def test_a_position_path_the_narrow_beam_loses_is_planned_again_wider(ik, monkey
     pos = np.array([0.5636, 0.0006, 0.5034]) + np.linspace(0, 0.4151, 53)[:, None] * \
         (direction / np.linalg.norm(direction))
     seed = np.array([-2.782, 0.198, -1.548, -0.07, -1.81, 1.211, -2.228])
-    plans, plan = [], ladder._plan
+    plans, plan = [], ladder.plan
 
     def counting(*args):
         out = plan(*args)
         plans.append(out.success)
         return out
-    monkeypatch.setattr(ladder, '_plan', counting)
+    monkeypatch.setattr(ladder, 'plan', counting)
     res = ik.solve_path(pos, seed=seed)
     assert plans == [False, True]
     assert res.success and res.fraction == 1.0
@@ -303,24 +303,25 @@ def test_position_starts_are_the_seed_and_the_table_postures_nearest_it(ik):
     Without them (``near_seed`` False, the wider beam's second try), or with a table that
     keeps no postures, the solver's solutions join the seed's.
     """
+    from sik_ros.solver import config
     from sik_ros.solver.context import Goal
-    from sik_ros.solver.path import settings, starts
+    from sik_ros.solver.path import starts
     from sik_ros.solver.refine import Evaluation, follow
-    ctx = ik._ctx
+    ctx = ik.context
     seed = np.array([1.0, 0.5, -0.8, -1.5, 0.4, 2.6, -1.2])
     goal = Goal(ik.fk(Q0)[0])
-    near = starts._near_seed(ctx, goal, seed, 4)
+    near = starts.table_near_seed(ctx, goal, seed, 4)
     assert len(near) == 3
     assert np.all(near[:, -1] == seed[-1])
     gaps = np.linalg.norm(near - seed, axis=1)
     assert np.all(np.diff(gaps) >= 0)
     _, alone, _ = follow(ctx, seed[None], Evaluation.of(ctx, seed[None]), goal,
-                         settings.START_ITERATIONS)
+                         config.START_ITERATIONS)
     # the seed and three table postures; the seed and the solver's first four
-    for (q, _), most in ((starts._starts(ctx, goal, seed, [], 4, None), 4),
-                         (starts._starts(ctx, goal, seed, [], 4, None, near_seed=False), 5),
-                         (starts._starts(ik.with_config(cached_postures=False)._ctx, goal,
-                                         seed, [], 4, None), 5)):
+    for (q, _), most in ((starts.track_starts(ctx, goal, seed, [], 4), 4),
+                         (starts.track_starts(ctx, goal, seed, [], 4, near_seed=False), 5),
+                         (starts.track_starts(ik.with_config(cached_postures=False).context, goal,
+                                              seed, [], 4), 5)):
         assert 2 <= len(q) <= most
         np.testing.assert_allclose(q[0], alone[0])
         p, _ = chain_forward(ik.robot.chain, q)
@@ -334,13 +335,13 @@ def test_position_starts_keep_clear_of_obstacles(ik):
     """A box where the seed's own start would be: no start touches it."""
     from sik_ros.solver.context import Goal
     from sik_ros.solver.path import starts
-    ctx = ik._ctx
+    ctx = ik.context
     seed = np.array([1.0, 0.5, -0.8, -1.5, 0.4, 2.6, -1.2])
     goal = Goal(ik.fk(Q0)[0])
-    free, _ = starts._starts(ctx, goal, seed, [], 4, None)
+    free, _ = starts.track_starts(ctx, goal, seed, [], 4)
     _, _, origins, _ = chain_forward(ik.robot.chain, free[:1], frames=True)
     box = Obstacle('box', (0.1, 0.1, 0.1), tuple(origins[0, 3]))
     assert ik.checker.clearance(free[:1], [box])[0] <= 0
-    q, _ = starts._starts(ctx, goal, seed, [box], 4, None)
+    q, _ = starts.track_starts(ctx, goal, seed, [box], 4)
     assert len(q) >= 2
     assert np.all(ik.checker.clearance(q, [box]) > 0)

@@ -12,7 +12,13 @@ from sik_ros.chain import chain_forward
 from sik_ros.errors import ArtifactMismatch, InvalidArgument, InvalidGoal, InvalidSeed
 from sik_ros.objectives import CollisionChecker, ElbowHeight, Obstacle
 from sik_ros.solver import SelectiveIK
-from sik_ros.solver.ranking import converged
+from sik_ros.solver.candidates import (align_last_joint, oriented_postures, starting_postures,
+                                       table_candidates)
+from sik_ros.solver.codec import decode, encode
+from sik_ros.solver.config import FREE_RESTARTS
+from sik_ros.solver.context import Goal
+from sik_ros.solver.ranking import converged, posture_mask
+from sik_ros.solver.refine import refine
 
 
 @pytest.fixture(scope='module')
@@ -82,7 +88,7 @@ def test_last_joint_in_closed_form_recovers_the_orientation(panda, ik, targets):
     wrong = q.copy()
     wrong[:, -1] = np.random.default_rng(1).uniform(panda.lower[-1], panda.upper[-1], len(q))
     for qi, wi, qt in zip(q, wrong, quat):
-        fixed = ik.align_last_joint(wi[None], Rotation.from_quat(qt).as_matrix())[0]
+        fixed = align_last_joint(ik.context, wi[None], Rotation.from_quat(qt).as_matrix())[0]
         assert fixed[-1] == pytest.approx(qi[-1], abs=1e-9)
         np.testing.assert_array_equal(fixed[:-1], wi[:-1])
 
@@ -95,7 +101,7 @@ def test_pose_candidates_include_oriented_postures(panda, ik, targets):
     from scipy.spatial.transform import Rotation
     _, pos, quat = targets
     rot = Rotation.from_quat(quat[3]).as_matrix()
-    extra = ik.oriented_postures(pos[3], rot, 8)
+    extra = oriented_postures(ik.context, Goal(pos[3], rot), 8)
     assert extra.shape == (8, panda.dof)
     assert np.all(extra >= panda.lower) and np.all(extra <= panda.upper)
     res = ik.solve(pos[3], quat[3], num_solutions=8)
@@ -103,7 +109,7 @@ def test_pose_candidates_include_oriented_postures(panda, ik, targets):
     for s in res.solutions:
         assert s.posture_index.shape == (1,) and np.all(np.isfinite(s.posture_index))
     off = ik.with_config(oriented_candidates=0)
-    assert len(off.oriented_postures(pos[3], rot, 0)) == 0
+    assert len(oriented_postures(off.context, Goal(pos[3], rot), 0)) == 0
 
 
 def test_walk_along_self_motion_adds_distinct_exact_pose_solutions(panda, ik, targets):
@@ -148,16 +154,18 @@ def test_refinement_stops_once_enough_distinct_solutions_are_exact(panda, ik, ta
     _, pos, _ = targets
     stopped = 0
     for p in pos:
-        z, rows = ik.candidates('position', p, None, None, 16, True, 0)
-        q0 = ik.starting_postures('position', p, None, z, rows)
-        full_q, full_p, full_o = ik.refine(q0, p, None)
-        full_exact = converged(full_p, full_o, 'position', ik.config)
-        k = int(ik.distinct_mask(full_q[full_exact], 'position').sum()) // 2
+        goal = Goal(p)
+        z, rows = table_candidates(ik.context, goal, None, 16, True, 0)
+        q0 = starting_postures(ik.context, goal, z, rows)
+        full = refine(ik.context, q0, goal)
+        full_exact = converged(full.perr, full.oerr, 'position', ik.config)
+        k = int(posture_mask(ik.context, full.q[full_exact], 'position').sum()) // 2
         if k < 1:
             continue
-        q, perr, _ = ik.refine(q0, p, None, enough=k)
+        r = refine(ik.context, q0, goal, enough=k)
+        q, perr = r.q, r.perr
         exact = perr <= ik.config.position_tolerance
-        assert ik.distinct_mask(q[exact], 'position').sum() >= k
+        assert posture_mask(ik.context, q[exact], 'position').sum() >= k
         true = np.linalg.norm(panda.fk_batch(q)[0] - p, axis=1)
         np.testing.assert_allclose(perr, true, atol=1e-9)
         stopped += int(exact.sum()) < int(full_exact.sum())
@@ -368,13 +376,14 @@ def test_a_seeded_pose_goal_decodes_the_seeds_own_posture_index(targets):
     q, pos, quat = targets
     rot = Rotation.from_quat(quat[4]).as_matrix()
     oriented = ik.config.oriented_candidates  # what a 16-solution pose call takes
-    z, rows = ik.candidates('pose', pos[4], rot, q[5], num_solutions=16, others=oriented)
+    goal = Goal(pos[4], rot)
+    z, rows = table_candidates(ik.context, goal, q[5], num_solutions=16, others=oriented)
     assert rows.tolist() == [-1]
-    np.testing.assert_allclose(z, ik.encode('pose', pos[4], rot, q[5][None]))
-    z, rows = ik.candidates('pose', pos[4], rot, None, num_solutions=16, others=oriented)
+    np.testing.assert_allclose(z, encode(ik.context, goal, q[5][None]))
+    z, rows = table_candidates(ik.context, goal, None, num_solutions=16, others=oriented)
     assert len(z) == 0 and len(rows) == 0
     # a request for more solutions than the oriented postures give decodes the table's too
-    z, rows = ik.candidates('pose', pos[4], rot, None, num_solutions=64, others=oriented)
+    z, rows = table_candidates(ik.context, goal, None, num_solutions=64, others=oriented)
     assert len(z) >= 1.25 * 64 - ik.config.oriented_candidates
 
 
@@ -384,12 +393,10 @@ def test_a_goal_whose_first_solutions_all_collide_gets_a_free_one(panda, ik, res
     A waypoint of a feasible path (``bench/paths.py``'s generator) from a random current
     state: before the restarts, all 16 solutions were exact and self-colliding.
     """
-    import importlib
-    pipeline = importlib.import_module('sik_ros.solver.pipeline')
     pos = np.array([-0.0629, 0.0905, 0.4266])
     seed = np.array([1.281, -0.567, -2.602, -2.859, 2.083, 2.394, -2.018])
     res = ik.solve(pos, num_solutions=4, seed=seed)
-    assert pipeline.FREE_RESTARTS in [call.get('keep') for call in restarts]  # a round ran
+    assert FREE_RESTARTS in [call.get('keep') for call in restarts]  # a round ran
     free = [s for s in res.solutions if s.converged and not s.in_collision]
     assert free
     assert not ik.checker.self_collision(np.array([s.q for s in free])).any()
@@ -447,15 +454,13 @@ def test_restarts_for_free_solutions_leave_obstacles_to_algorithm_2(ik, targets,
     Algorithm 2 (adjusting the index) is the answer to obstacles; the restarts are for goals
     whose solutions collide with the arm itself.
     """
-    import importlib
-    pipeline = importlib.import_module('sik_ros.solver.pipeline')
     _, pos, _ = targets
     shoulder = Obstacle('sphere', (0.25,), (0.0, 0.0, 0.333))  # every posture passes through it
     res = ik.solve(pos[0], num_solutions=4, obstacles=[shoulder])
     exact = [s for s in res.solutions if s.converged]
     assert exact and all(s.min_obstacle_distance <= 0 for s in exact)
     assert not any(s.self_collision for s in exact)
-    assert pipeline.FREE_RESTARTS not in [call.get('keep') for call in restarts]
+    assert FREE_RESTARTS not in [call.get('keep') for call in restarts]
 
 
 @pytest.mark.parametrize('goal', ['position', 'pose'])
@@ -473,7 +478,8 @@ def test_a_seeded_raw_solve_answers_the_seeds_own_posture_first(ik, goal):
         rot = Rotation.from_quat(quat).as_matrix() if goal == 'pose' else None
         res = ik.solve(p, quat if goal == 'pose' else None, seed=q, refine=False,
                        num_solutions=4)
-        own = ik.decode(goal, p, rot, ik.encode(goal, p, rot, q[None]))[0]
+        target = Goal(p, rot)
+        own = decode(ik.context, target, encode(ik.context, target, q[None]))[0]
         first = res.solutions[0]
         if ik.checker.self_collision(own[None])[0]:  # a colliding own posture does not lead
             assert not np.allclose(first.q, own, atol=1e-6) or first.self_collision

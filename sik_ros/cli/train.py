@@ -67,93 +67,113 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: Optional[List[str]] = None) -> int:
     """Entry point of sik-train."""
     args = build_parser().parse_args(argv_or_default(argv))
-
-    def body() -> int:
-        from tqdm import tqdm
-
-        from sik_ros import distributed
-        from sik_ros.artifacts import write_text_atomic
-        from sik_ros.checkpoints import export_model, load_checkpoint, model_signature
-        from sik_ros.dataset import Dataset
-        from sik_ros.models import branch_bits, ModelConfig
-        from sik_ros.robots import robot_from_manifest
-        from sik_ros.training import TrainConfig, Trainer, with_overrides
-        # Ctrl-C, kill -INT and SIGTERM stop a run with a checkpoint of its last step
-        # (run_cli turns both signals into a KeyboardInterrupt)
-        rank, size = distributed.init(args.device or 'cpu')
-        out = Path(args.out)
-        if args.max_time is not None and args.max_time <= 0:
-            raise InvalidArgument(f'--max-time must be positive; got {args.max_time}')
-        ckpt = None
-        if args.resume and args.init:
-            raise InvalidArgument('--init starts a new run; --resume continues one: give one')
-        if args.resume:
-            ckpt = load_checkpoint(out / 'last.pt')
-            model_cfg = ModelConfig.from_dict(ckpt['model_config'])
-            train_cfg = TrainConfig(**ckpt['train_config'])
-            # a resumed run may extend its schedule or switch the FK term on later
-            train_cfg = with_overrides(train_cfg, steps=args.steps, fk_weight=args.fk_weight,
-                                       fk_start=args.fk_start, rot_weight=args.rot_weight,
-                                       cycle_weight=args.cycle_weight,
-                                       cycle_turn=args.cycle_turn)
-        else:
-            if (out / 'last.pt').exists():
-                raise ArtifactExists(f'{out}/last.pt exists: use --resume, or another --out')
-            latent = args.latent_dim or DEFAULT_LATENT[args.goal]
-            enc, dec = PRESETS[args.preset]
-            model_cfg = ModelConfig(kind=args.model, goal=args.goal,
-                                    latent_dim=latent, encoder=enc, decoder=dec)
-            train_cfg = with_overrides(
-                TrainConfig(), steps=args.steps, batch_size=args.batch_size, lr=args.lr,
-                fk_weight=args.fk_weight, fk_start=args.fk_start, kl_weight=args.kl_weight,
-                rot_weight=args.rot_weight,
-                eval_every=args.eval_every, checkpoint_every=args.checkpoint_every,
-                seed=args.seed, threads=args.threads, device=args.device,
-                uni_position=args.uni_position or None, bf16=args.bf16,
-                sampler=args.sampler, cycle_weight=args.cycle_weight,
-                cycle_turn=args.cycle_turn, init=args.init)
-            if args.model in ('fcn', 'anfis') and args.fk_weight is None:
-                train_cfg = with_overrides(train_cfg, fk_weight=0.0)
-        robot = robot_from_manifest(Dataset.load(args.dataset).manifest['robot'],
-                                    f'dataset {args.dataset}')
-        if model_cfg.dof != robot.dof:
-            model_cfg = ModelConfig(**{**model_cfg.__dict__, 'dof': robot.dof})
-        if args.branches and not args.resume:
-            if args.model != 'sik':
-                raise InvalidArgument('--branches needs --model sik')
-            model_cfg = replace(model_cfg, branches=branch_bits(robot.chain, robot.lower,
-                                                                robot.upper))
-        ds = Dataset.load(args.dataset, robot)
-        trainer = Trainer(robot, ds, model_cfg, train_cfg, out)
-        if ckpt is not None:
-            trainer.restore(ckpt)
-        elif args.init:
-            trainer.initialise(load_checkpoint(Path(args.init)), args.init)
-        bar = tqdm(total=train_cfg.steps, initial=trainer.step, disable=args.quiet or rank > 0,
-                   desc=f'train {model_cfg.kind}/{model_cfg.goal}', mininterval=2.0)
-
-        def progress(step, rec):
-            bar.update(step - bar.n)
-            if 'val_dist_mean_m' in rec:
-                bar.set_postfix(loss=f"{rec['loss']:.4g}",
-                                val_cm=f"{rec['val_dist_mean_m'] * 100:.2f}")
-        last = trainer.run(max_time=args.max_time, progress=progress)
-        bar.close()
-        if rank == 0:
-            write_text_atomic(out / 'history.json', json.dumps(trainer.history, indent=1))
-            if args.export:
-                export_model(trainer.checkpoint(), Path(args.export))
-        weights = model_signature(trainer.checkpoint())['weights_sha256']
-        distributed.finish()
-        # one write of the whole line: ranks sharing a pipe (torchrun) never interleave it
-        sys.stdout.write(json.dumps({
-            'step': trainer.step, 'elapsed_s': round(trainer.elapsed, 1),
-            **{k: v for k, v in last.items() if k.startswith('val')},
-            'rank': rank, 'world_size': size, 'weights_sha256': weights}) + '\n')
-        sys.stdout.flush()
-        return 0
-    return run_cli('sik-train', body,
+    # Ctrl-C, kill -INT and SIGTERM stop a run with a checkpoint of its last step
+    # (run_cli turns both signals into a KeyboardInterrupt)
+    return run_cli('sik-train', lambda: train(args),
                    'checkpoint of the last step saved (--resume continues the run)')
+
+
+def train(args: argparse.Namespace) -> int:
+    """One run: its configs, the trainer with a progress bar, the history and a summary line."""
+    from tqdm import tqdm
+
+    from sik_ros import distributed
+    from sik_ros.artifacts import write_text_atomic
+    from sik_ros.checkpoints import export_model, load_checkpoint, model_signature
+    from sik_ros.dataset import Dataset
+    from sik_ros.training import Trainer
+    rank, size = distributed.init(args.device or 'cpu')
+    out = Path(args.out)
+    ckpt, model_cfg, train_cfg = run_configs(args, out)
+    robot, model_cfg = for_robot(args, model_cfg)
+    ds = Dataset.load(args.dataset, robot)
+    trainer = Trainer(robot, ds, model_cfg, train_cfg, out)
+    if ckpt is not None:
+        trainer.restore(ckpt)
+    elif args.init:
+        trainer.initialise(load_checkpoint(Path(args.init)), args.init)
+    bar = tqdm(total=train_cfg.steps, initial=trainer.step, disable=args.quiet or rank > 0,
+               desc=f'train {model_cfg.kind}/{model_cfg.goal}', mininterval=2.0)
+
+    def progress(step, rec):
+        bar.update(step - bar.n)
+        if 'val_dist_mean_m' in rec:
+            bar.set_postfix(loss=f"{rec['loss']:.4g}",
+                            val_cm=f"{rec['val_dist_mean_m'] * 100:.2f}")
+    last = trainer.run(max_time=args.max_time, progress=progress)
+    bar.close()
+    if rank == 0:
+        write_text_atomic(out / 'history.json', json.dumps(trainer.history, indent=1))
+        if args.export:
+            export_model(trainer.checkpoint(), Path(args.export))
+    weights = model_signature(trainer.checkpoint())['weights_sha256']
+    distributed.finish()
+    # one write of the whole line: ranks sharing a pipe (torchrun) never interleave it
+    sys.stdout.write(json.dumps({
+        'step': trainer.step, 'elapsed_s': round(trainer.elapsed, 1),
+        **{k: v for k, v in last.items() if k.startswith('val')},
+        'rank': rank, 'world_size': size, 'weights_sha256': weights}) + '\n')
+    sys.stdout.flush()
+    return 0
+
+
+def run_configs(args: argparse.Namespace, out: Path):
+    """The checkpoint resumed (or None), the model config and the training config of a run.
+
+    Raises:
+        InvalidArgument: contradicting or bad options.
+        ArtifactExists: a new run where one already is.
+    """
+    from sik_ros.checkpoints import load_checkpoint
+    from sik_ros.models import ModelConfig
+    from sik_ros.training import TrainConfig, with_overrides
+    if args.max_time is not None and args.max_time <= 0:
+        raise InvalidArgument(f'--max-time must be positive; got {args.max_time}')
+    if args.resume and args.init:
+        raise InvalidArgument('--init starts a new run; --resume continues one: give one')
+    if args.resume:
+        ckpt = load_checkpoint(out / 'last.pt')
+        train_cfg = TrainConfig(**ckpt['train_config'])
+        # a resumed run may extend its schedule or switch the FK term on later
+        train_cfg = with_overrides(train_cfg, steps=args.steps, fk_weight=args.fk_weight,
+                                   fk_start=args.fk_start, rot_weight=args.rot_weight,
+                                   cycle_weight=args.cycle_weight, cycle_turn=args.cycle_turn)
+        return ckpt, ModelConfig.from_dict(ckpt['model_config']), train_cfg
+    if (out / 'last.pt').exists():
+        raise ArtifactExists(f'{out}/last.pt exists: use --resume, or another --out')
+    enc, dec = PRESETS[args.preset]
+    model_cfg = ModelConfig(kind=args.model, goal=args.goal,
+                            latent_dim=args.latent_dim or DEFAULT_LATENT[args.goal],
+                            encoder=enc, decoder=dec)
+    train_cfg = with_overrides(
+        TrainConfig(), steps=args.steps, batch_size=args.batch_size, lr=args.lr,
+        fk_weight=args.fk_weight, fk_start=args.fk_start, kl_weight=args.kl_weight,
+        rot_weight=args.rot_weight,
+        eval_every=args.eval_every, checkpoint_every=args.checkpoint_every,
+        seed=args.seed, threads=args.threads, device=args.device,
+        uni_position=args.uni_position or None, bf16=args.bf16,
+        sampler=args.sampler, cycle_weight=args.cycle_weight,
+        cycle_turn=args.cycle_turn, init=args.init)
+    if args.model in ('fcn', 'anfis') and args.fk_weight is None:
+        train_cfg = with_overrides(train_cfg, fk_weight=0.0)
+    return None, model_cfg, train_cfg
+
+
+def for_robot(args: argparse.Namespace, model_cfg):
+    """The dataset's robot and the model config fitted to it (its joints, branch bits)."""
+    from sik_ros.dataset import Dataset
+    from sik_ros.models import branch_bits, ModelConfig
+    from sik_ros.robots import robot_from_manifest
+    robot = robot_from_manifest(Dataset.load(args.dataset).manifest['robot'],
+                                f'dataset {args.dataset}')
+    if model_cfg.dof != robot.dof:
+        model_cfg = ModelConfig(**{**model_cfg.__dict__, 'dof': robot.dof})
+    if args.branches and not args.resume:
+        if args.model != 'sik':
+            raise InvalidArgument('--branches needs --model sik')
+        model_cfg = replace(model_cfg, branches=branch_bits(robot.chain, robot.lower,
+                                                            robot.upper))
+    return robot, model_cfg
 
 
 if __name__ == '__main__':

@@ -9,6 +9,7 @@ from typing import Sequence, Tuple
 import numpy as np
 
 from sik_ros.chain import chain_forward
+from sik_ros.goal_error import goal_errors
 from sik_ros.kinematics import Robot
 
 
@@ -23,7 +24,7 @@ def arm_points(robot: Robot, q: np.ndarray) -> np.ndarray:
 def position_errors(robot: Robot, q: np.ndarray, targets: np.ndarray) -> np.ndarray:
     """Distance errors [m] of configurations (N, n) [rad] against targets (N, 3) or (3,) [m]."""
     p, _ = robot.fk_rot(np.atleast_2d(q))
-    return np.linalg.norm(p - np.asarray(targets, dtype=float), axis=1)
+    return goal_errors(p, None, np.asarray(targets, dtype=float))[0]
 
 
 def orientation_cosine(rot_target: np.ndarray, rot: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:

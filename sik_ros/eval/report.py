@@ -6,7 +6,7 @@ a plain sentence (:func:`verdict`) whether ours is as good as the paper's figure
 
 from pathlib import Path
 import shlex
-from typing import Dict, List, Sequence
+from typing import Dict, List, Sequence, Tuple
 
 import numpy as np
 
@@ -100,7 +100,7 @@ def models_section(ik: SelectiveIK, baselines: Dict[str, Method], missing: Dict[
 
 def distance_section(res: Results, baselines: Dict[str, Method]) -> List[str]:
     """Experiment 1."""
-    d, st = res.distance, res.settings
+    d = res.distance
     lines = ['## 1. Distance error over the workspace', '',
              'The distance error is the distance between the target and the tip that the '
              'returned joint angles reach, computed by forward kinematics (the paper\'s '
@@ -134,15 +134,41 @@ def distance_section(res: Results, baselines: Dict[str, Method]) -> List[str]:
     counts = d.workspace['sik']['raw_count']
     lines += [f'- SIK raw calls returned {np.mean(counts):.1f} distinct solutions on average '
               '(at most 10 were asked).', '']
+    return lines + radius_lines(res, baselines)
 
-    lines += [f'### Per radius ({st.targets} targets per radius)', '',
-              'Targets lie within 1 cm of a sphere of the given radius around the base origin '
-              f'(`panda_link0`): among {st.samples:,} tips of uniform joint samples, those '
-              f'within 1 cm of the sphere, {st.targets} picked at random. "targets" says how '
-              'many there were when fewer than asked. Errors in cm; the paper\'s figures '
-              '(Table 2) beside ours. Self-collisions are not excluded (the paper switched them '
-              'off too).', '']
+
+def radius_lines(res: Results, baselines: Dict[str, Method]) -> List[str]:
+    """Experiment 1 per radius: the table against the paper's Table 2, verdicts, figure."""
+    d, st = res.distance, res.settings
+    lines = [f'### Per radius ({st.targets} targets per radius)', '',
+             'Targets lie within 1 cm of a sphere of the given radius around the base origin '
+             f'(`panda_link0`): among {st.samples:,} tips of uniform joint samples, those '
+             f'within 1 cm of the sphere, {st.targets} picked at random. "targets" says how '
+             'many there were when fewer than asked. Errors in cm; the paper\'s figures '
+             '(Table 2) beside ours. Self-collisions are not excluded (the paper switched them '
+             'off too).', '']
     means = d.radius_means_cm()
+    header, rows = radius_table(res, baselines, means)
+    if len(st.radii) < len(RADII):
+        lines += [f'Only {len(st.radii)} of the paper\'s {len(RADII)} radii were run: our '
+                  'averages cover those, the paper\'s cover all of its radii.', '']
+    lines += ['<!-- per-radius table -->'] + table(header, rows) + ['']
+    for name in ['sik'] + [k for k in BASELINE_FILES if k in baselines]:
+        key = 'raw_mean' if 'raw_mean' in means[name] else 'raw'
+        ours = float(np.nanmean(means[name][key]))
+        what = f'{NAMES[name]} ({VARIANTS[key]}) averaged over the radii'
+        lines.append('- ' + verdict(ours, PAPER['radius_avg_cm'][name], 'cm', what))
+    missing = [NAMES[k] for k in BASELINE_FILES if k not in baselines]
+    if missing:
+        lines.append(f'- Not measured (no model given): {", ".join(missing)}; the paper\'s '
+                     'rows are in the figure only for the models we ran.')
+    lines += ['', f'![error against radius]({res.figures["error_vs_radius"]})', '']
+    return lines
+
+
+def radius_table(res: Results, baselines: Dict[str, Method], means) -> Tuple[List[str], List]:
+    """The per-radius table's header and rows (ours, the paper's, the averages) [cm]."""
+    st = res.settings
     header = ['radius [cm]', 'targets']
     cols = []
     for name in ['sik'] + [k for k in BASELINE_FILES if k in baselines]:
@@ -172,21 +198,7 @@ def distance_section(res: Results, baselines: Dict[str, Method]) -> List[str]:
         else:
             avg.append(fmt(np.nanmean(c)))
     rows.append(avg)
-    if len(st.radii) < len(RADII):
-        lines += [f'Only {len(st.radii)} of the paper\'s {len(RADII)} radii were run: our '
-                  'averages cover those, the paper\'s cover all of its radii.', '']
-    lines += ['<!-- per-radius table -->'] + table(header, rows) + ['']
-    for name in ['sik'] + [k for k in BASELINE_FILES if k in baselines]:
-        key = 'raw_mean' if 'raw_mean' in means[name] else 'raw'
-        ours = float(np.nanmean(means[name][key]))
-        what = f'{NAMES[name]} ({VARIANTS[key]}) averaged over the radii'
-        lines.append('- ' + verdict(ours, PAPER['radius_avg_cm'][name], 'cm', what))
-    missing = [NAMES[k] for k in BASELINE_FILES if k not in baselines]
-    if missing:
-        lines.append(f'- Not measured (no model given): {", ".join(missing)}; the paper\'s '
-                     'rows are in the figure only for the models we ran.')
-    lines += ['', f'![error against radius]({res.figures["error_vs_radius"]})', '']
-    return lines
+    return header, rows
 
 
 TIMING_ROWS = (

@@ -24,9 +24,14 @@ from scipy.spatial.transform import Rotation
 from sik_ros.eval.baselines import Baseline, Method
 from sik_ros.eval.metrics import mean_cm, orientation_cosine, position_errors
 from sik_ros.eval.paper import DIVERSITY_TARGETS, RADII, SWEEP_TARGET
+from sik_ros.goal_error import goal_errors
 from sik_ros.index_table import farthest_point_subset, PostureTable
 from sik_ros.kinematics import Robot
 from sik_ros.solver import SelectiveIK
+from sik_ros.solver.codec import decode
+from sik_ros.solver.context import Goal, POSITION
+from sik_ros.solver.ranking import posture_mask
+from sik_ros.solver.refine import refine
 
 #: Called with how many steps of work were just done.
 Progress = Optional[Callable[[int], None]]
@@ -223,13 +228,14 @@ def diversity_study(ik: SelectiveIK, targets: Sequence = DIVERSITY_TARGETS,
     for t in targets:
         pos = np.asarray(t, dtype=float)
         z = far_apart_indices(ik, pos, count)
-        q_raw = ik.decode('position', pos, None, z)
-        q_ref, _, _ = ik.refine(q_raw, pos, None)
+        q_raw = decode(ik.context, Goal(pos), z)
+        q_ref = refine(ik.context, q_raw, Goal(pos)).q
         out.append(DiversityTarget(
             pos, z, q_raw, q_ref, position_errors(ik.robot, q_raw, pos),
             position_errors(ik.robot, q_ref, pos), np.var(np.degrees(q_raw), axis=0),
-            np.var(np.degrees(q_ref), axis=0), int(ik.distinct_mask(q_raw, 'position').sum()),
-            int(ik.distinct_mask(q_ref, 'position').sum())))
+            np.var(np.degrees(q_ref), axis=0),
+            int(posture_mask(ik.context, q_raw, POSITION).sum()),
+            int(posture_mask(ik.context, q_ref, POSITION).sum())))
     return out
 
 
@@ -284,8 +290,8 @@ def element_sweep(ik: SelectiveIK, target: Sequence[float] = SWEEP_TARGET,
         values = np.linspace(pool[:, d].min(), pool[:, d].max(), steps)
         z = np.repeat(median[None], steps, axis=0)
         z[:, d] = values
-        q_raw = ik.decode('position', pos, None, z)
-        q_ref, _, _ = ik.refine(q_raw, pos, None)
+        q_raw = decode(ik.context, Goal(pos), z)
+        q_ref = refine(ik.context, q_raw, Goal(pos)).q
         elements.append(SweepElement(values, q_raw, q_ref, position_errors(ik.robot, q_raw, pos),
                                      position_errors(ik.robot, q_ref, pos)))
     return Sweep(pos, median, len(pool), elements)
@@ -380,13 +386,13 @@ def orientation_study(ik: SelectiveIK, targets: int = 4, postures: int = 5,
             z = pool[order[np.round(np.linspace(0, len(pool) - 1, postures)).astype(int)]]
         else:
             z = np.quantile(pool, np.linspace(0, 1, postures), axis=0)
-        q_raw = ik.decode('pose', pos, rot, z)
-        q_ref, _, _ = ik.refine(q_raw, pos, rot)
+        q_raw = decode(ik.context, Goal(pos, rot), z)
+        q_ref = refine(ik.context, q_raw, Goal(pos, rot)).q
         rec = {}
         for tag, q in (('raw', q_raw), ('refined', q_ref)):
             p, r = ik.robot.fk_rot(q)
             cos, angle = orientation_cosine(rot, r)
-            rec.update({f'q_{tag}': q, f'err_{tag}': np.linalg.norm(p - pos, axis=1),
+            rec.update({f'q_{tag}': q, f'err_{tag}': goal_errors(p, r, pos)[0],
                         f'cos_{tag}': cos, f'angle_{tag}': angle})
         out.append(OrientedTarget(pos, Rotation.from_matrix(rot).as_quat(), z, **rec))
     means = {f'{key}_{tag}': float(np.mean([getattr(t, f'{key}_{tag}') for t in out]))

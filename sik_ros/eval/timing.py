@@ -9,6 +9,8 @@ import numpy as np
 from sik_ros.eval.baselines import Method, multi_solution, single_solution, TracIK
 from sik_ros.eval.studies import Progress, table_pool
 from sik_ros.solver import SelectiveIK
+from sik_ros.solver.codec import decode
+from sik_ros.solver.context import Goal
 
 
 @dataclass
@@ -76,7 +78,7 @@ def timing_study(ik: SelectiveIK, baselines: Dict[str, Method], positions: np.nd
     for name, s in multi_solution(ik, baselines).items():
         z0 = table_pool(s.models['position'].table, items[0], 1)[:1]
         out[f'{name}_decode'] = time_calls(
-            lambda p, s=s, z0=z0: len(s.decode('position', p, None, z0)), items, progress)
+            lambda p, s=s, z0=z0: len(decode(s.context, Goal(p), z0)), items, progress)
         for num in (1, 10):
             for refine in (False, True):
                 key = f'{name}_{"refined" if refine else "raw"}_{num}'

@@ -17,14 +17,13 @@ import numpy as np
 
 from sik_ros.kernels.chain import F1, F2, F3, place, rotation_error
 from sik_ros.kernels.clock import monotonic
+from sik_ros.periodic import TURN
 
 #: Row outcomes of :func:`refine_rows` (``status``).
 UNTOUCHED, CONVERGED, GIVEN_UP, ITERATIONS, PRUNED, DEADLINE = range(6)
-#: Metres of position error one radian of orientation error counts as in a row's score.
-ORIENTATION_WEIGHT = 0.1
 #: The positions of :func:`refine_rows`'s ``reals`` and ``ints`` arguments.
 REALS = ('position_tolerance', 'orientation_tolerance', 'damping2', 'max_step', 'stall_ratio',
-         'prune_radius', 'distinct_threshold', 'deadline')
+         'prune_radius', 'distinct_threshold', 'deadline', 'orientation_weight')
 INTS = ('iterations', 'stall_window', 'stall_after', 'give_up_after', 'enough', 'prune',
         'roll_free')
 
@@ -39,25 +38,11 @@ def goal_error(pos, rot, pose, p, r, err):  # pragma: no cover (compiled)
 
 
 @njit(cache=True, nogil=True)
-def limited_step(q, jac, err, dims, lower, upper, periodic, turn, lam2, max_step,
-                 jm, a, x):  # pragma: no cover (compiled)
-    """``q`` (n,) after one damped least squares step on ``err``, within the limits (in place).
+def damped_solve(jm, err, dims, n, lam2, a, x):  # pragma: no cover (compiled)
+    """``x`` (dims,) = (J J^T + lambda^2 I)^-1 ``err`` for ``J`` = ``jm[:dims, :n]``, in place.
 
-    ``jm`` (6, n), ``a`` (6, 6), ``x`` (6,): work arrays. ``jac`` is left as it is.
+    By Cholesky (``a`` (6, 6): work array, left holding the factor).
     """
-    n = q.shape[0]
-    for j in range(n):
-        free = not (turn and periodic[j])
-        blocked = False
-        if free and (q[j] <= lower[j] + 1e-9 or q[j] >= upper[j] - 1e-9):
-            g = 0.0
-            for i in range(dims):
-                g += jac[i, j] * err[i]
-            blocked = (q[j] <= lower[j] + 1e-9 and g < 0.0) or \
-                (q[j] >= upper[j] - 1e-9 and g > 0.0)
-        for i in range(dims):
-            jm[i, j] = 0.0 if blocked else jac[i, j]
-    # Cholesky of J J^T + lambda^2 I, in place in ``a``
     for i in range(dims):
         for k in range(i + 1):
             s = 0.0
@@ -86,6 +71,28 @@ def limited_step(q, jac, err, dims, lower, upper, periodic, turn, lam2, max_step
         for k in range(i + 1, dims):
             s -= a[k, i] * x[k]
         x[i] = s / a[i, i]
+
+
+@njit(cache=True, nogil=True)
+def limited_step(q, jac, err, dims, lower, upper, periodic, turn, lam2, max_step,
+                 jm, a, x):  # pragma: no cover (compiled)
+    """``q`` (n,) after one damped least squares step on ``err``, within the limits (in place).
+
+    ``jm`` (6, n), ``a`` (6, 6), ``x`` (6,): work arrays. ``jac`` is left as it is.
+    """
+    n = q.shape[0]
+    for j in range(n):
+        free = not (turn and periodic[j])
+        blocked = False
+        if free and (q[j] <= lower[j] + 1e-9 or q[j] >= upper[j] - 1e-9):
+            g = 0.0
+            for i in range(dims):
+                g += jac[i, j] * err[i]
+            blocked = (q[j] <= lower[j] + 1e-9 and g < 0.0) or \
+                (q[j] >= upper[j] - 1e-9 and g > 0.0)
+        for i in range(dims):
+            jm[i, j] = 0.0 if blocked else jac[i, j]
+    damped_solve(jm, err, dims, n, lam2, a, x)
     biggest = 0.0
     for j in range(n):
         s = 0.0
@@ -98,9 +105,9 @@ def limited_step(q, jac, err, dims, lower, upper, periodic, turn, lam2, max_step
         v = q[j] + jm[0, j] * scale
         if turn and periodic[j]:
             if v < lower[j]:
-                v += 2.0 * math.pi
+                v += TURN
             elif v > upper[j]:
-                v -= 2.0 * math.pi
+                v -= TURN
         q[j] = min(max(v, lower[j]), upper[j])
 
 
@@ -119,6 +126,97 @@ def _near_better(q, row, score, status, radius, cols):  # pragma: no cover (comp
     return False
 
 
+@njit(cache=True, nogil=True)
+def _refine_row(frames, lower, upper, periodic, q, row, pos, rot, pose, reals, ints, prune_at,
+                perr, oerr, status, score, stale, history, p, r, jac, jm, a, err,
+                x):  # pragma: no cover (compiled)
+    """Row ``row`` of :func:`refine_rows` refined until it stops; whether the deadline did.
+
+    ``score``, ``stale``: the rows' scores and whether their errors are out of date;
+    ``history`` (window,): the row's recent scores; the rest: work arrays.
+    """
+    tol_p, tol_o, lam2, max_step = reals[0], reals[1], reals[2], reals[3]
+    radius, deadline, weight = reals[5], reals[7], reals[8]
+    iterations, prune = ints[0], ints[5] != 0
+    n = q.shape[1]
+    dims = 6 if pose else 3
+    cols = n - 1 if ints[6] != 0 else n
+    timed = deadline < np.inf
+    qi = q[row]
+    status[row] = ITERATIONS
+    history[:] = np.inf
+    for it in range(iterations):
+        if prune and _prune_now(prune_at, it) and \
+                _near_better(q, row, score, status, radius, cols):
+            status[row] = PRUNED
+            break
+        if timed and monotonic() > deadline:
+            status[row] = DEADLINE
+            return True
+        place(frames, qi, p, r, jac, True)
+        pe, oe = goal_error(pos, rot, pose, p, r, err)
+        perr[row], oerr[row] = pe, oe
+        stale[row] = False
+        s = pe + weight * oe
+        score[row] = s
+        done = pe < tol_p * 0.5 and (not pose or oe < tol_o * 0.5)
+        stuck = pe > 10.0 * tol_p or (pose and oe > 10.0 * tol_o)
+        verdict = _verdict(it, s, done, stuck, history, ints[1], ints[2], reals[4], ints[3])
+        if verdict != ITERATIONS:
+            status[row] = verdict
+            break
+        limited_step(qi, jac, err, dims, lower, upper, periodic, True, lam2, max_step,
+                     jm, a, x)
+        stale[row] = True
+    return False
+
+
+@njit(cache=True, nogil=True)
+def _prune_now(prune_at, it):  # pragma: no cover (compiled)
+    """Whether iteration ``it`` is one of ``prune_at``."""
+    hit = False
+    for v in prune_at:
+        hit = hit or v == it
+    return hit
+
+
+@njit(cache=True, nogil=True)
+def _verdict(it, s, done, stuck, history, window, stall_after, stall_ratio,
+             give_up_after):  # pragma: no cover (compiled)
+    """A row's outcome after iteration ``it`` at score ``s``: go on (ITERATIONS) or stop.
+
+    It stalls when hardly closer than ``window`` iterations ago (``history`` keeps its
+    scores), is given up when stalled or, from ``give_up_after`` on, still far (``stuck``).
+    """
+    stalled = False
+    if window > 0:
+        if it >= max(window, stall_after):
+            # hardly closer than ``window`` iterations ago
+            stalled = not done and s > stall_ratio * history[it % window]
+        history[it % window] = s
+    if it >= give_up_after or stalled:
+        stuck = stalled if it < give_up_after else (stuck or stalled)
+        if stuck and not done:
+            return GIVEN_UP
+    if done:
+        return CONVERGED
+    return ITERATIONS
+
+
+@njit(cache=True, nogil=True)
+def _is_new(q, row, found, nfound, distinct, cols):  # pragma: no cover (compiled)
+    """Whether row ``row`` is at least ``distinct`` from every row of ``found[:nfound]``."""
+    qi = q[row]
+    for k in range(nfound):
+        d = 0.0
+        for j in range(cols):
+            v = qi[j] - q[found[k], j]
+            d += v * v
+        if d < distinct * distinct:
+            return False
+    return True
+
+
 @njit(f'boolean({F3}, {F1}, {F1}, boolean[::1], {F2}, {F1}, {F2}, boolean, {F1}, int64[::1], '
       f'int64[::1], {F1}, {F1}, int8[::1])', cache=True, nogil=True)
 def refine_rows(frames, lower, upper, periodic, q, pos, rot, pose, reals, ints, prune_at,
@@ -131,7 +229,8 @@ def refine_rows(frames, lower, upper, periodic, q, pos, rot, pose, reals, ints, 
         q: starts (M, n) [rad], refined in place, row by row in order.
         pos: goal position (3,) [m]; rot: goal rotation (3, 3) (read when ``pose``).
         reals: float64 values named by :data:`REALS` (``damping2``: the damping squared;
-            ``deadline``: a ``time.perf_counter()`` value, inf for none).
+            ``deadline``: a ``time.perf_counter()`` value, inf for none;
+            ``orientation_weight``: metres of a row's score per radian of orientation error).
         ints: int64 values named by :data:`INTS` (``enough`` 0: no early stop; ``prune`` and
             ``roll_free`` 0 or 1: the last joint left out of the distances).
         prune_at: iterations at which a row near an earlier, better one stops (int64).
@@ -141,18 +240,13 @@ def refine_rows(frames, lower, upper, periodic, q, pos, rot, pose, reals, ints, 
     Returns:
         whether the deadline stopped refinement before every row had finished.
     """
-    tol_p, tol_o, lam2, max_step = reals[0], reals[1], reals[2], reals[3]
-    stall_ratio, radius, distinct, deadline = reals[4], reals[5], reals[6], reals[7]
-    iterations, window, stall_after, give_up_after = ints[0], ints[1], ints[2], ints[3]
-    enough, prune, roll_free = ints[4], ints[5] != 0, ints[6] != 0
+    enough, distinct = ints[4], reals[6]
     m, n = q.shape
-    dims = 6 if pose else 3
-    cols = n - 1 if roll_free else n
-    timed = deadline < np.inf
+    cols = n - 1 if ints[6] != 0 else n
     p, r = np.empty(3), np.empty((3, 3))
     jac, jm, a = np.empty((6, n)), np.empty((6, n)), np.empty((6, 6))
     err, x = np.empty(6), np.empty(6)
-    history = np.empty(max(window, 1))
+    history = np.empty(max(ints[1], 1))
     score = np.full(m, np.inf)
     found = np.empty(m, dtype=np.int64)
     stale = np.ones(m, dtype=np.bool_)
@@ -164,59 +258,13 @@ def refine_rows(frames, lower, upper, periodic, q, pos, rot, pose, reals, ints, 
     for row in range(m):
         if cut or (enough > 0 and nfound >= enough):
             break
-        qi = q[row]
-        status[row] = ITERATIONS
-        history[:] = np.inf
-        for it in range(iterations):
-            if prune:
-                hit = False
-                for v in prune_at:
-                    hit = hit or v == it
-                if hit and _near_better(q, row, score, status, radius, cols):
-                    status[row] = PRUNED
-                    break
-            if timed and monotonic() > deadline:
-                cut = True
-                status[row] = DEADLINE
-                break
-            place(frames, qi, p, r, jac, True)
-            pe, oe = goal_error(pos, rot, pose, p, r, err)
-            perr[row], oerr[row] = pe, oe
-            stale[row] = False
-            s = pe + ORIENTATION_WEIGHT * oe
-            score[row] = s
-            done = pe < tol_p * 0.5 and (not pose or oe < tol_o * 0.5)
-            stuck = pe > 10.0 * tol_p or (pose and oe > 10.0 * tol_o)
-            stalled = False
-            if window > 0:
-                if it >= max(window, stall_after):
-                    # hardly closer than ``window`` iterations ago
-                    stalled = not done and s > stall_ratio * history[it % window]
-                history[it % window] = s
-            if it >= give_up_after or stalled:
-                stuck = stalled if it < give_up_after else (stuck or stalled)
-                if stuck and not done:
-                    status[row] = GIVEN_UP
-                    break
-            if done:
-                status[row] = CONVERGED
-                break
-            limited_step(qi, jac, err, dims, lower, upper, periodic, True, lam2, max_step,
-                         jm, a, x)
-            stale[row] = True
-        if status[row] == CONVERGED and enough > 0:
-            new = True
-            for k in range(nfound):
-                d = 0.0
-                for j in range(cols):
-                    v = qi[j] - q[found[k], j]
-                    d += v * v
-                if d < distinct * distinct:
-                    new = False
-                    break
-            if new:
-                found[nfound] = row
-                nfound += 1
+        cut = _refine_row(frames, lower, upper, periodic, q, row, pos, rot, pose, reals, ints,
+                          prune_at, perr, oerr, status, score, stale, history, p, r, jac, jm,
+                          a, err, x)
+        if status[row] == CONVERGED and enough > 0 and \
+                _is_new(q, row, found, nfound, distinct, cols):
+            found[nfound] = row
+            nfound += 1
     for row in range(m):
         if stale[row]:
             place(frames, q[row], p, r, jac, False)

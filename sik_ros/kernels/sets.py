@@ -9,6 +9,8 @@ import math
 from numba import njit
 import numpy as np
 
+from sik_ros.periodic import PER_TURN, TURN
+
 
 @njit('int64[::1](float64[:, ::1], int64, int64, float64, int64, float64)', cache=True,
       nogil=True)
@@ -68,7 +70,7 @@ def distinct_rows(q, threshold, cols, periodic):  # pragma: no cover (compiled)
             for c in range(cols):
                 v = q[i, c] - q[j, c]
                 if periodic[c]:
-                    v -= 2.0 * math.pi * np.rint(v * (0.5 / math.pi))
+                    v -= TURN * np.rint(v * PER_TURN)
                 s += v * v
             if s < t2:
                 ok = False

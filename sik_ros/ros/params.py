@@ -20,6 +20,8 @@ from typing import Dict, Optional, Tuple, Union
 from rcl_interfaces.msg import (FloatingPointRange, IntegerRange, ParameterDescriptor,
                                 ParameterType)
 
+from sik_ros.solver.config import SolverConfig
+
 Number = Union[int, float]
 
 
@@ -66,6 +68,8 @@ class ParamSpec:
         return '; '.join(rules)
 
 
+#: The solver's own defaults, which the parameters that set them start from.
+SOLVER_DEFAULTS = SolverConfig()
 #: Most solver processes.
 MAX_SOLVER_PROCESSES = 16
 #: Most solutions per answer (the highest ``max_solutions_cap``).
@@ -90,13 +94,13 @@ SPECS: Tuple[ParamSpec, ...] = (
     ParamSpec('num_solutions', int, 16,
               'solutions returned when a request asks for 0; 1..max_solutions_cap',
               min=1, max=MAX_SOLUTIONS, max_param='max_solutions_cap'),
-    ParamSpec('max_solutions_cap', int, 64,
+    ParamSpec('max_solutions_cap', int, SOLVER_DEFAULTS.max_solutions_cap,
               'most solutions per answer; larger requests are clamped; 1..1024',
               min=1, max=MAX_SOLUTIONS),
-    ParamSpec('position_tolerance', float, 1e-4,
+    ParamSpec('position_tolerance', float, SOLVER_DEFAULTS.position_tolerance,
               'a solution is exact within this position error [m]; (0, 0.1]',
               min=0.0, max=0.1, min_open=True, unit='m'),
-    ParamSpec('orientation_tolerance', float, 1e-3,
+    ParamSpec('orientation_tolerance', float, SOLVER_DEFAULTS.orientation_tolerance,
               'and within this orientation error for pose goals [rad]; (0, pi]',
               min=0.0, max=math.pi, min_open=True, unit='rad'),
     ParamSpec('refine', bool, True,
@@ -117,10 +121,10 @@ SPECS: Tuple[ParamSpec, ...] = (
               'solver processes serving requests in parallel (beyond the GIL); 0: solve in the '
               'executor threads; 0..16 (read-only)',
               min=0, max=MAX_SOLVER_PROCESSES, read_only=True),
-    ParamSpec('max_obstacles', int, 256,
+    ParamSpec('max_obstacles', int, SOLVER_DEFAULTS.max_obstacles,
               'most obstacles a request may give (more: INVALID_GOAL); 0..10000',
               min=0, max=10000),
-    ParamSpec('max_waypoints', int, 2000,
+    ParamSpec('max_waypoints', int, SOLVER_DEFAULTS.max_waypoints,
               'most waypoints a solve_path request may give (more: INVALID_GOAL); 1..100000',
               min=1, max=100000),
     ParamSpec('shutdown_grace', float, 1.0,

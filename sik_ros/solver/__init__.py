@@ -16,8 +16,7 @@ Settings are :class:`SolverConfig` (:mod:`~sik_ros.solver.config`), answers
 "Posture index selection" and Algorithm 2, and docs/interfaces.md for the public contract.
 """
 
-from importlib import import_module
-from typing import Any
+from sik_ros._lazy import lazy_exports
 
 #: Where each public name lives (loaded on first use, PEP 562: ``sik_ros.solver.config`` or
 #: ``.results`` do not load torch).
@@ -31,17 +30,4 @@ _EXPORTS = {
 
 __all__ = sorted(_EXPORTS)
 
-
-def __getattr__(name: str) -> Any:
-    """Load a public name from its module on first use."""
-    module = _EXPORTS.get(name)
-    if module is None:
-        raise AttributeError(f'module {__name__!r} has no attribute {name!r}')
-    value = getattr(import_module(module), name)
-    globals()[name] = value
-    return value
-
-
-def __dir__():
-    """The package's names, the lazy public ones included."""
-    return sorted(set(globals()) | set(__all__))
+__getattr__, __dir__ = lazy_exports(__name__, globals(), _EXPORTS)

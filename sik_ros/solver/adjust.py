@@ -1,12 +1,13 @@
 """Algorithm 2 of the paper: adjust posture indices while the clearance from obstacles improves."""
 
-import time
 from typing import List, Optional, Sequence
 
 import numpy as np
 
 from sik_ros.collision import Obstacle
+from sik_ros.deadline import Deadline, NO_DEADLINE
 from sik_ros.solver.codec import decode
+from sik_ros.solver.config import ADJUST_STARTS, ADJUST_STEP
 from sik_ros.solver.context import Context, Goal
 from sik_ros.solver.ranking import converged
 from sik_ros.solver.refine import refine
@@ -14,8 +15,8 @@ from sik_ros.solver.results import Solution
 
 
 def adjust_index(ctx: Context, goal: Goal, sols: Sequence[Solution],
-                 obstacles: Sequence[Obstacle], deadline: Optional[float] = None,
-                 step: float = 0.25) -> Optional[List[Solution]]:
+                 obstacles: Sequence[Obstacle], deadline: Deadline = NO_DEADLINE,
+                 step: float = ADJUST_STEP) -> Optional[List[Solution]]:
     """Move posture indices element by element while the clearance improves.
 
     Starts from the best colliding solutions; each trial decodes and refines the neighbours of
@@ -27,14 +28,14 @@ def adjust_index(ctx: Context, goal: Goal, sols: Sequence[Solution],
         the improving solutions found, last best, or None.
     """
     cfg = ctx.config
-    starts = [s for s in sols if s.converged][:3] or list(sols[:3])
+    starts = [s for s in sols if s.converged][:ADJUST_STARTS] or list(sols[:ADJUST_STARTS])
     budget = cfg.adjust_budget
     found: List[Solution] = []
     lo, hi = ctx.models[goal.kind].table.index_bounds
     for s in starts:
         z = s.posture_index.astype(np.float64)
         best = s.min_obstacle_distance
-        while budget > 0 and not (deadline is not None and time.perf_counter() > deadline):
+        while budget > 0 and not deadline.expired():
             trials = []
             for d in range(len(z)):
                 for sign in (1.0, -1.0):

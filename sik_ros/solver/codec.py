@@ -15,13 +15,8 @@ import torch
 
 from sik_ros.kernels import as_arg, mlp_rows, pack_layers
 from sik_ros.models import make_goal, SIK
+from sik_ros.solver.config import KERNEL_ROWS
 from sik_ros.solver.context import Context, Goal
-
-
-#: Up to this many rows a network runs as one compiled call (measured on the Panda's networks,
-#: 256 and 512 wide: 0.4-0.7x NumPy's time for 1-3 rows, slower from 4, where BLAS's blocking
-#: pays).
-KERNEL_ROWS = 3
 
 
 class NumpyMLP:

@@ -1,10 +1,16 @@
-"""The solver's settings: one frozen dataclass, validated when made."""
+"""The solver's settings and tuning, each value once.
+
+:class:`SolverConfig` holds what a user (or the node's parameters) may change, validated when
+made; :data:`PATH_DEFAULTS` what a path request leaves out. The module-level constants below are
+the solver's fixed tuning: each with its unit and why it has its value.
+"""
 
 from dataclasses import dataclass
 import math
 from typing import Tuple
 
 from sik_ros.errors import InvalidArgument
+from sik_ros.periodic import TURN
 
 
 @dataclass(frozen=True)
@@ -24,6 +30,73 @@ class PathDefaults:
 
 #: The one set of path defaults.
 PATH_DEFAULTS = PathDefaults()
+
+
+# -- one solve ------------------------------------------------------------------------------------
+
+#: Metres of position error that one radian of orientation error counts as in a candidate's
+#: score [m/rad] (ranking, pruning and the refinement kernel alike): 1 mrad weighs as 0.1 mm,
+#: the ratio of the default tolerances.
+ORIENTATION_WEIGHT = 0.1
+#: Ranking cost of an inexact solution per metre of score [1/m]: below any exact solution's
+#: objective of its tier only by the tier order, so the scale only orders inexact ones.
+INEXACT_COST = 100.0
+#: Oriented postures (pose goals) decoded at least, however few solutions a call asks for
+#: (fewer missed the goal's branch too often).
+ORIENTED_MIN = 8
+#: Decoded postures closer than this share of ``distinct_threshold`` are refined once: they
+#: would refine to the same solution.
+START_MERGE = 0.5
+#: Refinement iterations of a goal out of reach (a short best-effort answer, no retries).
+FAR_ITERATIONS = 5
+#: Best candidates perturbed (and as many random configurations drawn) when nothing converged.
+RESTARTS = 8
+#: Standard deviation of a restart's perturbation, as a share of each joint's range.
+RESTART_SPREAD = 0.15
+#: Perturbed copies (and as many random configurations) refined when every exact solution
+#: found collides with the arm itself, in at most ``FREE_ROUNDS`` rounds of fresh draws for
+#: position goals (one for pose goals, none for those the seed table gave starts); goals near
+#: the base axis may need more than one round (docs/design.md).
+FREE_RESTARTS = 16
+FREE_ROUNDS = 3
+#: Most 2 pi equivalents added per solution (periodic joints): one joint turned, then two.
+EQUIVALENTS_PER_SOLUTION = 16
+#: Algorithm 2's move of one index element, as a share of its range in the table.
+ADJUST_STEP = 0.25
+#: Solutions Algorithm 2 starts from at most (the best exact ones, else the best): its budget
+#: of decodes is spent on the most promising.
+ADJUST_STARTS = 3
+#: Up to this many rows a network runs as one compiled call (measured on the Panda's networks,
+#: 256 and 512 wide: 0.4-0.7x NumPy's time for 1-3 rows, slower from 4, where BLAS's blocking
+#: pays).
+KERNEL_ROWS = 3
+
+# -- paths ----------------------------------------------------------------------------------------
+
+#: Interpolation points checked on every edge (fractions of the edge).
+EDGE_CHECKS = (0.25, 0.5, 0.75)
+#: Most refinement steps of a track onto its next waypoint (a few suffice from a step away).
+TRACK_ITERATIONS = 10
+#: Table postures nearest the seed among which a position path's starts are chosen.
+NEAR_POOL = 48
+#: Most refinement steps of a position path's starts onto the first waypoint (docs/design.md).
+START_ITERATIONS = 25
+#: The beam of pose paths (see :class:`~sik_ros.solver.path.PathSettings`; the choice in
+#: docs/design.md).
+POSE_BEAM = {'starts': 10, 'tracks': 10, 'ladder': 16}
+#: The beam of position paths. A position waypoint leaves a redundant arm ``n - 3`` dimensions
+#: of self-motion, so a track is seldom lost and a narrow beam keeps the paths as short
+#: (docs/design.md).
+POSITION_BEAM = {'starts': 4, 'tracks': 4, 'ladder': 64}
+#: How far the tool's orientation may leave the turn between two pose waypoints [rad].
+ORIENTATION_PATH_TOLERANCE = 0.05
+#: Cost of a path's start per radian of distance from the seed, against its travel [1].
+SEED_WEIGHT = 1.0
+#: Candidates of a waypoint closer than this are one [rad] (tracks that merged).
+SAME_CANDIDATE = 1e-3
+#: Paths whose starts are closer than this on every joint start alike [rad]: only the best is
+#: returned, the others are no distinct alternative.
+SAME_START = 1e-6
 
 
 @dataclass(frozen=True)
@@ -161,7 +234,7 @@ class SolverConfig:
             if isinstance(value, bool) or not isinstance(value, int) or value < low:
                 raise InvalidArgument(f'SolverConfig.{name} must be an integer >= {low}; got '
                                       f'{value!r}')
-        if self.distinct_threshold >= 2 * math.pi:
+        if self.distinct_threshold >= TURN:
             # 2 pi equivalents of a posture are told apart by a whole turn of some joint
             raise InvalidArgument(f'SolverConfig.distinct_threshold must be below 2 pi; got '
                                   f'{self.distinct_threshold!r}')

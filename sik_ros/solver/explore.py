@@ -6,18 +6,20 @@ give the isolated pose solutions of arms with six joints or fewer a start per br
 converged. :func:`walk` moves found pose solutions along the null space of their Jacobian (the
 self-motion manifold of a redundant arm at a 6-d pose) and refines them back onto the goal, for
 distinct exact solutions the table did not give. :func:`periodic_equivalents` adds the 2 pi
-turns of periodic joints.
+turns of periodic joints (:mod:`sik_ros.periodic`).
 """
 
-import functools
 from typing import Tuple
 import zlib
 
 import numpy as np
 
+from sik_ros.deadline import Deadline
+from sik_ros.periodic import equivalents
 from sik_ros.point_sets import pairwise_distances
 from sik_ros.seed_table import SeedTable
 from sik_ros.solver.batch import Candidates
+from sik_ros.solver.config import EQUIVALENTS_PER_SOLUTION, RESTART_SPREAD, RESTARTS
 from sik_ros.solver.context import Context, Goal
 from sik_ros.solver.ranking import assess, distinct_mask, pose_score
 from sik_ros.solver.refine import refine
@@ -28,7 +30,7 @@ def unindexed(q: np.ndarray, latent: int) -> np.ndarray:
     return np.full((len(q), latent), np.nan)
 
 
-def restart(ctx: Context, c: Candidates, goal: Goal, deadline, keep: int = 8,
+def restart(ctx: Context, c: Candidates, goal: Goal, deadline: Deadline, keep: int = RESTARTS,
             stream: int = 0) -> Tuple[Candidates, bool]:
     """``c`` and new candidates from perturbed copies of its best and from random ones.
 
@@ -43,7 +45,8 @@ def restart(ctx: Context, c: Candidates, goal: Goal, deadline, keep: int = 8,
     key = zlib.crc32(goal.position.tobytes())
     rng = np.random.default_rng(key if stream == 0 else [key, stream])
     span = robot.upper - robot.lower
-    q2 = np.concatenate([c.q[best] + rng.normal(0, 0.15, (len(best), c.q.shape[1])) * span,
+    spread = rng.normal(0, RESTART_SPREAD, (len(best), c.q.shape[1]))
+    q2 = np.concatenate([c.q[best] + spread * span,
                          rng.uniform(robot.lower, robot.upper, (keep, c.q.shape[1]))])
     r = refine(ctx, np.clip(q2, robot.lower, robot.upper), goal, deadline)
     new = assess(r.q, unindexed(r.q, c.z.shape[1]), r.perr, r.oerr, goal.kind, ctx.config)
@@ -81,79 +84,30 @@ def seed_starts(ctx: Context, goal: Goal, seeds: SeedTable, count: int,
     return Candidates(q, unindexed(q, latent), inf, inf, np.zeros(len(q), dtype=bool))
 
 
-def periodic_equivalents(ctx: Context, c: Candidates, per_solution: int = 16,
+def periodic_equivalents(ctx: Context, c: Candidates,
+                         per_solution: int = EQUIVALENTS_PER_SOLUTION,
                          ignore_last: bool = False) -> Candidates:
     """``c`` and, after each row, its equivalents with periodic joints turned by +-2 pi.
 
     A periodic joint's q and q +- 2 pi place the arm alike; each equivalent within the joint
     limits is a further solution (cable wrap, distance to the current state). Per row, at most
-    ``per_solution`` of them: one joint turned, then two. With ``ignore_last`` (position goals
-    whose last joint only turns the tool: postures told apart without it) the last joint is
-    never turned: that would give the same posture again.
+    ``per_solution`` of them: one joint turned, then two (:func:`sik_ros.periodic.equivalents`).
+    With ``ignore_last`` (position goals whose last joint only turns the tool: postures told
+    apart without it) the last joint is never turned: that would give the same posture again.
     """
     robot = ctx.robot
     turnable = tuple(bool(p) for p in robot.periodic)
     if ignore_last:
         turnable = turnable[:-1] + (False,)
-    patterns = _turn_patterns(turnable)
-    if len(patterns) == 0 or len(c) == 0:
+    if not any(turnable) or len(c) == 0:
         return c
-    q = c.q[:, None, :] + patterns[None]                              # (M, P, n)
-    fits = np.all((q >= robot.lower - 1e-9) & (q <= robot.upper + 1e-9), axis=2)
-    fits &= np.cumsum(fits, axis=1) <= per_solution                   # the first ones per row
-    rows, cols = np.nonzero(np.concatenate([np.ones((len(c), 1), bool), fits], axis=1))
-    shifted = np.concatenate([c.q[:, None], q], axis=1)[rows, cols]
+    rows, q = equivalents(robot, c.q, turnable, per_solution)
     out = c.take(rows)
-    return Candidates(np.clip(shifted, robot.lower, robot.upper), out.z, out.perr, out.oerr,
-                      out.exact)
+    return Candidates(q, out.z, out.perr, out.oerr, out.exact)
 
 
-def nearest_turns(ctx: Context, q: np.ndarray, target: np.ndarray) -> np.ndarray:
-    """``q`` (M, n) with periodic joints turned by 2 pi turns to their values nearest ``target``.
-
-    Each periodic joint takes, of its 2 pi equivalents within the limits, the one nearest
-    ``target`` (n,): the same placements of the arm.
-    """
-    periodic = ctx.robot.periodic
-    if not periodic.any() or len(q) == 0:
-        return q
-    lo, hi = ctx.robot.lower[periodic], ctx.robot.upper[periodic]
-    v = q[:, periodic]
-    chosen = v + 2 * np.pi * np.round((target[periodic] - v) / (2 * np.pi))
-    # the turn nearest the target nearly always fits (a whole turn or more of range around a
-    # target inside it); else the nearest of the turns either side that does, or none
-    if not ((chosen >= lo - 1e-9) & (chosen <= hi + 1e-9)).all():
-        options = chosen[None] + 2 * np.pi * np.array([0.0, -1.0, 1.0])[:, None, None]
-        fits = (options >= lo - 1e-9) & (options <= hi + 1e-9)                 # (3, M, p)
-        gap = np.where(fits, np.abs(options - target[periodic]), np.inf)
-        best = np.take_along_axis(options, np.argmin(gap, axis=0)[None], axis=0)[0]
-        chosen = np.where(np.isfinite(gap.min(axis=0)), best, v)
-    out = q.copy()
-    out[:, periodic] = chosen
-    return out
-
-
-@functools.lru_cache(maxsize=16)
-def _turn_patterns(periodic: Tuple[bool, ...]) -> np.ndarray:
-    """Shifts (P, n) [rad] that turn one, then two, periodic joints by +-2 pi."""
-    turns = np.flatnonzero(periodic)
-    out = []
-    for j in turns:
-        for s in (2 * np.pi, -2 * np.pi):
-            v = np.zeros(len(periodic))
-            v[j] = s
-            out.append(v)
-    for a in range(len(turns)):
-        for b in range(a + 1, len(turns)):
-            for sa in (2 * np.pi, -2 * np.pi):
-                for sb in (2 * np.pi, -2 * np.pi):
-                    v = np.zeros(len(periodic))
-                    v[turns[a]], v[turns[b]] = sa, sb
-                    out.append(v)
-    return np.array(out).reshape(-1, len(periodic))
-
-
-def walk(ctx: Context, c: Candidates, goal: Goal, deadline, need: int) -> Candidates:
+def walk(ctx: Context, c: Candidates, goal: Goal, deadline: Deadline,
+         need: int) -> Candidates:
     """``c`` and the distinct exact solutions found along the self-motion of its exact ones.
 
     Each round moves every frontier solution ``walk_step`` [rad] along the unit null-space

@@ -15,38 +15,31 @@
 5. Algorithm 2 when obstacles leave no free exact solution.
 """
 
+from dataclasses import dataclass
 import math
-import time
-from typing import List, Optional, Sequence
+from typing import List, Optional, Sequence, Tuple
 
 import numpy as np
 
 from sik_ros.collision import Obstacle
+from sik_ros.deadline import Deadline
 from sik_ros.objectives import Objective
+from sik_ros.periodic import nearest_turns
+from sik_ros.seed_table import SeedTable
 from sik_ros.solver.adjust import adjust_index
 from sik_ros.solver.batch import Candidates
 from sik_ros.solver.candidates import (oriented_postures, own_index, starting_postures,
                                        table_candidates)
 from sik_ros.solver.codec import decode, encode
-from sik_ros.solver.config import SolverConfig
+from sik_ros.solver.config import (FAR_ITERATIONS, FREE_RESTARTS, FREE_ROUNDS, ORIENTED_MIN,
+                                   SolverConfig, START_MERGE)
 from sik_ros.solver.context import Context, Goal, POSE, POSITION
-from sik_ros.solver.explore import (branch_starts, nearest_turns, periodic_equivalents,
-                                    restart, seed_starts, unindexed, walk)
+from sik_ros.solver.explore import (branch_starts, periodic_equivalents, restart, seed_starts,
+                                    unindexed, walk)
 from sik_ros.solver.ranking import (assess, best_distinct, by_score, distinct_mask, merge,
                                     pose_score, rank)
 from sik_ros.solver.refine import errors, refine
 from sik_ros.solver.results import IKResult, Solution
-
-
-#: Oriented postures (pose goals) decoded at least, however few solutions a call asks for.
-ORIENTED_MIN = 8
-
-#: Perturbed copies (and as many random configurations) refined when every exact solution
-#: found collides with the arm itself, in at most ``FREE_ROUNDS`` rounds of fresh draws for
-#: position goals (one for pose goals, none for those the seed table gave starts); goals near
-#: the base axis may need more than one round (docs/design.md).
-FREE_RESTARTS = 16
-FREE_ROUNDS = 3
 
 
 def oriented_count(cfg: SolverConfig, num: int) -> int:
@@ -91,11 +84,6 @@ def spare(cfg: SolverConfig, num: int) -> int:
     return min(cfg.early_stop_margin, num - 1)
 
 
-def past(deadline: Optional[float]) -> bool:
-    """Whether a ``time.perf_counter()`` deadline has passed."""
-    return deadline is not None and time.perf_counter() > deadline
-
-
 def fill_indices(ctx: Context, goal: Goal, sols: List[Solution]) -> None:
     """Posture indices of solutions that came without one: the encoding of their q."""
     if not sols:
@@ -125,7 +113,7 @@ def distinct_postures(ctx: Context, c: Candidates, goal: Goal,
     if not periodic.any():
         return best_distinct(c, cfg.distinct_threshold, ignore_last)
     centre = q_seed if q_seed is not None else (ctx.robot.lower + ctx.robot.upper) / 2
-    q = nearest_turns(ctx, c.q, centre)
+    q = nearest_turns(ctx.robot, c.q, centre)
     # exact ones nearest the seed first (of nearly one posture, the one kept), then by score
     near = np.linalg.norm(q - centre, axis=1)
     c = Candidates(q, c.z, c.perr, c.oerr, c.exact).take(
@@ -139,7 +127,7 @@ def distinct_postures(ctx: Context, c: Candidates, goal: Goal,
 
 def seed_posture_first(ctx: Context, goal: Goal, own: Candidates, sols: List[Solution],
                        q_seed: np.ndarray, obstacles: Sequence[Obstacle], num: int,
-                       deadline: Optional[float]) -> List[Solution]:
+                       deadline: Deadline) -> List[Solution]:
     """A seeded raw answer: the seed's own posture index decoded first (the posture kept).
 
     Raw answers are otherwise ranked by their error; the paper's use of the index of the
@@ -157,7 +145,7 @@ def seed_posture_first(ctx: Context, goal: Goal, own: Candidates, sols: List[Sol
 
 
 def from_seed(ctx: Context, goal: Goal, q_seed: np.ndarray, obstacles: Sequence[Obstacle],
-              deadline: Optional[float]) -> Optional[IKResult]:
+              deadline: Deadline) -> Optional[IKResult]:
     """One solution refined from the seed alone, or None when it is not exact and free.
 
     A single solution ranked by its distance to the seed is nearly always the seed's own
@@ -170,7 +158,7 @@ def from_seed(ctx: Context, goal: Goal, q_seed: np.ndarray, obstacles: Sequence[
     if not c.exact[0]:
         return None
     if ctx.robot.periodic.any():
-        c = Candidates(nearest_turns(ctx, c.q, q_seed), c.z, c.perr, c.oerr, c.exact)
+        c = Candidates(nearest_turns(ctx.robot, c.q, q_seed), c.z, c.perr, c.oerr, c.exact)
     sols = rank(ctx, c, q_seed, obstacles, None, limit=1, deadline=deadline)
     if not sols or sols[0].in_collision:
         return None
@@ -178,9 +166,36 @@ def from_seed(ctx: Context, goal: Goal, q_seed: np.ndarray, obstacles: Sequence[
     return IKResult(True, sols, goal.kind, r.cut_short)
 
 
+@dataclass(frozen=True)
+class Call:
+    """One solve's request and what follows from it, handed to its stages.
+
+    Attributes:
+        goal, num, q_seed, obstacles, refined, objective, deadline, first_found: as
+            :func:`solve` takes them.
+        single: one solution from a seed with the default ranking (the seed refined first).
+        far: the goal is farther than ``reach_margin`` from every table cell (out of reach).
+        seeds: the seed table giving isolated pose solutions their starts, or None.
+        isolated: a reachable, refined pose goal of an arm with six joints or fewer.
+    """
+
+    goal: Goal
+    num: int
+    q_seed: Optional[np.ndarray]
+    obstacles: Sequence[Obstacle]
+    refined: bool
+    objective: Optional[Objective]
+    deadline: Deadline
+    first_found: bool
+    single: bool
+    far: bool
+    seeds: Optional[SeedTable]
+    isolated: bool
+
+
 def solve(ctx: Context, goal: Goal, num: int, q_seed: Optional[np.ndarray],
           obstacles: Sequence[Obstacle], refined: bool, objective: Optional[Objective],
-          deadline: Optional[float], first_found: bool = False) -> IKResult:
+          deadline: Deadline, first_found: bool = False) -> IKResult:
     """Ranked solutions for one checked goal (see the module's stages).
 
     With ``first_found`` (a path's starts) refinement stops at the first ``num`` distinct
@@ -188,7 +203,6 @@ def solve(ctx: Context, goal: Goal, num: int, q_seed: Optional[np.ndarray],
     unfinished (a path's starts follow the seed onto the goal on their own). Their posture
     indices are left unknown (NaN) unless obstacles need them (Algorithm 2).
     """
-    cfg = ctx.config
     # one solution with a seed: the seed refined alone first; when that fails, the first exact
     # solution of the other starts (the seed's own row and posture already tried), as without
     # a seed, ranked by the seed
@@ -198,6 +212,30 @@ def solve(ctx: Context, goal: Goal, num: int, q_seed: Optional[np.ndarray],
         result = from_seed(ctx, goal, q_seed, obstacles, deadline)
         if result is not None:
             return result
+    call = make_call(ctx, goal, num, q_seed, obstacles, refined, objective, deadline,
+                     first_found, single)
+    c = initial_postures(ctx, goal, num, None if single else q_seed, refined,
+                         seeded=call.seeds is not None)
+    timed_out = False
+    own = None
+    if refined:
+        c, timed_out = refine_all(ctx, call, c)
+    else:
+        c = assess(c.q, c.z, *errors(ctx, c.q, goal), goal.kind, ctx.config)
+        own = c.take(np.arange(1)) if q_seed is not None and objective is None else None
+    c = distinct_postures(ctx, c, goal, q_seed)
+    sols = rank(ctx, c, q_seed, obstacles, objective, limit=num, deadline=deadline)
+    if own is not None:
+        sols = seed_posture_first(ctx, goal, own, sols, q_seed, obstacles, num, deadline)
+    sols, cut = free_rounds(ctx, call, c, sols)
+    return finish(ctx, call, sols, timed_out or cut)
+
+
+def make_call(ctx: Context, goal: Goal, num: int, q_seed: Optional[np.ndarray],
+              obstacles: Sequence[Obstacle], refined: bool, objective: Optional[Objective],
+              deadline: Deadline, first_found: bool, single: bool) -> Call:
+    """The :class:`Call` of a request: whether the goal is out of reach, isolated, seeded."""
+    cfg = ctx.config
     # a goal far from every position in the data is out of reach: answer quickly
     far = not ctx.models[goal.kind].table.within(goal.position, cfg.reach_margin)
     # isolated solutions (a pose, six joints or fewer): no self-motion to walk along, each
@@ -205,83 +243,119 @@ def solve(ctx: Context, goal: Goal, num: int, q_seed: Optional[np.ndarray],
     # has one, else drawn at random
     isolated = goal.kind == POSE and not far and ctx.robot.dof <= 6 and refined
     seeds = ctx.models[goal.kind].seeds if isolated and cfg.seed_starts > 0 else None
-    c = initial_postures(ctx, goal, num, None if single else q_seed, refined,
-                         seeded=seeds is not None)
-    timed_out = False
-    own = None
-    if refined:
-        # decoded postures that nearly coincide would refine to the same solution
-        c = c.take(distinct_mask(c.q, cfg.distinct_threshold * 0.5, ctx.ignores_last(goal.kind)))
-        # ranked by the default objective, the first distinct exact solutions found are as
-        # good as any: stop refining once there are enough (with ``first_found`` also with a
-        # seed, the few found then ranked by it)
-        enough = None if ((q_seed is not None and not first_found and not single) or obstacles
-                          or objective is not None or cfg.early_stop_margin < 0) \
-            else num + (0 if first_found else spare(cfg, num))
-        if seeds is not None:
-            c = Candidates.concat(c, seed_starts(ctx, goal, seeds, cfg.seed_starts,
-                                                 c.z.shape[1]))
-            enough = enough if num == 1 else None  # every branch, unless one is asked for
-        elif isolated and cfg.branch_restarts > 0:
-            c = Candidates.concat(c, branch_starts(ctx, goal, cfg.branch_restarts,
-                                                   c.z.shape[1]))
-            enough = enough if num == 1 else None
-        # starts from the seed table are far apart already: merging the few heading for one
-        # solution saves less than it costs (UR5 0.95x, Kinova 0.96x the time without, the
-        # same branches; 300 pose goals each)
-        r = refine(ctx, c.q, goal, deadline, 5 if far else None, prune=seeds is None,
-                   enough=enough)
-        c = assess(r.q, c.z, r.perr, r.oerr, goal.kind, cfg)
-        timed_out = r.cut_short
-        if goal.kind == POSE and not far and not c.exact.any() and not past(deadline) and \
-                seeds is None and oriented_count(cfg, num) < cfg.oriented_candidates:
-            # a call asking for few solutions took few oriented postures: the others now (the
-            # table ranks them by orientation, so the first ones are those already refined)
-            q = oriented_postures(ctx, goal, cfg.oriented_candidates)[oriented_count(cfg, num):]
-            r = refine(ctx, q, goal, deadline, prune=True, enough=enough)
-            c = Candidates.concat(c, assess(r.q, unindexed(q, c.z.shape[1]), r.perr, r.oerr,
-                                            goal.kind, cfg))
-            timed_out = timed_out or r.cut_short
-        if not far and not c.exact.any():
-            c, cut = restart(ctx, c, goal, deadline)
-            timed_out = timed_out or cut
-        if goal.kind == POSE and not far and ctx.robot.dof > 6 and cfg.walk_rounds > 0:
-            # the first exact ones are as good as any only with the default ranking
-            margin = spare(cfg, num) if enough is not None else cfg.early_stop_margin
-            c = walk(ctx, c, goal, deadline, num + max(margin, 0))
-    else:
-        c = assess(c.q, c.z, *errors(ctx, c.q, goal), goal.kind, cfg)
-        own = c.take(np.arange(1)) if q_seed is not None and objective is None else None
-    c = distinct_postures(ctx, c, goal, q_seed)
-    sols = rank(ctx, c, q_seed, obstacles, objective, limit=num, deadline=deadline)
-    if not refined and own is not None:
-        sols = seed_posture_first(ctx, goal, own, sols, q_seed, obstacles, num, deadline)
-    # further rounds for position goals only, whose self-motion leaves room for a free
-    # solution; at pose goals they found none (on 300 random Panda targets, none either way)
-    # and took +18 % of the time on the UR5's, +6 % on the Panda's. None at all where the
-    # seed table's starts gave the branches: a round found no free solution in 26, 11 and 23
-    # calls of 300 pose goals each on the UR5, Kinova and SO-100 (2-3 ms each)
-    rounds = 0 if not refined or seeds is not None else \
+    return Call(goal, num, q_seed, obstacles, refined, objective, deadline, first_found,
+                single, far, seeds, isolated)
+
+
+def early_stop(cfg: SolverConfig, call: Call) -> Optional[int]:
+    """Distinct exact solutions after which refinement stops, or None (refine every start).
+
+    Ranked by the default objective, the first distinct exact solutions found are as good as
+    any: refinement stops once there are enough (with ``first_found`` also with a seed, the
+    few found then ranked by it).
+    """
+    if (call.q_seed is not None and not call.first_found and not call.single) or \
+            call.obstacles or call.objective is not None or cfg.early_stop_margin < 0:
+        return None
+    return call.num + (0 if call.first_found else spare(cfg, call.num))
+
+
+def refine_all(ctx: Context, call: Call, c: Candidates) -> Tuple[Candidates, bool]:
+    """Stage 3: the starts refined, then restarts and the walk where they fall short.
+
+    Returns:
+        the refined candidates, and whether the deadline cut refinement short.
+    """
+    cfg, goal, num, deadline = ctx.config, call.goal, call.num, call.deadline
+    # decoded postures that nearly coincide would refine to the same solution
+    c = c.take(distinct_mask(c.q, cfg.distinct_threshold * START_MERGE,
+                             ctx.ignores_last(goal.kind)))
+    enough = early_stop(cfg, call)
+    if call.seeds is not None:
+        c = Candidates.concat(c, seed_starts(ctx, goal, call.seeds, cfg.seed_starts,
+                                             c.z.shape[1]))
+        enough = enough if num == 1 else None  # every branch, unless one is asked for
+    elif call.isolated and cfg.branch_restarts > 0:
+        c = Candidates.concat(c, branch_starts(ctx, goal, cfg.branch_restarts, c.z.shape[1]))
+        enough = enough if num == 1 else None
+    # starts from the seed table are far apart already: merging the few heading for one
+    # solution saves less than it costs (UR5 0.95x, Kinova 0.96x the time without, the
+    # same branches; 300 pose goals each)
+    r = refine(ctx, c.q, goal, deadline, FAR_ITERATIONS if call.far else None,
+               prune=call.seeds is None, enough=enough)
+    c = assess(r.q, c.z, r.perr, r.oerr, goal.kind, cfg)
+    timed_out = r.cut_short
+    if goal.kind == POSE and not call.far and not c.exact.any() and \
+            not deadline.expired() and call.seeds is None and \
+            oriented_count(cfg, num) < cfg.oriented_candidates:
+        c, cut = more_oriented(ctx, call, c, enough)
+        timed_out = timed_out or cut
+    if not call.far and not c.exact.any():
+        c, cut = restart(ctx, c, goal, deadline)
+        timed_out = timed_out or cut
+    if goal.kind == POSE and not call.far and ctx.robot.dof > 6 and cfg.walk_rounds > 0:
+        # the first exact ones are as good as any only with the default ranking
+        margin = spare(cfg, num) if enough is not None else cfg.early_stop_margin
+        c = walk(ctx, c, goal, deadline, num + max(margin, 0))
+    return c, timed_out
+
+
+def more_oriented(ctx: Context, call: Call, c: Candidates,
+                  enough: Optional[int]) -> Tuple[Candidates, bool]:
+    """``c`` and the oriented postures a call asking for few solutions left out, refined.
+
+    The table ranks them by orientation, so the first ones are those already refined.
+    """
+    cfg, goal = ctx.config, call.goal
+    q = oriented_postures(ctx, goal, cfg.oriented_candidates)[oriented_count(cfg, call.num):]
+    r = refine(ctx, q, goal, call.deadline, prune=True, enough=enough)
+    more = assess(r.q, unindexed(q, c.z.shape[1]), r.perr, r.oerr, goal.kind, cfg)
+    return Candidates.concat(c, more), r.cut_short
+
+
+def free_rounds(ctx: Context, call: Call, c: Candidates,
+                sols: List[Solution]) -> Tuple[List[Solution], bool]:
+    """Stage 4's restarts when every exact solution found collides with the arm itself.
+
+    Perturbed copies and random configurations are refined for a free one, in a few rounds
+    of fresh draws (goals close to the base; obstacles are Algorithm 2's). For position goals
+    only, whose self-motion leaves room for a free solution: at pose goals they found none (on
+    300 random Panda targets, none either way) and took +18 % of the time on the UR5's, +6 %
+    on the Panda's. None at all where the seed table's starts gave the branches: a round found
+    no free solution in 26, 11 and 23 calls of 300 pose goals each on the UR5, Kinova and
+    SO-100 (2-3 ms each).
+
+    Returns:
+        the solutions, and whether the deadline cut a round's refinement short.
+    """
+    goal, deadline = call.goal, call.deadline
+    rounds = 0 if not call.refined or call.seeds is not None else \
         FREE_ROUNDS if goal.kind == POSITION else 1
+    timed_out = False
     for stream in range(rounds):
-        if not c.exact.any() or past(deadline) or \
+        if not c.exact.any() or deadline.expired() or \
                 not all(s.self_collision for s in sols if s.converged):
             break
-        # every exact solution found touches the arm itself (goals close to the base):
-        # refine perturbed copies and random configurations for a free one, in a few rounds
-        # of fresh draws (obstacles are Algorithm 2's, below)
         more, cut = restart(ctx, c, goal, deadline, keep=FREE_RESTARTS, stream=stream)
         timed_out = timed_out or cut
-        c = distinct_postures(ctx, more, goal, q_seed)
-        sols = rank(ctx, c, q_seed, obstacles, objective, limit=num, deadline=deadline)
-    if not first_found or obstacles:
+        c = distinct_postures(ctx, more, goal, call.q_seed)
+        sols = rank(ctx, c, call.q_seed, call.obstacles, call.objective, limit=call.num,
+                    deadline=deadline)
+    return sols, timed_out
+
+
+def finish(ctx: Context, call: Call, sols: List[Solution], timed_out: bool) -> IKResult:
+    """Stage 5 and the answer: indices filled in, Algorithm 2 around obstacles, the result."""
+    goal, obstacles, deadline = call.goal, call.obstacles, call.deadline
+    if not call.first_found or obstacles:
         fill_indices(ctx, goal, sols)
-    if obstacles and refined and not any(s.converged and not s.in_collision for s in sols) \
-            and not past(deadline):
+    if obstacles and call.refined and \
+            not any(s.converged and not s.in_collision for s in sols) and \
+            not deadline.expired():
         extra = adjust_index(ctx, goal, sols, obstacles, deadline)
         if extra is not None:
-            sols = merge(ctx, sols, extra, goal.kind, q_seed, obstacles, objective,
-                         deadline)[:num]
+            sols = merge(ctx, sols, extra, goal.kind, call.q_seed, obstacles, call.objective,
+                         deadline)[:call.num]
     # collision checks the deadline cut short leave unknown clearances
     timed_out = timed_out or any(math.isnan(s.min_obstacle_distance) for s in sols)
     success = any(s.converged for s in sols)

@@ -8,24 +8,20 @@ equivalent of it, and the cost: the objective for exact solutions, the weighted 
 inexact ones.
 """
 
-import time
 from typing import List, Optional, Sequence
 
 import numpy as np
 
 from sik_ros.collision import Obstacle
+from sik_ros.deadline import Deadline, NO_DEADLINE
 from sik_ros.kernels import as_arg
 from sik_ros.kernels.sets import distinct_rows
 from sik_ros.objectives import JointLimitMargin, Objective, SeedDistance
+from sik_ros.periodic import posture_keys
 from sik_ros.solver.batch import Candidates
-from sik_ros.solver.config import SolverConfig
+from sik_ros.solver.config import INEXACT_COST, ORIENTATION_WEIGHT, SolverConfig
 from sik_ros.solver.context import Context, POSITION
 from sik_ros.solver.results import COLLIDING, FREE_EXACT, FREE_INEXACT, Solution
-
-#: Metres of position error that one radian of orientation error counts as [m/rad].
-ORIENTATION_WEIGHT = 0.1
-#: Ranking cost of an inexact solution per metre of score [1/m].
-INEXACT_COST = 100.0
 
 
 def pose_score(perr: np.ndarray, oerr: np.ndarray) -> np.ndarray:
@@ -64,6 +60,17 @@ def distinct_mask(q: np.ndarray, threshold: float, ignore_last: bool = False,
                          n - 1 if ignore_last else n, turns)
 
 
+def posture_mask(ctx: Context, q: np.ndarray, kind: str,
+                 threshold: Optional[float] = None) -> np.ndarray:
+    """Greedy keep-mask of a ``kind`` goal's configurations (M, n) of distinct postures.
+
+    Rows at least ``threshold`` [rad] apart (default: ``config.distinct_threshold``), the last
+    joint left out where it only turns the tool (:meth:`Context.ignores_last`).
+    """
+    return distinct_mask(q, ctx.config.distinct_threshold if threshold is None else threshold,
+                         ctx.ignores_last(kind))
+
+
 def by_score(c: Candidates) -> Candidates:
     """Exact candidates first, then by score."""
     return c.take(np.lexsort((pose_score(c.perr, c.oerr), ~c.exact)))
@@ -73,13 +80,6 @@ def best_distinct(c: Candidates, threshold: float, ignore_last: bool) -> Candida
     """Exact candidates first, then by score; one per distinct posture."""
     c = by_score(c)
     return c.take(distinct_mask(c.q, threshold, ignore_last))
-
-
-def posture_keys(q: np.ndarray, periodic: np.ndarray) -> np.ndarray:
-    """(M, n) int64: equal rows for configurations that are exact 2 pi shifts of each other."""
-    wrapped = q.copy()
-    wrapped[:, periodic] = np.mod(q[:, periodic] + np.pi, 2 * np.pi)
-    return np.round(wrapped * 1e6).astype(np.int64)
 
 
 def equivalents(keys: np.ndarray, cost: np.ndarray) -> np.ndarray:
@@ -103,7 +103,7 @@ def equivalents(keys: np.ndarray, cost: np.ndarray) -> np.ndarray:
 
 def rank(ctx: Context, c: Candidates, q_seed: Optional[np.ndarray],
          obstacles: Sequence[Obstacle], objective: Optional[Objective],
-         limit: Optional[int] = None, deadline: Optional[float] = None) -> List[Solution]:
+         limit: Optional[int] = None, deadline: Deadline = NO_DEADLINE) -> List[Solution]:
     """Solutions ranked best first; with ``limit``, only the best ``limit`` of them.
 
     The order is lexicographic: tier (free and exact, free and inexact, colliding or
@@ -146,7 +146,7 @@ def rank(ctx: Context, c: Candidates, q_seed: Optional[np.ndarray],
     # 2 pi equivalents place the arm alike: one check per posture
     checked = {}
     for i in order(hit):
-        if free >= limit or (deadline is not None and time.perf_counter() > deadline):
+        if free >= limit or deadline.expired():
             break
         key = i if keys is None else keys[i].tobytes()
         if key not in checked:
@@ -171,7 +171,7 @@ def from_solutions(sols: Sequence[Solution]) -> Candidates:
 
 def merge(ctx: Context, sols: Sequence[Solution], extra: Sequence[Solution], kind: str,
           q_seed: Optional[np.ndarray], obstacles: Sequence[Obstacle],
-          objective: Optional[Objective], deadline: Optional[float] = None) -> List[Solution]:
+          objective: Optional[Objective], deadline: Deadline = NO_DEADLINE) -> List[Solution]:
     """Two lists of solutions ranked together, one per distinct posture."""
     c = best_distinct(from_solutions(list(sols) + list(extra)), ctx.config.distinct_threshold,
                       ctx.ignores_last(kind))

@@ -14,9 +14,11 @@ from typing import Optional, Tuple
 
 import numpy as np
 
+from sik_ros.deadline import Deadline, NO_DEADLINE
+from sik_ros.goal_error import goal_errors
 from sik_ros.kernels import as_arg, follow_rows, refine_rows
 from sik_ros.kernels.dls import INTS, REALS
-from sik_ros.rotations import rotation_angle
+from sik_ros.solver.config import ORIENTATION_WEIGHT
 from sik_ros.solver.context import Context, Goal
 
 #: The rotation handed to the kernels with a position goal (not read).
@@ -75,12 +77,8 @@ class Evaluation:
 
 def errors(ctx: Context, q: np.ndarray, goal: Goal) -> Tuple[np.ndarray, np.ndarray]:
     """Position errors [m] and orientation errors [rad] (zeros for position goals), (M,)."""
-    robot = ctx.robot
-    p, r = robot.tip_poses(q, ctx.data)
-    perr = np.linalg.norm(p - goal.position, axis=1)
-    if goal.rotation is None:
-        return perr, np.zeros(len(q))
-    return perr, rotation_angle(goal.rotation, r)
+    p, r = ctx.robot.tip_poses(q, ctx.data)
+    return goal_errors(p, r, goal.position, goal.rotation)
 
 
 def dls_step(j: np.ndarray, err: np.ndarray, lam2: float, eye: np.ndarray) -> np.ndarray:
@@ -89,7 +87,7 @@ def dls_step(j: np.ndarray, err: np.ndarray, lam2: float, eye: np.ndarray) -> np
     return (j.transpose(0, 2, 1) @ np.linalg.solve(jjt, err[..., None]))[..., 0]
 
 
-def refine(ctx: Context, q: np.ndarray, goal: Goal, deadline: Optional[float] = None,
+def refine(ctx: Context, q: np.ndarray, goal: Goal, deadline: Deadline = NO_DEADLINE,
            iterations: Optional[int] = None, prune: bool = False,
            enough: Optional[int] = None) -> Refined:
     """Damped least squares from each row of ``q`` (M, n) towards ``goal``, within the limits.
@@ -107,7 +105,7 @@ def refine(ctx: Context, q: np.ndarray, goal: Goal, deadline: Optional[float] = 
         ctx: the solver's parts.
         q: starting configurations (M, n) [rad].
         goal: the target.
-        deadline: a ``time.perf_counter()`` value after which no iteration starts.
+        deadline: after it no iteration starts.
         iterations: most iterations per row (default: ``config.refine_iterations``).
         prune: stop rows heading for the same solution as an earlier, better one.
         enough: stop once this many distinct rows are exact.
@@ -121,7 +119,7 @@ def refine(ctx: Context, q: np.ndarray, goal: Goal, deadline: Optional[float] = 
                 'damping2': cfg.damping ** 2, 'max_step': cfg.max_step,
                 'stall_ratio': cfg.stall_ratio, 'prune_radius': cfg.prune_radius,
                 'distinct_threshold': cfg.distinct_threshold,
-                'deadline': np.inf if deadline is None else deadline,
+                'deadline': deadline.at, 'orientation_weight': ORIENTATION_WEIGHT,
                 'iterations': iterations or cfg.refine_iterations,
                 'stall_window': cfg.stall_window, 'stall_after': cfg.stall_after,
                 'give_up_after': cfg.give_up_after, 'enough': enough or 0, 'prune': int(prune),
@@ -136,7 +134,7 @@ def refine(ctx: Context, q: np.ndarray, goal: Goal, deadline: Optional[float] = 
 
 
 def follow(ctx: Context, q: np.ndarray, start: Evaluation, goal: Goal, iterations: int,
-           deadline: Optional[float] = None) -> Tuple[np.ndarray, np.ndarray, Evaluation]:
+           deadline: Deadline = NO_DEADLINE) -> Tuple[np.ndarray, np.ndarray, Evaluation]:
     """Configurations near ``goal`` refined onto it, carrying their evaluations: a lean refine.
 
     For a path's tracks, each a small step from the next waypoint: no merging, stalling or
@@ -154,7 +152,7 @@ def follow(ctx: Context, q: np.ndarray, start: Evaluation, goal: Goal, iteration
         start: their evaluation.
         goal: the target: one, or one per row (``position`` (M, 3), ``rotation`` (M, 3, 3)).
         iterations: most steps per row; rows not exact after them are dropped.
-        deadline: a ``time.perf_counter()`` value after which no step starts.
+        deadline: after it no step starts.
 
     Returns:
         the indices of the exact rows (K,), in order, the rows (K, n) and their evaluation.
@@ -171,7 +169,7 @@ def follow(ctx: Context, q: np.ndarray, start: Evaluation, goal: Goal, iteration
                 as_arg(start.djac), pos, rot, pose,
                 goal.position.ndim == 2, cfg.position_tolerance ** 2,
                 cfg.orientation_tolerance ** 2, cfg.damping ** 2, cfg.max_step, iterations,
-                np.inf if deadline is None else deadline, ok, steps)
+                deadline.at, ok, steps)
     rows = np.flatnonzero(ok)
     jac = jac[rows]
     # a row exact where it was keeps its last change

@@ -9,25 +9,23 @@ from dataclasses import fields, replace
 from pathlib import Path
 import threading
 import time
-from typing import Dict, List, Optional, Sequence, Tuple, Union
+from typing import Dict, List, Optional, Sequence, Union
 
 import numpy as np
 
 from sik_ros.bundle import GoalModel, load_bundle
 from sik_ros.collision import CollisionChecker, Obstacle
+from sik_ros.deadline import Deadline
 from sik_ros.errors import InvalidArgument
 from sik_ros.kinematics import Robot
 from sik_ros.objectives import Objective
-from sik_ros.solver import candidates as _candidates, codec, path as _path, pipeline
-from sik_ros.solver.adjust import adjust_index
+from sik_ros.solver import path as _path, pipeline
 from sik_ros.solver.config import PATH_DEFAULTS, SolverConfig
-from sik_ros.solver.context import Context, Goal
+from sik_ros.solver.context import Context
 from sik_ros.solver.inputs import (check_arrays, check_goal, check_num_solutions,
                                    check_objective, check_obstacles, check_path, check_seed)
 from sik_ros.solver.path import PathResult, PathSettings
-from sik_ros.solver.ranking import distinct_mask
-from sik_ros.solver.refine import errors, refine
-from sik_ros.solver.results import IKResult, Solution
+from sik_ros.solver.results import IKResult
 from sik_ros.validation import flag, positive, seconds, vector
 
 __all__ = ['SelectiveIK']
@@ -126,6 +124,18 @@ class SelectiveIK:
     # -- what it is ------------------------------------------------------------------------------
 
     @property
+    def context(self) -> Context:
+        """The parts every stage function takes (read-only): robot, models, config, data.
+
+        For studies and benchmarks that call the stages
+        (:mod:`~sik_ros.solver.candidates`, :mod:`~sik_ros.solver.codec`,
+        :mod:`~sik_ros.solver.refine`, :mod:`~sik_ros.solver.ranking`,
+        :mod:`~sik_ros.solver.adjust`) on their own. Its Pinocchio data is this instance's:
+        not for another thread.
+        """
+        return self._ctx
+
+    @property
     def joint_names(self) -> List[str]:
         """Arm joint names, in the order of every ``q``."""
         return list(self.robot.joint_names)
@@ -174,7 +184,7 @@ class SelectiveIK:
         objective = check_objective(objective)
         refine = flag(refine, 'refine')
         timeout = seconds(timeout, 'timeout')
-        deadline = None if timeout is None else t0 + timeout
+        deadline = Deadline.after(timeout, t0)
         with self._lock:
             result = pipeline.solve(self._ctx, goal, num, q_seed, obstacles, refine, objective,
                                     deadline)
@@ -222,84 +232,9 @@ class SelectiveIK:
         # from starts spread over the postures
         wider = None if pose else PathSettings.for_paths(True, near_seed=False, **given)
         timeout = seconds(timeout, 'timeout')
-        deadline = None if timeout is None else t0 + timeout
+        deadline = Deadline.after(timeout, t0)
         with self._lock:
             result = _path.solve_path(self._ctx, goals, q_seed, obstacles, settings, deadline,
                                       wider)
         result.elapsed = time.perf_counter() - t0
         return result
-
-    # -- the stages, for studies and benchmarks --------------------------------------------------
-    # ``goal`` is the goal kind ('position' or 'pose'), ``pos`` (3,) [m], ``rot`` (3, 3) or None.
-
-    def candidates(self, goal: str, pos: np.ndarray, rot, q_seed, num_solutions: int = 16,
-                   refine: bool = True, others: int = 0) -> Tuple[np.ndarray, np.ndarray]:
-        """Posture indices to decode and their table rows (-1: not from the table).
-
-        See :func:`sik_ros.solver.candidates.table_candidates`.
-        """
-        return _candidates.table_candidates(self._ctx, self._goal(goal, pos, rot), q_seed,
-                                            num_solutions, refine, others)
-
-    def candidate_indices(self, goal: str, pos: np.ndarray, rot, q_seed,
-                          num_solutions: int = 16, refine: bool = True,
-                          others: int = 0) -> np.ndarray:
-        """The indices of :meth:`candidates`."""
-        return self.candidates(goal, pos, rot, q_seed, num_solutions, refine, others)[0]
-
-    def starting_postures(self, goal: str, pos: np.ndarray, rot, z: np.ndarray,
-                          rows: np.ndarray) -> np.ndarray:
-        """See :func:`sik_ros.solver.candidates.starting_postures`."""
-        return _candidates.starting_postures(self._ctx, self._goal(goal, pos, rot), z, rows)
-
-    def oriented_postures(self, pos: np.ndarray, rot: np.ndarray, count: int) -> np.ndarray:
-        """See :func:`sik_ros.solver.candidates.oriented_postures`."""
-        return _candidates.oriented_postures(self._ctx, Goal(np.asarray(pos, float), rot), count)
-
-    def align_last_joint(self, q: np.ndarray, rot: np.ndarray) -> np.ndarray:
-        """See :func:`sik_ros.solver.candidates.align_last_joint`."""
-        return _candidates.align_last_joint(self._ctx, q, rot)
-
-    def decode(self, goal: str, pos: np.ndarray, rot, z: np.ndarray) -> np.ndarray:
-        """Joint solutions (M, n) [rad] decoded from posture indices (M, latent), clipped."""
-        return codec.decode(self._ctx, self._goal(goal, pos, rot), z)
-
-    def encode(self, goal: str, pos: np.ndarray, rot, q: np.ndarray) -> np.ndarray:
-        """Posture indices (M, latent) of configurations (M, n) for a goal."""
-        return codec.encode(self._ctx, self._goal(goal, pos, rot), q)
-
-    def errors(self, q: np.ndarray, pos: np.ndarray, rot) -> Tuple[np.ndarray, np.ndarray]:
-        """Position errors [m] and orientation errors [rad] (zeros without ``rot``), (M,)."""
-        return errors(self._ctx, q, Goal(np.asarray(pos, float), rot))
-
-    def refine(self, q: np.ndarray, pos: np.ndarray, rot, deadline: Optional[float] = None,
-               iterations: Optional[int] = None, prune: bool = False,
-               enough: Optional[int] = None) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Refined configurations (M, n), position errors [m], orientation errors [rad].
-
-        See :func:`sik_ros.solver.refine.refine`.
-        """
-        r = refine(self._ctx, q, Goal(np.asarray(pos, float), rot), deadline, iterations,
-                   prune, enough)
-        return r.q, r.perr, r.oerr
-
-    def distinct_mask(self, q: np.ndarray, goal: str,
-                      threshold: Optional[float] = None) -> np.ndarray:
-        """Greedy keep-mask of rows at least ``threshold`` apart (default: the config's)."""
-        return distinct_mask(q, self.config.distinct_threshold if threshold is None
-                             else threshold, self._ctx.ignores_last(goal))
-
-    def adjust_index(self, goal: str, pos: np.ndarray, rot, sols: List[Solution],
-                     obstacles: Sequence[Obstacle], deadline=None,
-                     step: float = 0.25) -> Optional[List[Solution]]:
-        """Algorithm 2: see :func:`sik_ros.solver.adjust.adjust_index`."""
-        return adjust_index(self._ctx, self._goal(goal, pos, rot), sols, obstacles, deadline,
-                            step)
-
-    @staticmethod
-    def _goal(kind: str, pos: np.ndarray, rot) -> Goal:
-        goal = Goal(np.asarray(pos, dtype=float), rot)
-        if goal.kind != kind:
-            raise InvalidArgument(f'a {kind} goal needs {"no " if kind == "position" else ""}'
-                                  f'rotation')
-        return goal

@@ -3,7 +3,7 @@
 At the first waypoint (and wherever every track is lost) distinct exact configurations start
 *tracks*: the solver's solutions (with the seed's own posture and the 2 pi equivalents of
 periodic joints), or at a position waypoint the seed and the table's postures nearest it
-followed onto the waypoint (:func:`_starts`); at each
+followed onto the waypoint (:func:`track_starts`); at each
 next waypoint every track is continued by refining its last configuration onto the new pose (a
 warm start: the posture is kept, the paper's "keep the posture" strategy). The candidates of
 consecutive waypoints form a ladder graph; an edge is allowed when no joint moves more than
@@ -18,7 +18,7 @@ waypoint can be reached, the longest feasible prefix is returned with its ``frac
 
 The whole ladder (tracks switching, merging, refilled by new starts) joins every
 ``ladder``-th waypoint (:class:`PathSettings`) to the one before; between two of them every
-track continues itself, and those waypoints are solved in one batch (:func:`_chunk`): the
+track continues itself, and those waypoints are solved in one batch (:func:`chunk`): the
 tracks' steps predicted from their Jacobians, then refined and checked all at once. The
 first such batch starts from the starts themselves. A batch that would leave fewer than two
 tracks at a waypoint (none, when it began with one) is dropped, and those waypoints go on one

@@ -5,14 +5,16 @@ from typing import Tuple
 import numpy as np
 
 from sik_ros.chain import SerialChain
+from sik_ros.deadline import Deadline
 from sik_ros.rotations import rotation_angle
+from sik_ros.solver.config import EDGE_CHECKS, TRACK_ITERATIONS
 from sik_ros.solver.context import Context, Goal
-from sik_ros.solver.path.settings import EDGE_CHECKS, PathSettings, TRACK_ITERATIONS
+from sik_ros.solver.path.settings import PathSettings
 from sik_ros.solver.refine import Evaluation, follow
 
 
-def _continue(ctx: Context, q: np.ndarray, ev: Evaluation, goal: Goal,
-              deadline) -> Tuple[np.ndarray, Evaluation]:
+def continue_tracks(ctx: Context, q: np.ndarray, ev: Evaluation, goal: Goal,
+                    deadline: Deadline) -> Tuple[np.ndarray, Evaluation]:
     """Each configuration refined onto the next waypoint: the exact ones and their evaluation.
 
     ``ev`` is the evaluation of ``q`` carried from the previous waypoint (not computed
@@ -23,8 +25,8 @@ def _continue(ctx: Context, q: np.ndarray, ev: Evaluation, goal: Goal,
     return q, ev
 
 
-def _on_segment(ctx: Context, qa: np.ndarray, qb: np.ndarray, ga: Goal, gb: Goal,
-                s: PathSettings) -> np.ndarray:
+def on_segment(ctx: Context, qa: np.ndarray, qb: np.ndarray, ga: Goal, gb: Goal,
+               s: PathSettings) -> np.ndarray:
     """(K,) bool: whether the tool stays on segment ``ga`` -> ``gb`` from ``qa[k]`` to ``qb[k]``.
 
     Checked by FK at :data:`EDGE_CHECKS` along the joint-space edge: the tool within
@@ -48,7 +50,7 @@ def _on_segment(ctx: Context, qa: np.ndarray, qb: np.ndarray, ga: Goal, gb: Goal
     return ok.reshape(len(EDGE_CHECKS), len(qa)).all(axis=0)
 
 
-def _reach(chain: SerialChain) -> np.ndarray:
+def reach_bounds(chain: SerialChain) -> np.ndarray:
     """(n, n) ``D[i, j]``: a bound on the tip's distance from the axis of joint ``max(i, j)``.
 
     The distance from joint k's origin to the tip is at most the sum of the link lengths after
@@ -80,17 +82,17 @@ def turn_bound(v: np.ndarray, w_a: np.ndarray, w_b: np.ndarray) -> np.ndarray:
     return np.maximum(w_a, w_b) / 2 + pairs / 8
 
 
-def _certified(ctx: Context, qa: np.ndarray, qb: np.ndarray, gb: Goal, turn: float,
-               reach: np.ndarray, s: PathSettings, w_a: np.ndarray,
-               w_b: np.ndarray) -> np.ndarray:
+def certified(ctx: Context, qa: np.ndarray, qb: np.ndarray, gb: Goal, turn: float,
+              reach: np.ndarray, s: PathSettings, w_a: np.ndarray,
+              w_b: np.ndarray) -> np.ndarray:
     """(K,) bool: edges proven to keep the tool on the segment, so FK need not check them.
 
     Both ends are exact (within the solver's tolerances). Along ``q(t) = qa + t dq`` the tip's
-    acceleration is at most ``M = sum_ij D_ij |dq_i| |dq_j|`` (:func:`_reach`), so the tip is
+    acceleration is at most ``M = sum_ij D_ij |dq_i| |dq_j|`` (:func:`reach_bounds`), so the tip is
     within ``M / 8`` of the chord between the ends, itself within the position tolerance of the
     segment. The tool is within :func:`turn_bound` (``w_a``, ``w_b``: its angular speeds at the
     ends) plus the orientation tolerance of the nearer end's waypoint orientation. Edges that
-    meet both bounds meet :func:`_on_segment`'s test at every point, not only at its samples.
+    meet both bounds meet :func:`on_segment`'s test at every point, not only at its samples.
     """
     cfg = ctx.config
     v = np.abs(qb - qa)
@@ -102,20 +104,20 @@ def _certified(ctx: Context, qa: np.ndarray, qb: np.ndarray, gb: Goal, turn: flo
     return ok
 
 
-def _angular_speed(jac: np.ndarray, dq: np.ndarray) -> np.ndarray:
+def angular_speed(jac: np.ndarray, dq: np.ndarray) -> np.ndarray:
     """(K,) the tool's angular speed ``|J_w dq|`` for Jacobians (K, 6, n) moving by ``dq``."""
     return np.linalg.norm(np.einsum('krj,kj->kr', jac[:, 3:], dq), axis=1)
 
 
-def _edges(ctx: Context, prev: np.ndarray, prev_cost: np.ndarray, prev_ev: Evaluation,
-           q: np.ndarray, ev: Evaluation, ga: Goal, gb: Goal, turn: float, reach: np.ndarray,
-           s: PathSettings) -> np.ndarray:
+def edge_costs(ctx: Context, prev: np.ndarray, prev_cost: np.ndarray, prev_ev: Evaluation,
+               q: np.ndarray, ev: Evaluation, ga: Goal, gb: Goal, turn: float, reach: np.ndarray,
+               s: PathSettings) -> np.ndarray:
     """(P, Q) cost of reaching each candidate ``q`` from each ``prev`` (inf: not allowed).
 
     Edges with a joint step above ``max_joint_step`` are out. The others are checked on the
     segment ``ga`` -> ``gb`` lazily: only those that would be a candidate's cheapest way in,
     until every candidate's cheapest edge passes (the same choice as checking them all).
-    Edges :func:`_certified` by a bound (``reach``: :func:`_reach`; the ends' Jacobians from
+    Edges :func:`certified` by a bound (``reach``: :func:`reach_bounds`; the ends' Jacobians from
     ``prev_ev`` and ``ev``; ``turn``: the angle between the waypoints' orientations) pass
     without FK.
     """
@@ -136,10 +138,10 @@ def _edges(ctx: Context, prev: np.ndarray, prev_cost: np.ndarray, prev_ev: Evalu
             w_a = w_b = None
         else:
             dq = diff[a, b]
-            w_a, w_b = _angular_speed(prev_ev.jac[a], dq), _angular_speed(ev.jac[b], dq)
-        proven = _certified(ctx, prev[a], q[b], gb, turn, reach, s, w_a, w_b)
+            w_a, w_b = angular_speed(prev_ev.jac[a], dq), angular_speed(ev.jac[b], dq)
+        proven = certified(ctx, prev[a], q[b], gb, turn, reach, s, w_a, w_b)
         if proven.all():
             return total  # no cost changed: the cheapest edges stay those just proven
         a, b = a[~proven], b[~proven]
-        fine = _on_segment(ctx, prev[a], q[b], ga, gb, s)
+        fine = on_segment(ctx, prev[a], q[b], ga, gb, s)
         total[a[~fine], b[~fine]] = np.inf

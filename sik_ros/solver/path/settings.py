@@ -5,28 +5,8 @@ from typing import List
 
 import numpy as np
 
-from sik_ros.solver.config import PATH_DEFAULTS
-
-
-#: Interpolation points checked on every edge (fractions of the edge).
-EDGE_CHECKS = (0.25, 0.5, 0.75)
-
-#: Most refinement steps of a track onto its next waypoint (a few suffice from a step away).
-TRACK_ITERATIONS = 10
-
-#: Table postures nearest the seed among which a position path's starts are chosen.
-NEAR_POOL = 48
-
-#: Most refinement steps of a position path's starts onto the first waypoint (docs/design.md).
-START_ITERATIONS = 25
-
-#: The beam of pose paths (see :class:`PathSettings`; the choice in docs/design.md).
-POSE_BEAM = {'starts': 10, 'tracks': 10, 'ladder': 16}
-
-#: The beam of position paths. A position waypoint leaves a redundant arm ``n - 3`` dimensions
-#: of self-motion, so a track is seldom lost and a narrow beam keeps the paths as short
-#: (docs/design.md).
-POSITION_BEAM = {'starts': 4, 'tracks': 4, 'ladder': 64}
+from sik_ros.solver.config import (ORIENTATION_PATH_TOLERANCE, PATH_DEFAULTS, POSE_BEAM,
+                                   POSITION_BEAM, SEED_WEIGHT)
 
 
 @dataclass
@@ -71,21 +51,21 @@ class PathSettings:
     lost); ``tracks``: the beam, the cheapest candidates kept per waypoint (both raised to
     ``num_paths`` when below it); ``ladder``: every ``ladder``-th waypoint is joined to the
     previous one by the whole ladder (tracks may switch, merge, be refilled by new starts); the
-    waypoints between are solved in one batch, each track continuing itself (:func:`_chunk`).
+    waypoints between are solved in one batch, each track continuing itself (:func:`chunk`).
     ``near_seed``: a position path with a seed starts from the seed and the table's postures
     nearest it (else from the seed and the solver's first solutions, spread over the
-    postures: :func:`_starts`). The defaults are :data:`POSE_BEAM`'s; :meth:`for_paths`
+    postures: :func:`track_starts`). The defaults are :data:`POSE_BEAM`'s; :meth:`for_paths`
     takes them from :data:`POSE_BEAM` or :data:`POSITION_BEAM` by the paths' kind.
     """
 
     num_paths: int = PATH_DEFAULTS.num_paths
     max_joint_step: float = PATH_DEFAULTS.max_joint_step
     path_tolerance: float = PATH_DEFAULTS.path_tolerance
-    orientation_path_tolerance: float = 0.05
+    orientation_path_tolerance: float = ORIENTATION_PATH_TOLERANCE
     starts: int = POSE_BEAM['starts']
     tracks: int = POSE_BEAM['tracks']
     ladder: int = POSE_BEAM['ladder']
-    seed_weight: float = 1.0
+    seed_weight: float = SEED_WEIGHT
     near_seed: bool = True
 
     def __post_init__(self):
