@@ -33,6 +33,28 @@ def test_bad_start_ups_are_one_fatal_line(graph, args, words):
     assert 'Traceback' not in out
 
 
+def test_help_lists_the_parameters_and_starts_nothing(graph):
+    """``sik_node --help``: the usage and every parameter, exit 0, no node started."""
+    env, _ = graph
+    run = subprocess.run([sys.executable, '-m', 'sik_ros.ros.run', '--help'], env=env,
+                         capture_output=True, text=True, timeout=120)
+    assert run.returncode == 0 and run.stdout.startswith('usage: sik_node'), run.stderr
+    from sik_ros.ros.params import SPECS
+    assert all(f'  {spec.name} (' in run.stdout for spec in SPECS)
+    assert 'ready' not in run.stdout + run.stderr
+
+
+def test_an_unknown_argument_is_one_line_and_exit_2(graph):
+    """An argument outside ``--ros-args``: one line naming it, exit 2, no traceback."""
+    env, _ = graph
+    run = subprocess.run([sys.executable, '-m', 'sik_ros.ros.run', '--bundle', 'x',
+                          '--ros-args', '-p', 'timeout:=1.0'], env=env, capture_output=True,
+                         text=True, timeout=120)
+    lines = run.stderr.strip().splitlines()
+    assert run.returncode == 2 and len(lines) == 1 and "'--bundle'" in lines[0], run.stderr
+    assert run.stdout == ''
+
+
 def _box_request(position, count, timeout):
     req = harness.pose_request(position, None, 16)
     rng = np.random.default_rng(0)

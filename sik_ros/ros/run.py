@@ -13,13 +13,10 @@ import sys
 import time
 from typing import List, Optional
 
-import rclpy
-from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
-from rclpy.signals import SignalHandlerOptions
-
 from sik_ros.errors import SikError
-from sik_ros.ros.lifecycle import make_node
-from sik_ros.ros.node import NODE_NAME, SPIN_PERIOD
+
+#: The node's name in its log lines (as ``sik_ros.ros.node.NODE_NAME``, which loads the solver).
+LOGGER = 'sik_node'
 
 
 def _stop(signum, frame) -> None:
@@ -27,8 +24,57 @@ def _stop(signum, frame) -> None:
     raise KeyboardInterrupt
 
 
+def user_args(argv: List[str]) -> List[str]:
+    """The arguments outside ``--ros-args ... [--]`` blocks (ROS's own are left to rclpy)."""
+    out, in_ros = [], False
+    for arg in argv:
+        if arg == '--ros-args':
+            in_ros = True
+        elif arg == '--' and in_ros:
+            in_ros = False
+        elif not in_ros:
+            out.append(arg)
+    return out
+
+
+def usage() -> str:
+    """``sik_node --help``: how to start it, and every parameter with its default."""
+    from sik_ros.ros.params import SPECS  # only here: the node's start needs no help text
+    lines = ['usage: sik_node [--ros-args [-p NAME:=VALUE ...] [--params-file FILE] ...]', '',
+             'Multi-solution IK services (~/solve_ik, ~/solve_path), the ~/goal topic and '
+             '/diagnostics;', 'docs/interfaces.md has every message. Parameters (default):', '']
+    for spec in SPECS:
+        lines.append(f'  {spec.name} ({spec.type.__name__}, {spec.default!r})')
+        lines.append(f'      {" ".join(spec.description.split())}')
+    return '\n'.join(lines)
+
+
 def main(args: Optional[List[str]] = None) -> int:
-    """Run sik_node until SIGINT/SIGTERM; exit code 1 (one FATAL log line) if it cannot start."""
+    """Run sik_node until SIGINT/SIGTERM; exit code 1 (one FATAL log line) if it cannot start.
+
+    ``--help`` prints the usage and the parameters; any other argument outside ``--ros-args``
+    is refused (one line, exit code 2).
+    """
+    mine = user_args(sys.argv[1:] if args is None else list(args))
+    if any(a in ('-h', '--help') for a in mine):
+        print(usage())
+        return 0
+    if mine:
+        print(f'sik_node: error: unknown argument {mine[0]!r} (parameters go after --ros-args: '
+              f'sik_node --ros-args -p NAME:=VALUE; sik_node --help lists them)', file=sys.stderr)
+        return 2
+    return _serve(args)
+
+
+def _serve(args: Optional[List[str]]) -> int:
+    """Start the node, spin until a signal, drain the requests in flight and shut down."""
+    # imported here: ``--help`` and a refused argument answer without loading the solver
+    import rclpy
+    from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
+    from rclpy.signals import SignalHandlerOptions
+
+    from sik_ros.ros.lifecycle import make_node
+    from sik_ros.ros.node import SPIN_PERIOD
     # The node owns SIGINT and SIGTERM (systemd, docker stop, kill): both raise
     # KeyboardInterrupt in the main thread, which spins with a short timeout so that it gets
     # back to Python, and so to the handler, at least every SPIN_PERIOD seconds.
@@ -44,7 +90,7 @@ def main(args: Optional[List[str]] = None) -> int:
         reason = ' '.join(str(exc).split())
         if not isinstance(exc, SikError):
             reason = f'{type(exc).__name__}: {reason}'
-        rclpy.logging.get_logger(NODE_NAME).fatal(f'cannot start: {reason}')
+        rclpy.logging.get_logger(LOGGER).fatal(f'cannot start: {reason}')
         rclpy.try_shutdown()
         return 1
     executor = MultiThreadedExecutor(num_threads=node.workers)
@@ -71,7 +117,7 @@ def main(args: Optional[List[str]] = None) -> int:
         except Exception as exc:  # the interrupted executor could not go on: exit anyway
             _log_error('during shutdown, draining the requests in flight failed', exc)
         if node.in_flight:  # still solving past the grace period: do not wait for it
-            rclpy.logging.get_logger(NODE_NAME).warning(
+            rclpy.logging.get_logger(LOGGER).warning(
                 f'exiting with {node.in_flight} request(s) still in flight after the '
                 f'{node.shutdown_grace:g} s grace period')
             sys.stdout.flush()
@@ -90,8 +136,9 @@ def main(args: Optional[List[str]] = None) -> int:
 
 def _log_error(what: str, exc: Exception) -> None:
     """One ERROR line for something that failed while the node goes on (or shuts down)."""
+    import rclpy
     reason = ' '.join(str(exc).split())
-    rclpy.logging.get_logger(NODE_NAME).error(f'{what}: {type(exc).__name__}: {reason}')
+    rclpy.logging.get_logger(LOGGER).error(f'{what}: {type(exc).__name__}: {reason}')
 
 
 if __name__ == '__main__':
