@@ -25,12 +25,12 @@ median of those asked), branches (distinct once every angle is wrapped to one tu
 per call (median, mean). ``--json`` writes every figure.
 
     python bench/ablation.py --arm panda=sik_ros/bundles/panda:data/panda30 \\
-        --arm ur5=/work/builds/ur5:/work/builds/ur5.build/dataset --targets 100 --json out.json
+        --arm ur5=bundles/ur5:bundles/ur5.build/dataset --targets 100 \\
+        --json docs/results/ablation.json
 """
 
 import argparse
 from dataclasses import replace
-import json
 import os
 import sys
 import time
@@ -54,6 +54,7 @@ from sik_ros.solver.context import Goal, POSE  # noqa: E402
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from arms import branches  # noqa: E402,I100 (bench/arms.py, beside this script)
+from report import add_json_argument, write_json  # noqa: E402 (bench/report.py)
 
 SOURCES = {'position': ('index table', 'seed table', 'random', 'shipped'),
            'pose': ('index table', 'pose model', 'seed table', 'random', 'shipped')}
@@ -184,7 +185,7 @@ def main() -> int:
     ap.add_argument('--pose-candidates', type=int, default=0,
                     help='also the shipped solver with this many pose-model candidates')
     ap.add_argument('--goals', default='position,pose', help='goal kinds, comma-separated')
-    ap.add_argument('--json', help='write the figures here')
+    add_json_argument(ap)
     a = ap.parse_args()
     results = {}
     for spec in a.arm:
@@ -198,9 +199,8 @@ def main() -> int:
                                 a.seed_rows, a.pose_candidates, a.goals.split(','))
         print(f'{name}: {time.perf_counter() - t0:.0f} s', flush=True)
     print(table(results, a.starts, a.num))
-    if a.json:
-        with open(a.json, 'w') as f:
-            json.dump({'args': vars(a), 'results': results}, f, indent=1)
+    write_json(a.json, 'ablation', {'args': {k: v for k, v in vars(a).items() if k != 'json'},
+                                    'arms': results})
     return 0
 
 

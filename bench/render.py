@@ -415,6 +415,23 @@ def render_tracik_protocol(data: dict) -> str:
 
 # the README's one table ---------------------------------------------------------------------
 
+def render_ablation(data: dict) -> str:
+    """bench/ablation.py: the solver's starts from one source at a time, per arm and goal."""
+    r = data['results']
+    rows = []
+    for arm, goals in r['arms'].items():
+        for goal, sources in goals.items():
+            for source, f in sources.items():
+                rows.append([arm, goal, source, pct(f['success']),
+                             f'{num(f["distinct_mean"], 1)}', num(f['branches_mean'], 1),
+                             f'{num(f["ms_median"])} ({num(f["ms_mean"])})'])
+    a = r['args']
+    return (f'{a["targets"]} targets uniform in joint space per arm and goal kind (seed '
+            f'{a["seed"]}), {a["starts"]} starts from each source, {a["num"]} solutions asked:'
+            f'\n\n' + table(['arm', 'goal', 'starts from', 'success', 'distinct (mean)',
+                             'branches (mean)', 'ms per call, median (mean)'], rows))
+
+
 def render_summary(results: Dict[str, List[dict]]) -> Optional[str]:
     """Today's headline figures beside the peers, from several benchmarks (None without)."""
     rows, sources = [], []
@@ -519,7 +536,8 @@ RENDER: Dict[str, Callable] = {
     'collect': render_collect, 'solve': render_solve, 'solve_ab': render_ab,
     'arms': render_arms, 'paths': render_paths, 'paths_ab': render_paths_ab,
     'service_probe': render_service_probe, 'soak': render_soak, 'sweep': render_sweep,
-    'train_step': render_train_step, 'tracik_protocol': render_tracik_protocol}
+    'train_step': render_train_step, 'tracik_protocol': render_tracik_protocol,
+    'ablation': render_ablation}
 
 
 def load() -> Dict[str, List[dict]]:
