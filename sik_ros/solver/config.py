@@ -52,6 +52,10 @@ class SolverConfig:
         oriented_cells: table cells pooled around the goal for those.
         raw_candidates: posture indices decoded when ``refine`` is off: the most accurate
             distinct decoded postures are returned, so a larger pool gives better raw answers.
+        raw_adjust: raw answers to pose goals: damped Gauss-Newton steps of the paper's
+            Algorithm 2 on the best candidates' posture indices, with the tip pose error as
+            the evaluation function (:func:`sik_ros.solver.adjust.adjust_raw`; the answers
+            stay decoded postures); 0 disables it.
         refine_iterations: most damped least squares iterations.
         damping: damping of the least squares steps.
         max_step: largest joint change per iteration [rad] (also per step of a path's
@@ -112,6 +116,7 @@ class SolverConfig:
     oriented_candidates: int = 32
     oriented_cells: int = 27
     raw_candidates: int = 192
+    raw_adjust: int = 4
     refine_iterations: int = 40
     damping: float = 1e-3
     max_step: float = 0.6
@@ -151,7 +156,7 @@ class SolverConfig:
                                       f'{value!r}')
         for name, low in (('max_solutions_cap', 1), ('k_cells', 1), ('num_candidates', 0),
                           ('pose_candidates', 0), ('oriented_candidates', 0),
-                          ('oriented_cells', 1), ('raw_candidates', 1),
+                          ('oriented_cells', 1), ('raw_candidates', 1), ('raw_adjust', 0),
                           ('refine_iterations', 1), ('adjust_budget', 0), ('give_up_after', 1),
                           ('stall_window', 0), ('stall_after', 0), ('early_stop_margin', -1),
                           ('walk_rounds', 0), ('walk_iterations', 1), ('max_obstacles', 0),
