@@ -95,8 +95,11 @@ def _pose_residual(ctx: Context, goal: Goal, q: np.ndarray) -> np.ndarray:
 
 def _gauss_newton(ctx: Context, goal: Goal, z: np.ndarray, q: np.ndarray,
                   deadline: Optional[float]):
-    """``config.raw_adjust`` damped Gauss-Newton steps on indices ``z`` (M, latent) decoded as
-    ``q``; a step is kept only when the decoded pose comes closer. Returns the new (z, q)."""
+    """Damped Gauss-Newton steps on posture indices towards the goal pose.
+
+    ``config.raw_adjust`` steps on indices ``z`` (M, latent) decoded as ``q`` (M, n); a step is
+    kept only when the decoded pose comes closer. Returns the new (z, q).
+    """
     lo, hi = ctx.models[goal.kind].table.index_bounds
     res = _pose_residual(ctx, goal, q)
     cost = (res * res).sum(axis=1)
