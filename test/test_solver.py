@@ -17,7 +17,7 @@ from sik_ros.solver.candidates import (align_last_joint, oriented_postures, star
 from sik_ros.solver.codec import decode, encode
 from sik_ros.solver.config import FREE_RESTARTS
 from sik_ros.solver.context import Goal
-from sik_ros.solver.ranking import converged, posture_mask
+from sik_ros.solver.ranking import converged, pose_score, posture_mask
 from sik_ros.solver.refine import refine
 
 
@@ -275,6 +275,7 @@ def test_bad_input_raises_clear_errors(ik, kwargs, error, message):
     ({'num_candidates': -1}, 'num_candidates'),
     ({'walk_rounds': 1.5}, 'walk_rounds'),
     ({'prune_at': (3, -1)}, 'prune_at'),
+    ({'raw_adjust': -1}, 'raw_adjust'),
     ({'no_such_setting': 1}, 'no_such_setting'),
 ])
 def test_bad_solver_settings_are_refused(ik, changes, message):
@@ -461,6 +462,36 @@ def test_restarts_for_free_solutions_leave_obstacles_to_algorithm_2(ik, targets,
     assert exact and all(s.min_obstacle_distance <= 0 for s in exact)
     assert not any(s.self_collision for s in exact)
     assert FREE_RESTARTS not in [call.get('keep') for call in restarts]
+
+
+def test_raw_pose_answers_are_decoded_at_adjusted_indices():
+    """refine=False at a pose goal: Algorithm 2 with the pose error moves the best indices.
+
+    Every answer is still the decoder's output at the index it reports (no joint-space
+    refinement), and together they come closer to the goal orientation than the table's
+    indices decoded as they are, and closer by the ranking's score (position error plus
+    weighted orientation error).
+    """
+    from scipy.spatial.transform import Rotation
+    ik = SelectiveIK.load('panda')
+    plain = ik.with_config(raw_adjust=0)
+    rng = np.random.default_rng(11)
+    q = rng.uniform(ik.robot.lower, ik.robot.upper, (12, ik.robot.dof))
+    q = q[~ik.checker.self_collision(q)][:4]
+    err = {'adjusted': [], 'plain': []}
+    for qi in q:
+        p, quat = ik.fk(qi)
+        rot = Rotation.from_quat(quat).as_matrix()
+        for name, solver in (('adjusted', ik), ('plain', plain)):
+            res = solver.solve(p, quat, num_solutions=10, refine=False)
+            assert len(res.solutions) == 10
+            err[name] += [(s.position_error, s.orientation_error) for s in res.solutions]
+            z = np.array([s.posture_index for s in res.solutions])
+            np.testing.assert_allclose(decode(ik.context, Goal(np.asarray(p, float), rot), z),
+                                       [s.q for s in res.solutions], atol=1e-5)
+    adjusted, plain_err = np.mean(err['adjusted'], axis=0), np.mean(err['plain'], axis=0)
+    assert adjusted[1] < 0.5 * plain_err[1]
+    assert pose_score(*adjusted) < pose_score(*plain_err)
 
 
 @pytest.mark.parametrize('goal', ['position', 'pose'])

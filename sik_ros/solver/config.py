@@ -66,6 +66,16 @@ ADJUST_STEP = 0.25
 #: Solutions Algorithm 2 starts from at most (the best exact ones, else the best): its budget
 #: of decodes is spent on the most promising.
 ADJUST_STARTS = 3
+#: Metres of error that one radian of orientation counts as when raw indices are adjusted
+#: [m/rad] (the ranking's 0.1 m/rad left 5.7 deg on the Panda, 0.3 3.6 deg: docs/training.md).
+RAW_ORIENTATION_WEIGHT = 0.3
+#: Index step of the finite differences that estimate how the decoded tip pose moves with it.
+RAW_DIFFERENCE = 0.05
+#: First damping of the Gauss-Newton steps on the index.
+RAW_DAMPING = 0.01
+#: Rounds of starts at most: a further round, of the next best candidates, only when the
+#: adjusted ones came together on fewer distinct postures than the solutions asked for.
+RAW_ROUNDS = 3
 #: Up to this many rows a network runs as one compiled call (measured on the Panda's networks,
 #: 256 and 512 wide: 0.4-0.7x NumPy's time for 1-3 rows, slower from 4, where BLAS's blocking
 #: pays).
@@ -125,6 +135,10 @@ class SolverConfig:
         oriented_cells: table cells pooled around the goal for those.
         raw_candidates: posture indices decoded when ``refine`` is off: the most accurate
             distinct decoded postures are returned, so a larger pool gives better raw answers.
+        raw_adjust: raw answers to pose goals: damped Gauss-Newton steps of the paper's
+            Algorithm 2 on the best candidates' posture indices, with the tip pose error as
+            the evaluation function (:func:`sik_ros.solver.adjust.adjust_raw`; the answers
+            stay decoded postures); 0 disables it.
         refine_iterations: most damped least squares iterations.
         damping: damping of the least squares steps.
         max_step: largest joint change per iteration [rad] (also per step of a path's
@@ -185,6 +199,7 @@ class SolverConfig:
     oriented_candidates: int = 32
     oriented_cells: int = 27
     raw_candidates: int = 192
+    raw_adjust: int = 4
     refine_iterations: int = 40
     damping: float = 1e-3
     max_step: float = 0.6
@@ -224,7 +239,7 @@ class SolverConfig:
                                       f'{value!r}')
         for name, low in (('max_solutions_cap', 1), ('k_cells', 1), ('num_candidates', 0),
                           ('pose_candidates', 0), ('oriented_candidates', 0),
-                          ('oriented_cells', 1), ('raw_candidates', 1),
+                          ('oriented_cells', 1), ('raw_candidates', 1), ('raw_adjust', 0),
                           ('refine_iterations', 1), ('adjust_budget', 0), ('give_up_after', 1),
                           ('stall_window', 0), ('stall_after', 0), ('early_stop_margin', -1),
                           ('walk_rounds', 0), ('walk_iterations', 1), ('max_obstacles', 0),

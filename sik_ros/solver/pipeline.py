@@ -5,7 +5,7 @@
 1. candidates: the table's indices near the goal (the seed's own first) and, for pose goals,
    the position model's postures that had the goal's orientation;
 2. their postures (the table's decoded postures, or a decode at the goal; raw answers are
-   always decoded at the goal);
+   always decoded at the goal, for pose goals at indices Algorithm 2 adjusted towards it);
 3. refinement, then restarts when nothing converged, then for pose goals the self-motion walk
    (arms with more than six joints); for six joints or fewer the other branches' starts join
    the first refinement (the seed table's configurations near the goal pose, or random ones);
@@ -26,7 +26,7 @@ from sik_ros.deadline import Deadline
 from sik_ros.objectives import Objective
 from sik_ros.periodic import nearest_turns
 from sik_ros.seed_table import SeedTable
-from sik_ros.solver.adjust import adjust_index
+from sik_ros.solver.adjust import adjust_index, adjust_raw
 from sik_ros.solver.batch import Candidates
 from sik_ros.solver.candidates import (oriented_postures, own_index, starting_postures,
                                        table_candidates)
@@ -222,6 +222,8 @@ def solve(ctx: Context, goal: Goal, num: int, q_seed: Optional[np.ndarray],
         c, timed_out = refine_all(ctx, call, c)
     else:
         c = assess(c.q, c.z, *errors(ctx, c.q, goal), goal.kind, ctx.config)
+        if goal.kind == POSE:  # Algorithm 2 on the tip pose error: still decoded postures
+            c = adjust_raw(ctx, goal, c, num, q_seed is not None, call.deadline)
         own = c.take(np.arange(1)) if q_seed is not None and objective is None else None
     c = distinct_postures(ctx, c, goal, q_seed)
     sols = rank(ctx, c, q_seed, obstacles, objective, limit=num, deadline=deadline)
