@@ -462,7 +462,8 @@ def render_summary(results: Dict[str, List[dict]]) -> Optional[str]:
                          f'TRAC-IK {num(s["time_median_ms"]["trac-ik"])} ms',
                          num(s['ratio_median']['ours'])])
         rows.append(['Panda, raw (`refine=False`): 10 best of up to 192 decoded table indices '
-                     'ranked by FK error, mean error (position; pose)',
+                     'ranked by FK error (pose: their indices adjusted by Algorithm 2), mean '
+                     'error (position; pose)',
                      f'{cm(pos["raw_mean_m"])}; {cm(pose["raw_mean_m"])}, '
                      f'{deg(pose["raw_orientation_mean_rad"])}', NA, NA])
         sources.append(solve)
