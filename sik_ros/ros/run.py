@@ -106,32 +106,38 @@ def _serve(args: Optional[List[str]]) -> int:
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:
-        signal.signal(signal.SIGINT, signal.SIG_IGN)  # a second signal must not break clean-up
-        signal.signal(signal.SIGTERM, signal.SIG_IGN)
-        # in-flight requests get the grace period; requests arriving now get TIMEOUT
-        node.closing = True
-        deadline = time.monotonic() + node.shutdown_grace
-        try:
-            while node.in_flight and time.monotonic() < deadline:
-                executor.spin_once(timeout_sec=0.02)  # lets finished requests send answers
-        except Exception as exc:  # the interrupted executor could not go on: exit anyway
-            _log_error('during shutdown, draining the requests in flight failed', exc)
-        if node.in_flight:  # still solving past the grace period: do not wait for it
-            rclpy.logging.get_logger(LOGGER).warning(
-                f'exiting with {node.in_flight} request(s) still in flight after the '
-                f'{node.shutdown_grace:g} s grace period')
-            sys.stdout.flush()
-            sys.stderr.flush()
-            os._exit(0)
-        time.sleep(0.1)  # the last answers leave their threads
-        for what, step in (('stopping the executor', lambda: executor.shutdown(timeout_sec=0)),
-                           ('closing the node', node.destroy_node),
-                           ('shutting ROS down', rclpy.try_shutdown)):
-            try:
-                step()
-            except Exception as exc:  # one line, and the other steps still run
-                _log_error(f'during shutdown, {what} failed', exc)
+        _drain_and_stop(node, executor)
     return 0
+
+
+def _drain_and_stop(node, executor) -> None:
+    """Give in-flight requests the grace period, then stop the executor, the node and ROS."""
+    import rclpy
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # a second signal must not break clean-up
+    signal.signal(signal.SIGTERM, signal.SIG_IGN)
+    # in-flight requests get the grace period; requests arriving now get TIMEOUT
+    node.closing = True
+    deadline = time.monotonic() + node.shutdown_grace
+    try:
+        while node.in_flight and time.monotonic() < deadline:
+            executor.spin_once(timeout_sec=0.02)  # lets finished requests send answers
+    except Exception as exc:  # the interrupted executor could not go on: exit anyway
+        _log_error('during shutdown, draining the requests in flight failed', exc)
+    if node.in_flight:  # still solving past the grace period: do not wait for it
+        rclpy.logging.get_logger(LOGGER).warning(
+            f'exiting with {node.in_flight} request(s) still in flight after the '
+            f'{node.shutdown_grace:g} s grace period')
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(0)
+    time.sleep(0.1)  # the last answers leave their threads
+    for what, step in (('stopping the executor', lambda: executor.shutdown(timeout_sec=0)),
+                       ('closing the node', node.destroy_node),
+                       ('shutting ROS down', rclpy.try_shutdown)):
+        try:
+            step()
+        except Exception as exc:  # one line, and the other steps still run
+            _log_error(f'during shutdown, {what} failed', exc)
 
 
 def _log_error(what: str, exc: Exception) -> None:
