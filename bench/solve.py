@@ -38,8 +38,8 @@ DISTINCT = 0.5  # rad, L2 between joint vectors
 
 
 def distinct_count(qs, position_goal: bool) -> int:
-    """Greedy count of solutions at least DISTINCT apart (ignoring joint 7 for positions)."""
-    cols = slice(0, 6) if position_goal else slice(None)
+    """Greedy count of solutions at least DISTINCT apart (positions: the last joint ignored)."""
+    cols = slice(0, -1) if position_goal else slice(None)
     kept = []
     for q in qs:
         if all(np.linalg.norm(q[cols] - k[cols]) >= DISTINCT for k in kept):
