@@ -233,3 +233,44 @@ def test_pairwise_distances_are_scipys_and_zero_between_equal_rows():
     assert np.all(np.diag(d) < SAME_DISTANCE)
     big = rng.uniform(-3, 3, (GRAM_ROWS + 1, 3))
     np.testing.assert_array_equal(pairwise_distances(big), cdist(big, big))
+
+
+def scattered_table(seed=0, cells=3000):
+    """A table of one index per row at random positions in a 1.2 m box (many cells)."""
+    rng = np.random.default_rng(seed)
+    pos = rng.uniform(-0.6, 0.6, (cells, 3))
+    z = rng.standard_normal((cells, 2))
+    quat = rng.standard_normal((cells, 4))
+    quat /= np.linalg.norm(quat, axis=1, keepdims=True)
+    return IndexTable.build(z, pos, TableConfig(0.05, 0.01, 4), {'robot': {}, 'model': {}},
+                            quaternion=quat)
+
+
+def test_the_grid_finds_the_kd_trees_nearest_cells():
+    """The compiled look-up returns the KD-tree's cells, nearest first.
+
+    Inside the data and far off it (where the KD-tree answers).
+    """
+    table = scattered_table()
+    rng = np.random.default_rng(1)
+    for point in rng.uniform(-1.5, 1.5, (400, 3)):
+        for k in (1, 8, 27):
+            _, cells = table.tree.query(point, k=k)
+            cells = np.atleast_1d(cells)
+            expected = np.concatenate([np.arange(table.offsets[c], table.offsets[c + 1])
+                                       for c in cells])
+            assert np.array_equal(table.rows_near(point, k), expected)
+
+
+def test_best_oriented_rows_are_numpys_choice():
+    """The rows nearest a quaternion, nearest first, as a sort of |q . goal| picks them."""
+    table = scattered_table(seed=2)
+    rng = np.random.default_rng(3)
+    for point, quat in zip(rng.uniform(-0.5, 0.5, (100, 3)), rng.standard_normal((100, 4))):
+        quat /= np.linalg.norm(quat)
+        rows = table.rows_near(point, 27)
+        closeness = np.abs(table.orientations[rows].astype(float) @ quat)
+        picked = table.oriented_rows(point, quat, 8, 27)
+        assert len(picked) == min(8, len(rows))
+        assert np.allclose(np.sort(closeness)[::-1][:len(picked)],
+                           np.abs(table.orientations[picked].astype(float) @ quat), atol=1e-6)

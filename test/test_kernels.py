@@ -119,3 +119,29 @@ def test_cache_folder_falls_back_to_a_temporary_one(monkeypatch):
     monkeypatch.setattr(kernels, '_writable', lambda folder: False)
     kernels._cache_folder()
     assert config.CACHE_DIR.startswith(tempfile.gettempdir())
+
+
+def test_last_joint_alignment_is_the_best_turn(bundled):
+    """The closed-form turn of the last joint is the best one, within the limits.
+
+    No other angle of a sweep over its range brings the tip nearer the goal rotation.
+    """
+    from sik_ros.solver.candidates import align_last_joint
+    robot = bundled.robot
+    rng = np.random.default_rng(4)
+    q = rng.uniform(robot.lower, robot.upper, (20, robot.dof))
+    goal = robot.fk_rot(rng.uniform(robot.lower, robot.upper, (1, robot.dof)))[1][0]
+    aligned = align_last_joint(bundled.context, q, goal)
+    assert np.array_equal(aligned[:, :-1], q[:, :-1])
+    assert np.all((aligned[:, -1] >= robot.lower[-1]) & (aligned[:, -1] <= robot.upper[-1]))
+
+    def angle(rows):
+        r = robot.fk_rot(rows)[1]
+        cos = (np.trace(goal @ r.transpose(0, 2, 1), axis1=1, axis2=2) - 1) / 2
+        return np.arccos(np.clip(cos, -1, 1))
+
+    best = angle(aligned)
+    for t in np.linspace(robot.lower[-1], robot.upper[-1], 60):
+        swept = aligned.copy()
+        swept[:, -1] = t
+        assert np.all(best <= angle(swept) + 1e-9)

@@ -520,3 +520,31 @@ def test_a_seeded_raw_solve_answers_the_seeds_own_posture_first(ik, goal):
         for s in res.solutions[1:]:
             assert np.linalg.norm(s.q - first.q) >= ik.config.distinct_threshold
     assert checked >= 2
+
+
+def test_one_solution_is_exact_free_and_its_index_encodes_it(panda):
+    """One pose solution, with and without a seed: exact and free of self-collision.
+
+    With the seed's own posture when the seed reaches the goal; its posture index, computed
+    when read, is the encoding of its configuration (as a 16-solution call reports it).
+    """
+    from sik_ros.rotations import quaternion_matrix
+    from sik_ros.solver.codec import encode
+    from sik_ros.solver.context import Goal
+    bundled = SelectiveIK.load('panda')
+    rng = np.random.default_rng(11)
+    q = rng.uniform(panda.lower, panda.upper, size=(30, panda.dof))
+    positions, quats = panda.fk_batch(q)
+    free = ~bundled.context.checker.self_collision(q)
+    for i in np.flatnonzero(free)[:12]:
+        for seed in (None, q[i], rng.uniform(panda.lower, panda.upper)):
+            res = bundled.solve(positions[i], quats[i], num_solutions=1, seed=seed)
+            assert res.success and len(res.solutions) == 1
+            s = res.solutions[0]
+            assert s.converged and not s.self_collision
+            check_solutions(panda, bundled, res, positions[i], quats[i])
+            if seed is q[i]:
+                assert np.linalg.norm(s.q - q[i]) < 1e-3
+            goal = Goal(positions[i], quaternion_matrix(quats[i]), quats[i])
+            z = encode(bundled.context, goal, s.q[None])[0]
+            assert np.allclose(s.posture_index, z, atol=1e-4)

@@ -135,3 +135,35 @@ def rotation_error(goal, r, out):  # pragma: no cover (compiled)
     scale = angle / sin if sin > 1e-9 else 1.0
     out[0], out[1], out[2] = vx * scale, vy * scale, vz * scale
     return sin * scale
+
+
+@njit(f'void({F3}, {F2}, {F2}, float64, float64)', cache=True, nogil=True)
+def align_last_many(frames, q, goal, lower, upper):  # pragma: no cover (compiled)
+    """Turn the last joint of each row of ``q`` (M, n) towards the tip rotation ``goal``.
+
+    In place, within ``lower``..``upper``; ``goal`` is (3, 3).
+    Every joint turns about its own z axis: with ``a`` the last joint's frame at zero and
+    ``B`` the fixed tip rotation, ``a Rz(t) B = goal`` is best met by the angle about z of
+    ``Rz(t) ~ B R0^T goal B^T``, where ``R0 = a B`` is the tip rotation at zero.
+    """
+    n = q.shape[1]
+    b = frames[n + 1]
+    p, r0 = np.empty(3), np.empty((3, 3))
+    dummy = np.empty((6, 0))
+    c, m = np.empty((3, 3)), np.empty((2, 2))
+    for k in range(q.shape[0]):
+        q[k, n - 1] = 0.0
+        place(frames, q[k], p, r0, dummy, False)
+        # m = B (R0^T goal) B^T: only its top-left 2 x 2 block is needed
+        for i in range(3):
+            for j in range(3):
+                c[i, j] = r0[0, i] * goal[0, j] + r0[1, i] * goal[1, j] + r0[2, i] * goal[2, j]
+        for i in range(2):
+            for j in range(2):
+                s = 0.0
+                for u in range(3):
+                    for v in range(3):
+                        s += b[i, u] * c[u, v] * b[j, v]
+                m[i, j] = s
+        theta = math.atan2(m[1, 0] - m[0, 1], m[0, 0] + m[1, 1])
+        q[k, n - 1] = min(max(theta, lower), upper)

@@ -12,6 +12,8 @@ from typing import Optional, Tuple
 
 import numpy as np
 
+from sik_ros.kernels import as_arg
+from sik_ros.kernels.chain import align_last_many
 from sik_ros.point_sets import farthest_point_subset
 from sik_ros.solver.codec import branch_codes, decode, encode
 from sik_ros.solver.context import Context, Goal, POSITION
@@ -127,15 +129,10 @@ def oriented_postures(ctx: Context, goal: Goal, count: int) -> np.ndarray:
 def align_last_joint(ctx: Context, q: np.ndarray, rot: np.ndarray) -> np.ndarray:
     """``q`` with the last joint turned (within its limits) towards the orientation ``rot``.
 
-    Every joint turns about its own z axis, so with ``a`` the last joint's frame at zero and
-    ``B`` the fixed tip rotation, ``a Rz(t) B = rot`` is best met by the angle of
-    ``Rz(t) ~ B R0^T rot B^T`` about z, where ``R0 = a B``.
+    Every joint turns about its own z axis, so the best angle has a closed form
+    (:func:`~sik_ros.kernels.chain.align_last_many`).
     """
-    q = q.copy()
-    q[:, -1] = 0.0
-    _, r0 = ctx.robot.fk_loop(q, ctx.data)
-    b = ctx.robot.chain.tip_rotation
-    m = b @ r0.transpose(0, 2, 1) @ rot @ b.T
-    theta = np.arctan2(m[:, 1, 0] - m[:, 0, 1], m[:, 0, 0] + m[:, 1, 1])
-    q[:, -1] = np.clip(theta, ctx.robot.lower[-1], ctx.robot.upper[-1])
+    q = as_arg(q).copy()
+    robot = ctx.robot
+    align_last_many(robot.frames, q, as_arg(rot), float(robot.lower[-1]), float(robot.upper[-1]))
     return q

@@ -1,7 +1,8 @@
 """One solve, stage by stage.
 
-0. one solution with a seed (default ranking): the seed refined alone first
-   (:func:`from_seed`); the stages below only when that gives no exact, free solution;
+0. one solution (default ranking): the seed refined alone first, or without a seed the
+   oriented postures of a redundant arm's pose goal (:func:`from_starts`); the stages below
+   only when that gives no exact, free solution;
 1. candidates: the table's indices near the goal (the seed's own first) and, for pose goals,
    the position model's postures that had the goal's orientation;
 2. their postures (the table's decoded postures, or a decode at the goal; raw answers are
@@ -16,6 +17,7 @@
 """
 
 from dataclasses import dataclass
+import functools
 import math
 from typing import List, Optional, Sequence, Tuple
 
@@ -36,10 +38,10 @@ from sik_ros.solver.config import (FAR_ITERATIONS, FREE_RESTARTS, FREE_ROUNDS, O
 from sik_ros.solver.context import Context, Goal, POSE, POSITION
 from sik_ros.solver.explore import (branch_starts, periodic_equivalents, restart, seed_starts,
                                     unindexed, walk)
-from sik_ros.solver.ranking import (assess, best_distinct, by_score, distinct_mask, merge,
-                                    pose_score, rank)
+from sik_ros.solver.ranking import (assess, best_distinct, by_score, converged, distinct_mask,
+                                    merge, pose_score, rank)
 from sik_ros.solver.refine import errors, refine
-from sik_ros.solver.results import IKResult, Solution
+from sik_ros.solver.results import IKResult, PendingIndices, Solution
 
 
 def oriented_count(cfg: SolverConfig, num: int) -> int:
@@ -85,16 +87,17 @@ def spare(cfg: SolverConfig, num: int) -> int:
 
 
 def fill_indices(ctx: Context, goal: Goal, sols: List[Solution]) -> None:
-    """Posture indices of solutions that came without one: the encoding of their q."""
+    """Posture indices of solutions that came without one: the encoding of their q.
+
+    Encoded when first read (:class:`PendingIndices`), all of them in one call.
+    """
     if not sols:
         return
     # one check over all of them (one per solution took 2 us each)
     todo = [sols[i] for i in np.flatnonzero(
         np.isnan(np.array([s.posture_index for s in sols])).any(axis=1))]
     if todo:
-        z = encode(ctx, goal, np.array([s.q for s in todo]))
-        for s, zi in zip(todo, z):
-            s.posture_index = zi.astype(np.float32)
+        PendingIndices(todo, functools.partial(encode, ctx, goal))
 
 
 def distinct_postures(ctx: Context, c: Candidates, goal: Goal,
@@ -144,26 +147,54 @@ def seed_posture_first(ctx: Context, goal: Goal, own: Candidates, sols: List[Sol
     return (first + rest)[:num]
 
 
-def from_seed(ctx: Context, goal: Goal, q_seed: np.ndarray, obstacles: Sequence[Obstacle],
-              deadline: Deadline) -> Optional[IKResult]:
-    """One solution refined from the seed alone, or None when it is not exact and free.
+def from_starts(ctx: Context, goal: Goal, starts: np.ndarray, q_seed: Optional[np.ndarray],
+                obstacles: Sequence[Obstacle], deadline: Deadline) -> Optional[IKResult]:
+    """One solution: the first of ``starts`` refined onto the goal that is exact and free.
 
-    A single solution ranked by its distance to the seed is nearly always the seed's own
-    posture refined onto the goal: that first, the table's candidates only when it does not
-    reach the goal or collides. Periodic joints take the turns nearest the seed.
+    None when none is. The single-solution path: with a seed (default ranking), a solution
+    ranked by its distance to the seed is nearly always the seed's own posture refined onto
+    the goal; without one, the first exact solution is as good as any (as TRAC-IK's first
+    answer), and for a pose goal the position model's postures that had the goal's
+    orientation reach it first. The stages of :func:`solve` only when this gives nothing.
+    Periodic joints take the turns nearest the seed (or the middle of their ranges).
     """
-    r = refine(ctx, q_seed[None], goal, deadline)
-    c = assess(r.q, unindexed(r.q, ctx.models[goal.kind].table.indices.shape[1]), r.perr,
-               r.oerr, goal.kind, ctx.config)
-    if not c.exact[0]:
-        return None
-    if ctx.robot.periodic.any():
-        c = Candidates(nearest_turns(ctx.robot, c.q, q_seed), c.z, c.perr, c.oerr, c.exact)
-    sols = rank(ctx, c, q_seed, obstacles, None, limit=1, deadline=deadline)
-    if not sols or sols[0].in_collision:
-        return None
-    fill_indices(ctx, goal, sols)
-    return IKResult(True, sols, goal.kind, r.cut_short)
+    cut = False
+    while len(starts) and not deadline.expired():
+        r = refine(ctx, starts, goal, deadline, enough=1)
+        cut = cut or r.cut_short
+        exact = np.flatnonzero(converged(r.perr, r.oerr, goal.kind, ctx.config))
+        if len(exact) == 0:
+            return None
+        # rows are refined in order and stop at the first exact one: it alone is exact
+        first = exact[0]
+        q = r.q[first:first + 1]
+        if ctx.robot.periodic.any():
+            centre = q_seed if q_seed is not None else (ctx.robot.lower + ctx.robot.upper) / 2
+            q = nearest_turns(ctx.robot, q, centre)
+        c = Candidates(q, unindexed(q, ctx.models[goal.kind].table.indices.shape[1]),
+                       r.perr[exact[:1]], r.oerr[exact[:1]], np.ones(1, dtype=bool))
+        sols = rank(ctx, c, q_seed, obstacles, None, limit=1, deadline=deadline)
+        if sols and not sols[0].in_collision:
+            fill_indices(ctx, goal, sols)
+            return IKResult(True, sols, goal.kind, cut)
+        starts = starts[first + 1:]  # it collides: the starts after it, not yet refined
+    return None
+
+
+def single_starts(ctx: Context, goal: Goal, q_seed: Optional[np.ndarray],
+                  obstacles: Sequence[Obstacle]) -> np.ndarray:
+    """The starts of :func:`from_starts` for one solution with the default ranking, (M, n).
+
+    The seed first; then, for a pose goal of an arm with more than six joints near the data
+    and without obstacles (which need every start refined), the position model's postures
+    that had the goal's orientation: the starts the stages of :func:`solve` would refine
+    first, the seed having failed. Empty: the full stages.
+    """
+    seed = np.empty((0, ctx.robot.dof)) if q_seed is None else q_seed[None]
+    if goal.kind != POSE or ctx.robot.dof <= 6 or obstacles or \
+            not ctx.models[goal.kind].table.within(goal.position, ctx.config.reach_margin):
+        return seed
+    return np.concatenate([seed, oriented_postures(ctx, goal, oriented_count(ctx.config, 1))])
 
 
 @dataclass(frozen=True)
@@ -206,10 +237,11 @@ def solve(ctx: Context, goal: Goal, num: int, q_seed: Optional[np.ndarray],
     # one solution with a seed: the seed refined alone first; when that fails, the first exact
     # solution of the other starts (the seed's own row and posture already tried), as without
     # a seed, ranked by the seed
-    single = num == 1 and q_seed is not None and refined and objective is None and \
-        not first_found
-    if single:
-        result = from_seed(ctx, goal, q_seed, obstacles, deadline)
+    one = num == 1 and refined and objective is None and not first_found
+    single = one and q_seed is not None
+    starts = single_starts(ctx, goal, q_seed, obstacles) if one else None
+    if starts is not None and len(starts):
+        result = from_starts(ctx, goal, starts, q_seed, obstacles, deadline)
         if result is not None:
             return result
     call = make_call(ctx, goal, num, q_seed, obstacles, refined, objective, deadline,

@@ -2,7 +2,8 @@
 
 from dataclasses import dataclass, field
 import json
-from typing import Dict, List, Sequence
+import threading
+from typing import Callable, Dict, List, Optional, Sequence
 
 import numpy as np
 
@@ -26,7 +27,9 @@ class Solution:
         q: joint positions (n,) [rad], within the limits.
         position_error: distance from the tip to the target [m].
         orientation_error: angle between tip and target orientation [rad] (0 for position goals).
-        posture_index: the posture index that produced it.
+        posture_index: the posture index that produced it; for a solution refined from a
+            start without one (the seed, another model's posture, a restart), its encoding,
+            computed on first read (:class:`PendingIndices`).
         score: the ranking cost within its tier, lower is better: the objective for exact
             solutions, the weighted goal error for inexact ones (see ``tier``).
         min_obstacle_distance: clearance from the obstacles [m] (+inf without obstacles).
@@ -45,11 +48,59 @@ class Solution:
     self_collision: bool = False
     converged: bool = False
     tier: int = 0
+    pending: Optional['PendingIndices'] = field(default=None, repr=False, compare=False)
+
+    def __getstate__(self) -> dict:
+        """The fields with the posture index computed (for pickling and copies)."""
+        if self.pending is not None:
+            self.pending.resolve()
+        return dict(self.__dict__, pending=None)
 
     @property
     def in_collision(self) -> bool:
         """Whether it touches an obstacle or itself."""
         return self.self_collision or not self.min_obstacle_distance > 0.0  # NaN: unknown
+
+
+def _index_get(self: Solution) -> np.ndarray:
+    pending = self.__dict__.get('pending')
+    if pending is not None:
+        pending.resolve()
+    return self.__dict__['_posture_index']
+
+
+def _index_set(self: Solution, value: np.ndarray) -> None:
+    self.__dict__['_posture_index'] = value
+
+
+# a property over the dataclass field: its __init__ stores through the setter
+Solution.posture_index = property(_index_get, _index_set, doc='The posture index (latent,).')
+
+
+class PendingIndices:
+    """The posture indices of some solutions, encoded together when one is first read.
+
+    A caller asking for one solution seldom reads its index, and encoding it cost about as
+    much as refining it; the service reads them all, in one encoder call.
+    """
+
+    def __init__(self, solutions: Sequence[Solution],
+                 encode: Callable[[np.ndarray], np.ndarray]):
+        self._solutions, self._encode = list(solutions), encode
+        self._lock = threading.Lock()
+        for s in self._solutions:
+            s.pending = self
+
+    def resolve(self) -> None:
+        """Encode the solutions' configurations and store their indices (once)."""
+        with self._lock:
+            if self._encode is None:
+                return
+            z = self._encode(np.array([s.q for s in self._solutions]))
+            for s, zi in zip(self._solutions, z):
+                s.__dict__['_posture_index'] = zi.astype(np.float32)
+                s.pending = None
+            self._encode = None
 
 
 @dataclass
