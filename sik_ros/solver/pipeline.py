@@ -171,13 +171,17 @@ def from_starts(ctx: Context, goal: Goal, starts: np.ndarray, q_seed: Optional[n
         if ctx.robot.periodic.any():
             centre = q_seed if q_seed is not None else (ctx.robot.lower + ctx.robot.upper) / 2
             q = nearest_turns(ctx.robot, q, centre)
+        starts = starts[first + 1:]  # the starts after it, not yet refined
+        selfc = ctx.checker.self_collision(q)
+        if selfc[0]:
+            continue
         c = Candidates(q, unindexed(q, ctx.models[goal.kind].table.indices.shape[1]),
                        r.perr[exact[:1]], r.oerr[exact[:1]], np.ones(1, dtype=bool))
-        sols = rank(ctx, c, q_seed, obstacles, None, limit=1, deadline=deadline)
+        sols = rank(ctx, c, q_seed, obstacles, None, limit=1, deadline=deadline,
+                    self_collision=selfc)
         if sols and not sols[0].in_collision:
             fill_indices(ctx, goal, sols)
             return IKResult(True, sols, goal.kind, cut)
-        starts = starts[first + 1:]  # it collides: the starts after it, not yet refined
     return None
 
 

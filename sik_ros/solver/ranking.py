@@ -103,7 +103,8 @@ def equivalents(keys: np.ndarray, cost: np.ndarray) -> np.ndarray:
 
 def rank(ctx: Context, c: Candidates, q_seed: Optional[np.ndarray],
          obstacles: Sequence[Obstacle], objective: Optional[Objective],
-         limit: Optional[int] = None, deadline: Deadline = NO_DEADLINE) -> List[Solution]:
+         limit: Optional[int] = None, deadline: Deadline = NO_DEADLINE,
+         self_collision: Optional[np.ndarray] = None) -> List[Solution]:
     """Solutions ranked best first; with ``limit``, only the best ``limit`` of them.
 
     The order is lexicographic: tier (free and exact, free and inexact, colliding or
@@ -116,6 +117,7 @@ def rank(ctx: Context, c: Candidates, q_seed: Optional[np.ndarray],
     Self-collision is checked lazily in ranking order, so checking stops once ``limit`` free
     postures are found. Past ``deadline`` no more collision checks start: clearances not
     computed are NaN and rank as colliding; self-collision not checked is reported False.
+    ``self_collision`` (M,) bool: the candidates' self-collision when already checked.
     """
     if len(c) == 0:
         return []
@@ -149,7 +151,9 @@ def rank(ctx: Context, c: Candidates, q_seed: Optional[np.ndarray],
         if free >= limit or deadline.expired():
             break
         key = i if keys is None else keys[i].tobytes()
-        if key not in checked:
+        if self_collision is not None:
+            checked[key] = bool(self_collision[i])
+        elif key not in checked:
             checked[key] = ctx.checker.self_collision(c.q[i:i + 1])[0]
         selfc[i] = checked[key]
         free += not selfc[i]
