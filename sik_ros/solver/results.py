@@ -48,13 +48,14 @@ class Solution:
     self_collision: bool = False
     converged: bool = False
     tier: int = 0
-    pending: Optional['PendingIndices'] = field(default=None, repr=False, compare=False)
+    _pending: Optional['PendingIndices'] = field(default=None, init=False, repr=False,
+                                                 compare=False)
 
     def __getstate__(self) -> dict:
         """The fields with the posture index computed (for pickling and copies)."""
-        if self.pending is not None:
-            self.pending.resolve()
-        return dict(self.__dict__, pending=None)
+        if self._pending is not None:
+            self._pending.resolve()
+        return dict(self.__dict__, _pending=None)
 
     @property
     def in_collision(self) -> bool:
@@ -63,7 +64,7 @@ class Solution:
 
 
 def _index_get(self: Solution) -> np.ndarray:
-    pending = self.__dict__.get('pending')
+    pending = self.__dict__.get('_pending')
     if pending is not None:
         pending.resolve()
     return self.__dict__['_posture_index']
@@ -89,7 +90,7 @@ class PendingIndices:
         self._solutions, self._encode = list(solutions), encode
         self._lock = threading.Lock()
         for s in self._solutions:
-            s.pending = self
+            s._pending = self
 
     def resolve(self) -> None:
         """Encode the solutions' configurations and store their indices (once)."""
@@ -99,7 +100,7 @@ class PendingIndices:
             z = self._encode(np.array([s.q for s in self._solutions]))
             for s, zi in zip(self._solutions, z):
                 s.__dict__['_posture_index'] = zi.astype(np.float32)
-                s.pending = None
+                s._pending = None
             self._encode = None
 
 
