@@ -145,3 +145,23 @@ def test_last_joint_alignment_is_the_best_turn(bundled):
         swept = aligned.copy()
         swept[:, -1] = t
         assert np.all(best <= angle(swept) + 1e-9)
+
+
+def test_null_directions_are_the_svds_up_to_sign(bundled):
+    """The minors' null vectors of 6 x 7 Jacobians are the SVD's, unit, up to sign.
+
+    A singular Jacobian (a column repeated) is reported, for the caller's SVD.
+    """
+    from sik_ros.kernels.chain import null_directions
+    robot = bundled.robot
+    q = np.random.default_rng(5).uniform(robot.lower, robot.upper, (50, robot.dof))
+    _, _, jac = robot.jacobian_batch(q)
+    out = np.empty(q.shape)
+    assert null_directions(jac, out).all()
+    reference = np.linalg.svd(jac)[2][:, -1]
+    assert np.allclose(np.abs(np.sum(out * reference, axis=1)), 1.0, atol=1e-9)
+    assert np.allclose(np.einsum('kij,kj->ki', jac, out), 0.0, atol=1e-9)
+    singular = jac[:2].copy()
+    singular[:, :, 1] = singular[:, :, 0]
+    singular[:, :, 2] = singular[:, :, 0]
+    assert not null_directions(singular, np.empty((2, 7))).any()

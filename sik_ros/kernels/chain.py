@@ -167,3 +167,65 @@ def align_last_many(frames, q, goal, lower, upper):  # pragma: no cover (compile
                 m[i, j] = s
         theta = math.atan2(m[1, 0] - m[0, 1], m[0, 0] + m[1, 1])
         q[k, n - 1] = min(max(theta, lower), upper)
+
+
+@njit(cache=True, nogil=True)
+def _det6(a):  # pragma: no cover (compiled)
+    """Determinant of a 6 x 6 matrix ``a`` (overwritten), by elimination with partial pivoting."""
+    det = 1.0
+    n = a.shape[0]
+    for c in range(n):
+        p = c
+        for r in range(c + 1, n):
+            if abs(a[r, c]) > abs(a[p, c]):
+                p = r
+        if a[p, c] == 0.0:
+            return 0.0
+        if p != c:
+            for k in range(n):
+                a[c, k], a[p, k] = a[p, k], a[c, k]
+            det = -det
+        det *= a[c, c]
+        for r in range(c + 1, n):
+            f = a[r, c] / a[c, c]
+            for k in range(c + 1, n):
+                a[r, k] -= f * a[c, k]
+    return det
+
+
+@njit(f'boolean[::1]({F3}, {F2})', cache=True, nogil=True)
+def null_directions(jac, out):  # pragma: no cover (compiled)
+    """Unit vectors spanning the null spaces of 6 x 7 Jacobians ``jac`` (M, 6, 7) into ``out``.
+
+    The null vector of a full-rank 6 x 7 matrix has the signed 6 x 6 minors as its entries
+    (the generalised cross product). Returns, per row, whether it was found: False where the
+    Jacobian is (nearly) singular, whose null space the caller takes from an SVD.
+    """
+    m = jac.shape[0]
+    ok = np.ones(m, dtype=np.bool_)
+    minor = np.empty((6, 6))
+    for k in range(m):
+        norm = 0.0
+        for i in range(7):
+            for r in range(6):
+                c2 = 0
+                for c in range(7):
+                    if c != i:
+                        minor[r, c2] = jac[k, r, c]
+                        c2 += 1
+            v = _det6(minor)
+            out[k, i] = -v if i % 2 else v
+            norm += out[k, i] * out[k, i]
+        scale = 0.0
+        for r in range(6):
+            for c in range(7):
+                scale = max(scale, abs(jac[k, r, c]))
+        # the minors scale as the sixth power of the entries: relative to that, too small
+        # means a rank below 6
+        if norm <= (1e-9 * scale ** 6) ** 2:
+            ok[k] = False
+            continue
+        norm = math.sqrt(norm)
+        for i in range(7):
+            out[k, i] /= norm
+    return ok

@@ -15,6 +15,7 @@ import zlib
 import numpy as np
 
 from sik_ros.deadline import Deadline
+from sik_ros.kernels.chain import null_directions
 from sik_ros.periodic import equivalents
 from sik_ros.point_sets import pairwise_distances
 from sik_ros.seed_table import SeedTable
@@ -106,6 +107,22 @@ def periodic_equivalents(ctx: Context, c: Candidates,
     return Candidates(q, out.z, out.perr, out.oerr, out.exact)
 
 
+def null_space(ctx: Context, q: np.ndarray) -> np.ndarray:
+    """Unit vectors (M, n) in the null spaces of the Jacobians at ``q`` (M, n).
+
+    Of a 7-joint arm's, from the signed minors (compiled); of other arms, and where a
+    Jacobian is nearly singular, the right singular vector of its smallest singular value.
+    """
+    _, _, jac = ctx.robot.jacobian_loop(q, ctx.data)
+    nvec = np.empty(q.shape)
+    ok = np.zeros(len(q), dtype=bool)
+    if q.shape[1] == 7 and jac.shape[1] == 6:
+        ok = null_directions(jac, nvec)
+    if not ok.all():
+        nvec[~ok] = np.linalg.svd(jac[~ok])[2][:, -1]
+    return nvec
+
+
 def walk(ctx: Context, c: Candidates, goal: Goal, deadline: Deadline,
          need: int) -> Candidates:
     """``c`` and the distinct exact solutions found along the self-motion of its exact ones.
@@ -129,8 +146,7 @@ def walk(ctx: Context, c: Candidates, goal: Goal, deadline: Deadline,
     frontier, heading = found, None
     new = []
     for _ in range(cfg.walk_rounds):
-        _, _, jac = ctx.robot.jacobian_loop(frontier, ctx.data)
-        nvec = np.linalg.svd(jac)[2][:, -1]  # unit vectors spanning each null space
+        nvec = null_space(ctx, frontier)
         if heading is None:
             nvec = np.concatenate([nvec, -nvec])
             frontier = np.concatenate([frontier, frontier])
