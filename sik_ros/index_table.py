@@ -196,7 +196,7 @@ class IndexTable:
         k = min(k_cells, len(self.centers))
         point = as_arg(position).ravel()
         cells = np.empty(0, dtype=np.int64)
-        if self.grid is not None:
+        if self.grid is not None and np.isfinite(point).all():
             # the grid's boxes around the point: the KD-tree's cells without its Python call
             # (which cost 35 us warm, most of a table look-up)
             g = self.grid
