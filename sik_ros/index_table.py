@@ -13,11 +13,15 @@ A position-goal table may also keep, per index, its **decoded posture**: the dec
 that index at the centre of its cell (8 bits per joint over the joint range), computed once when
 the table is built. The solver refines from these instead of decoding the candidates at every
 call: a goal is at most half a cell from the centre, which costs the refinement about one
-iteration and saves the decoder's forward pass (see docs/benchmarks.md).
+iteration and saves the decoder's forward pass (see docs/benchmarks.md). Such a table may keep
+only the indices the decoder **realises** (``sik-index --max-tip-error``, the manifest's
+``realised`` entry): those whose decoded tip lands near the goal around their cell. It then holds
+fewer rows per cell, and the solver pools more cells (:meth:`IndexTable.pool_cells`).
 """
 
 import functools
 import json
+import math
 from pathlib import Path
 from typing import Dict, Optional, Protocol, Tuple
 import zipfile
@@ -61,6 +65,9 @@ class PostureTable(Protocol):
     def rows_near(self, position: np.ndarray, k_cells: int) -> np.ndarray:
         """Rows of the indices to try for a goal at ``position`` [m]."""
 
+    def pool_cells(self, k_cells: int) -> int:
+        """Cells holding about as many rows as ``k_cells`` cells of an unfiltered table."""
+
     def distance_to_data(self, position: np.ndarray) -> float:
         """How far ``position`` is from the data the table was made of [m]."""
 
@@ -99,6 +106,10 @@ class PriorTable:
     def rows_near(self, position: np.ndarray, k_cells: int) -> np.ndarray:
         """Every draw, whatever the position."""
         return np.arange(len(self.indices))
+
+    def pool_cells(self, k_cells: int) -> int:
+        """``k_cells``: the draws have no cells."""
+        return k_cells
 
     def distance_to_data(self, position: np.ndarray) -> float:
         """0: the prior covers every goal."""
@@ -190,6 +201,15 @@ class IndexTable:
                                                  'upper': [float(v) for v in upper]})
         return IndexTable(self.centers, self.offsets, self.indices, manifest, self.orientations,
                           postures)
+
+    def pool_cells(self, k_cells: int) -> int:
+        """Cells holding about as many rows as ``k_cells`` cells held before the filter.
+
+        ``k_cells`` for a table that keeps every index; more for one that keeps only the
+        realised ones (the manifest's ``realised`` entry), by the share of rows it kept.
+        """
+        before = self.manifest.get('realised', {}).get('entries_before', len(self.indices))
+        return max(k_cells, math.ceil(k_cells * before / max(len(self.indices), 1)))
 
     def rows_near(self, position: np.ndarray, k_cells: int) -> np.ndarray:
         """Table rows (indices into ``indices``) of the ``k_cells`` cells nearest a position."""
@@ -323,8 +343,9 @@ class IndexTable:
         if manifest.get('kind') != 'sik_index_table':
             raise CorruptArtifact(f'{path} is not a sik_ros index table')
         if (len(offsets) != len(centers) + 1 or offsets[-1] != len(indices)
-                or len(centers) != manifest.get('cells')):
+                or len(centers) != manifest.get('cells') or np.any(np.diff(offsets) < 1)):
             raise CorruptArtifact(f'index table {path}: sizes disagree with its manifest')
+        cls._check_realised(path, manifest.get('realised'), len(indices))
         if bool(manifest.get('orientations', False)) != (orientations is not None) or (
                 orientations is not None and (orientations.shape != (len(indices), 4)
                                               or not np.all(np.any(orientations != 0, axis=1)))):
@@ -336,6 +357,21 @@ class IndexTable:
             raise ArtifactMismatch(f'index table {path}: model', signature,
                                    manifest.get('model'))
         return cls(centers, offsets, indices, manifest, orientations, postures)
+
+    @staticmethod
+    def _check_realised(path, realised: Optional[Dict], entries: int) -> None:
+        """Refuse a ``realised`` manifest entry that is not a filter to ``entries`` rows."""
+        if realised is None:
+            return
+        try:
+            ok = (math.isfinite(realised['max_tip_error']) and realised['max_tip_error'] > 0
+                  and math.isfinite(realised['probe']) and realised['probe'] >= 0
+                  and int(realised['entries_before']) >= entries)
+        except (TypeError, KeyError, ValueError):
+            ok = False
+        if not ok:
+            raise CorruptArtifact(f'index table {path}: its realised entry {realised} is not a '
+                                  f'filter to {entries} rows')
 
     @staticmethod
     def _postures_from_codes(path, manifest: Dict, codes: Optional[np.ndarray],

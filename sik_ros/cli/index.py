@@ -20,6 +20,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument('--dedup', type=float, default=TableConfig.dedup,
                    help='indices closer than this per element are duplicates')
     p.add_argument('--max-per-cell', type=int, default=TableConfig.max_per_cell)
+    p.add_argument('--max-tip-error', type=float, default=TableConfig.max_tip_error,
+                   help='keep only indices whose decoded tip comes within this of the goal at '
+                   'their cell centre and one cell away along each axis [m] (each cell keeps '
+                   'its best; recorded in the manifest; position-goal models with --postures); '
+                   '0: keep every index (default)')
     p.add_argument('--orientations', action=argparse.BooleanOptionalAction, default=True,
                    help='keep each index\'s tip orientation (8 bits per element), so pose goals '
                    'can choose indices by orientation (default: on)')
@@ -60,7 +65,7 @@ def main(argv: Optional[List[str]] = None) -> int:
             raise InvalidArgument(f'--out must end in .npz; got {out}')
         if args.seeds is not None and args.seeds < 0:
             raise InvalidArgument(f'--seeds must be >= 0; got {args.seeds}')
-        cfg = TableConfig(args.cell, args.dedup, args.max_per_cell)
+        cfg = TableConfig(args.cell, args.dedup, args.max_per_cell, args.max_tip_error)
         ckpt = load_checkpoint(args.model)
         robot = robot_from_manifest(ckpt['robot'], f'model {args.model}')
         ds = Dataset.load(args.dataset, robot)

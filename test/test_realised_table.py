@@ -1,0 +1,113 @@
+"""Tables of realised indices: the filter at build, its manifest entry, its checks on load."""
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from sik_ros.errors import CorruptArtifact, InvalidArgument
+from sik_ros.index_table import IndexTable, PriorTable, TableConfig
+from sik_ros.indexing import keep_realised
+
+
+def three_cells():
+    """A table of three cells holding 3, 2 and 1 indices."""
+    pos = np.array([[0.01, 0.01, 0.01]] * 3 + [[0.31, 0.01, 0.01]] * 2 + [[0.61, 0.01, 0.01]])
+    z = np.array([[0.0], [1.0], [2.0], [5.0], [6.0], [9.0]])
+    return IndexTable.build(z, pos, TableConfig(0.1, 0.5, 4),
+                            {'robot': {'robot': 'x'}, 'model': {'m': 1}})
+
+
+def test_the_filter_drops_unrealised_rows_but_keeps_each_cells_best(tmp_path):
+    """Rows above the threshold go; a cell whose rows all miss keeps its best one.
+
+    The manifest records the threshold, the probe distance and the rows there were, through a
+    save and a load.
+    """
+    table = three_cells()
+    errors = np.array([0.001, 0.05, 0.002, 0.04, 0.03, 0.2])
+    kept = keep_realised(table, errors, 0.01)
+    np.testing.assert_array_equal(np.diff(kept.offsets), [2, 1, 1])
+    assert sorted(kept.indices[:2, 0].tolist()) == [0.0, 2.0]
+    assert kept.indices[2, 0] == 6.0 and kept.indices[3, 0] == 9.0  # each cell's best
+    back = IndexTable.load(kept.save(tmp_path / 'r.npz'))
+    assert back.manifest['realised'] == {'max_tip_error': 0.01, 'probe': 0.1,
+                                         'entries_before': 6}
+    assert back.manifest['entries'] == 4 and len(back.indices) == 4
+
+
+def test_a_realised_table_pools_more_cells_for_as_many_rows():
+    """``pool_cells`` scales the cells by the share of rows the filter kept (no filter: as is)."""
+    table = three_cells()
+    assert table.pool_cells(8) == 8
+    kept = keep_realised(table, np.array([0.0, 1.0, 1.0, 0.0, 1.0, 0.0]), 0.5)
+    assert kept.pool_cells(8) == 16 and kept.pool_cells(1) == 2
+    assert PriorTable(4, 8).pool_cells(8) == 8
+
+
+def test_a_bad_realised_entry_or_an_empty_cell_is_refused(tmp_path):
+    """A file whose realised entry is not a filter, or with a cell of no index, is refused."""
+    kept = keep_realised(three_cells(), np.zeros(6), 0.01)
+    for bad in ({'max_tip_error': -1.0, 'probe': 0.1, 'entries_before': 6},
+                {'max_tip_error': 0.01, 'probe': 0.1, 'entries_before': 2},
+                {'max_tip_error': 0.01}, 'yes'):
+        kept.manifest = dict(kept.manifest, realised=bad)
+        with pytest.raises(CorruptArtifact, match='realised'):
+            IndexTable.load(kept.save(tmp_path / 'bad.npz'))
+    table = three_cells()
+    empty = IndexTable(table.centers, np.array([0, 3, 3, 6]), table.indices, table.manifest)
+    with pytest.raises(CorruptArtifact, match='sizes'):
+        IndexTable.load(empty.save(tmp_path / 'empty.npz'))
+    with pytest.raises(InvalidArgument):
+        TableConfig(max_tip_error=-0.01)
+
+
+def test_build_keeps_the_indices_the_decoder_realises(tiny_bundle, uniform_small, panda):
+    """Every kept row's decoded tip is within the threshold at its probes, or its cell's best.
+
+    The tip errors' centre probe is the FK of the decoded postures; a pose-goal model, or a
+    table without postures, cannot be filtered.
+    """
+    from sik_ros.checkpoints import load_checkpoint, model_from_checkpoint
+    from sik_ros.indexing import build_table, tip_errors
+    ckpt = load_checkpoint(tiny_bundle / 'sik_position.pt')
+    full = build_table(ckpt, panda, uniform_small, TableConfig(cell=0.08))
+    model, _, norm = model_from_checkpoint(ckpt)
+    errors = tip_errors(model, norm, full, panda, full.postures)
+    tips, _ = panda.fk_batch(full.postures.astype(np.float64))
+    centre = np.linalg.norm(tips - full.cell_centers(np.arange(len(full.indices))), axis=1)
+    assert np.all(errors >= centre - 1e-9)
+    limit = float(np.median(errors))
+    kept = build_table(ckpt, panda, uniform_small, TableConfig(cell=0.08, max_tip_error=limit))
+    assert len(kept) == len(full) and 0 < len(kept.indices) < len(full.indices)
+    assert kept.manifest['realised']['max_tip_error'] == limit
+    mine = tip_errors(model, norm, kept, panda, kept.postures)
+    cell = np.repeat(np.arange(len(kept)), np.diff(kept.offsets))
+    best = np.minimum.reduceat(mine, kept.offsets[:-1])
+    assert np.all((mine <= limit + 1e-6) | (np.diff(kept.offsets)[cell] == 1))
+    assert np.all(best <= np.minimum.reduceat(errors, full.offsets[:-1]) + 1e-6)
+    with pytest.raises(InvalidArgument, match='postures'):
+        build_table(ckpt, panda, uniform_small, TableConfig(max_tip_error=0.01), postures=False)
+    with pytest.raises(InvalidArgument):
+        build_table(load_checkpoint(tiny_bundle / 'sik_pose.pt'), panda, uniform_small,
+                    TableConfig(max_tip_error=0.01))
+
+
+def test_sik_index_records_the_threshold_and_the_bundle_serves(
+        tiny_bundle, uniform_small, tmp_path, panda):
+    """sik-index --max-tip-error writes the threshold into the table; the bundle answers."""
+    from sik_ros.solver import SelectiveIK
+    r = subprocess.run([sys.executable, '-m', 'sik_ros.cli.index', '--model',
+                        str(tiny_bundle / 'sik_position.pt'), '--dataset',
+                        str(uniform_small.path), '--out', str(tmp_path / 't.npz'),
+                        '--max-tip-error', '0.2', '--bundle', str(tmp_path / 'b'), '--quiet'],
+                       capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0, r.stderr
+    table = IndexTable.load(tmp_path / 'b' / 'sik_position_table.npz')
+    assert json.loads(json.dumps(table.manifest))['realised']['max_tip_error'] == 0.2
+    target = panda.fk_batch(np.asarray(uniform_small.q[:1]))[0][0]
+    ik = SelectiveIK.load(tmp_path / 'b')
+    for refine in (True, False):
+        assert ik.solve(target, num_solutions=4, refine=refine).solutions
