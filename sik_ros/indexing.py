@@ -3,7 +3,7 @@
 Every dataset row is encoded to its posture index (:func:`encode_dataset`), the indices are grouped
 into cells (:meth:`IndexTable.build`), and a position-goal table may keep each index decoded at
 its cell's centre (:func:`decode_postures`) and keep only the indices the decoder realises there
-(:func:`tip_errors`, :func:`keep_realised`). :func:`build_table` does all of it for a checkpoint.
+(:func:`tip_errors`, :func:`mark_realised`). :func:`build_table` does all of it for a checkpoint.
 """
 
 from typing import Callable, Dict, Optional
@@ -91,22 +91,21 @@ def tip_errors(model, norm: Normalizer, table: IndexTable, robot: Robot,
     return worst
 
 
-def keep_realised(table: IndexTable, errors: np.ndarray, max_error: float) -> IndexTable:
-    """The table without the rows whose ``errors`` [m] exceed ``max_error`` [m].
+def mark_realised(table: IndexTable, errors: np.ndarray, max_error: float) -> IndexTable:
+    """The table with the rows whose ``errors`` [m] are within ``max_error`` [m] marked realised.
 
-    Each cell keeps at least its row of least error. The manifest's ``realised`` entry records
-    the threshold, the probe distance [m] and the rows there were before.
+    Each cell has at least its row of least error marked. The look-up by position gives only
+    the marked rows; every row stays for the look-up by orientation. The manifest's
+    ``realised`` entry records the threshold, the probe distance [m] and the rows marked.
     """
     cell = np.repeat(np.arange(len(table.centers)), np.diff(table.offsets))
     best = np.minimum.reduceat(errors, table.offsets[:-1])
-    keep = (errors <= max_error) | (errors == best[cell])
-    offsets = np.r_[0, np.cumsum(np.bincount(cell[keep], minlength=len(table.centers)))]
-    manifest = dict(table.manifest, entries=int(keep.sum()),
-                    realised={'max_tip_error': float(max_error), 'probe': table.cell,
-                              'entries_before': len(table.indices)})
-    return IndexTable(table.centers, offsets, table.indices[keep], manifest,
-                      None if table.orientations is None else table.orientations[keep],
-                      None if table.postures is None else table.postures[keep])
+    mask = (errors <= max_error) | (errors == best[cell])
+    manifest = dict(table.manifest, realised={'max_tip_error': float(max_error),
+                                              'probe': table.cell,
+                                              'entries': int(np.count_nonzero(mask))})
+    return IndexTable(table.centers, table.offsets, table.indices, manifest, table.orientations,
+                      table.postures, mask)
 
 
 def build_table(ckpt: Dict, robot: Robot, ds: Dataset, cfg: TableConfig = TableConfig(),
@@ -148,5 +147,5 @@ def build_table(ckpt: Dict, robot: Robot, ds: Dataset, cfg: TableConfig = TableC
             robot.lower, robot.upper)
     if cfg.max_tip_error > 0:
         errors = tip_errors(model, norm, table, robot, table.postures)
-        table = keep_realised(table, errors, cfg.max_tip_error)
+        table = mark_realised(table, errors, cfg.max_tip_error)
     return table

@@ -1,4 +1,4 @@
-"""Tables of realised indices: the filter at build, its manifest entry, its checks on load."""
+"""Tables that mark the indices their decoder realises: the build, the manifest, the checks."""
 
 import json
 import subprocess
@@ -9,7 +9,7 @@ import pytest
 
 from sik_ros.errors import CorruptArtifact, InvalidArgument
 from sik_ros.index_table import IndexTable, PriorTable, TableConfig
-from sik_ros.indexing import keep_realised
+from sik_ros.indexing import mark_realised
 
 
 def three_cells():
@@ -20,43 +20,49 @@ def three_cells():
                             {'robot': {'robot': 'x'}, 'model': {'m': 1}})
 
 
-def test_the_filter_drops_unrealised_rows_but_keeps_each_cells_best(tmp_path):
-    """Rows above the threshold go; a cell whose rows all miss keeps its best one.
+def test_the_look_up_by_position_gives_the_realised_rows_and_each_cells_best(tmp_path):
+    """Rows above the threshold are left out of the look-up by position, not out of the table.
 
-    The manifest records the threshold, the probe distance and the rows there were, through a
-    save and a load.
+    A cell whose rows all miss keeps its best one. The manifest records the threshold, the
+    probe distance and the rows marked, through a save and a load.
     """
     table = three_cells()
     errors = np.array([0.001, 0.05, 0.002, 0.04, 0.03, 0.2])
-    kept = keep_realised(table, errors, 0.01)
-    np.testing.assert_array_equal(np.diff(kept.offsets), [2, 1, 1])
-    assert sorted(kept.indices[:2, 0].tolist()) == [0.0, 2.0]
-    assert kept.indices[2, 0] == 6.0 and kept.indices[3, 0] == 9.0  # each cell's best
-    back = IndexTable.load(kept.save(tmp_path / 'r.npz'))
-    assert back.manifest['realised'] == {'max_tip_error': 0.01, 'probe': 0.1,
-                                         'entries_before': 6}
-    assert back.manifest['entries'] == 4 and len(back.indices) == 4
+    marked = mark_realised(table, errors, 0.01)
+    for t in (marked, IndexTable.load(marked.save(tmp_path / 'r.npz'))):
+        assert len(t.indices) == 6
+        assert t.realised.tolist() == [True, False, True, False, True, True]
+        assert sorted(t.indices[t.rows_near(np.full(3, 0.01), 1), 0].tolist()) == [0.0, 2.0]
+        assert t.indices[t.rows_near(np.array([0.31, 0.01, 0.01]), 1), 0].tolist() == [6.0]
+        assert len(t.rows_in_cells(np.full(3, 0.01), 1)) == 3
+        assert t.manifest['realised'] == {'max_tip_error': 0.01, 'probe': 0.1, 'entries': 4}
 
 
 def test_a_realised_table_pools_more_cells_for_as_many_rows():
-    """``pool_cells`` scales the cells by the share of rows the filter kept (no filter: as is)."""
+    """``pool_cells`` scales the cells by the share of rows marked (none marked: as is)."""
     table = three_cells()
     assert table.pool_cells(8) == 8
-    kept = keep_realised(table, np.array([0.0, 1.0, 1.0, 0.0, 1.0, 0.0]), 0.5)
-    assert kept.pool_cells(8) == 16 and kept.pool_cells(1) == 2
+    marked = mark_realised(table, np.array([0.0, 1.0, 1.0, 0.0, 1.0, 0.0]), 0.5)
+    assert marked.pool_cells(8) == 16 and marked.pool_cells(1) == 2
     assert PriorTable(4, 8).pool_cells(8) == 8
 
 
 def test_a_bad_realised_entry_or_an_empty_cell_is_refused(tmp_path):
-    """A file whose realised entry is not a filter, or with a cell of no index, is refused."""
-    kept = keep_realised(three_cells(), np.zeros(6), 0.01)
-    for bad in ({'max_tip_error': -1.0, 'probe': 0.1, 'entries_before': 6},
-                {'max_tip_error': 0.01, 'probe': 0.1, 'entries_before': 2},
-                {'max_tip_error': 0.01}, 'yes'):
-        kept.manifest = dict(kept.manifest, realised=bad)
+    """A file whose realised rows disagree with its manifest, or a cell without any, is refused."""
+    marked = mark_realised(three_cells(), np.zeros(6), 0.01)
+    for bad in ({'max_tip_error': -1.0, 'probe': 0.1, 'entries': 6},
+                {'max_tip_error': 0.01, 'probe': 0.1, 'entries': 2},
+                {'max_tip_error': 0.01}, 'yes', None):
+        marked.manifest = dict(marked.manifest, realised=bad)
         with pytest.raises(CorruptArtifact, match='realised'):
-            IndexTable.load(kept.save(tmp_path / 'bad.npz'))
+            IndexTable.load(marked.save(tmp_path / 'bad.npz'))
     table = three_cells()
+    lonely = IndexTable(table.centers, table.offsets, table.indices,
+                        dict(table.manifest, realised={'max_tip_error': 0.01, 'probe': 0.1,
+                                                       'entries': 3}),
+                        realised=np.array([True, True, True, False, False, False]))
+    with pytest.raises(CorruptArtifact, match='realised'):
+        IndexTable.load(lonely.save(tmp_path / 'lonely.npz'))
     empty = IndexTable(table.centers, np.array([0, 3, 3, 6]), table.indices, table.manifest)
     with pytest.raises(CorruptArtifact, match='sizes'):
         IndexTable.load(empty.save(tmp_path / 'empty.npz'))
@@ -64,8 +70,8 @@ def test_a_bad_realised_entry_or_an_empty_cell_is_refused(tmp_path):
         TableConfig(max_tip_error=-0.01)
 
 
-def test_build_keeps_the_indices_the_decoder_realises(tiny_bundle, uniform_small, panda):
-    """Every kept row's decoded tip is within the threshold at its probes, or its cell's best.
+def test_build_marks_the_indices_the_decoder_realises(tiny_bundle, uniform_small, panda):
+    """Every marked row's decoded tip is within the threshold at its probes, or its cell's best.
 
     The tip errors' centre probe is the FK of the decoded postures; a pose-goal model, or a
     table without postures, cannot be filtered.
@@ -80,14 +86,14 @@ def test_build_keeps_the_indices_the_decoder_realises(tiny_bundle, uniform_small
     centre = np.linalg.norm(tips - full.cell_centers(np.arange(len(full.indices))), axis=1)
     assert np.all(errors >= centre - 1e-9)
     limit = float(np.median(errors))
-    kept = build_table(ckpt, panda, uniform_small, TableConfig(cell=0.08, max_tip_error=limit))
-    assert len(kept) == len(full) and 0 < len(kept.indices) < len(full.indices)
-    assert kept.manifest['realised']['max_tip_error'] == limit
-    mine = tip_errors(model, norm, kept, panda, kept.postures)
-    cell = np.repeat(np.arange(len(kept)), np.diff(kept.offsets))
-    best = np.minimum.reduceat(mine, kept.offsets[:-1])
-    assert np.all((mine <= limit + 1e-6) | (np.diff(kept.offsets)[cell] == 1))
-    assert np.all(best <= np.minimum.reduceat(errors, full.offsets[:-1]) + 1e-6)
+    marked = build_table(ckpt, panda, uniform_small,
+                         TableConfig(cell=0.08, max_tip_error=limit))
+    np.testing.assert_array_equal(marked.indices, full.indices)
+    assert 0 < marked.manifest['realised']['entries'] < len(full.indices)
+    assert marked.manifest['realised']['max_tip_error'] == limit
+    cell = np.repeat(np.arange(len(marked)), np.diff(marked.offsets))
+    best = np.minimum.reduceat(errors, marked.offsets[:-1])
+    np.testing.assert_array_equal(marked.realised, (errors <= limit) | (errors == best[cell]))
     with pytest.raises(InvalidArgument, match='postures'):
         build_table(ckpt, panda, uniform_small, TableConfig(max_tip_error=0.01), postures=False)
     with pytest.raises(InvalidArgument):
@@ -107,6 +113,7 @@ def test_sik_index_records_the_threshold_and_the_bundle_serves(
     assert r.returncode == 0, r.stderr
     table = IndexTable.load(tmp_path / 'b' / 'sik_position_table.npz')
     assert json.loads(json.dumps(table.manifest))['realised']['max_tip_error'] == 0.2
+    assert table.realised is not None and table.realised.any()
     target = panda.fk_batch(np.asarray(uniform_small.q[:1]))[0][0]
     ik = SelectiveIK.load(tmp_path / 'b')
     for refine in (True, False):

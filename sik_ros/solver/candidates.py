@@ -56,7 +56,8 @@ def table_candidates(ctx: Context, goal: Goal, q_seed: Optional[np.ndarray],
         rows = table.oriented_rows(goal.position, goal.quaternion, count,
                                    max(cfg.oriented_cells, count))
     else:
-        # a table of realised indices only holds fewer per cell: as many rows from more cells
+        # a table that marks the indices its decoder realises holds fewer of them per cell:
+        # as many from more cells
         rows = table.rows_near(goal.position, table.pool_cells(cfg.k_cells))
     pool = table.indices[rows]
     if line:
@@ -122,7 +123,7 @@ def oriented_postures(ctx: Context, goal: Goal, count: int) -> np.ndarray:
     if gm is None or gm.table.orientations is None or count < 1:
         return np.empty((0, ctx.robot.dof))
     rows = gm.table.oriented_rows(goal.position, goal.quaternion, count,
-                                  gm.table.pool_cells(ctx.config.oriented_cells))
+                                  ctx.config.oriented_cells)
     q = starting_postures(ctx, Goal(goal.position), gm.table.indices[rows], rows)
     return align_last_joint(ctx, q, goal.rotation)
 
