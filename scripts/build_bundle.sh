@@ -14,8 +14,9 @@ from sik_ros.training import export_model, load_checkpoint
 export_model(load_checkpoint('$run/last.pt'), '$run/model.pt')"
   # both tables keep each index's orientation (pose goals choose indices by it); the position
   # table also keeps its decoded posture at the cell centre (sik-index's default for position
-  # models) and only the indices whose decoded tip lands within 1.5 cm of the goal at and one
-  # cell around their cell; the pose table keeps 12 indices per cell
+  # models) and marks the indices whose decoded tip lands within 1.5 cm of the goal at and one
+  # cell around their cell (the look-up by position gives those); the pose table keeps 12
+  # indices per cell
   opts=(--max-tip-error 0.015)
   [ "$goal" = pose ] && opts=(--max-per-cell 12)
   $PY -m sik_ros.cli.index --model "$run/model.pt" --dataset "$DATA" \

@@ -39,9 +39,9 @@ class TableConfig:
         cell: edge of the position cells [m].
         dedup: indices closer than this (per element, in index units) count as one.
         max_per_cell: most indices kept per cell (a far-apart subset).
-        max_tip_error: keep only indices whose decoded tip comes within this of the goal at
-            their cell's centre and one cell away along each axis [m] (the best index of a
-            cell stays whatever its error); 0 keeps every index. Position-goal models only.
+        max_tip_error: mark the indices whose decoded tip comes within this of the goal at
+            their cell's centre and one cell away along each axis [m] (and each cell's best):
+            the look-up by position gives only those; 0 marks none. Position-goal models only.
     """
 
     cell: float = 0.05

@@ -21,10 +21,10 @@ def build_parser() -> argparse.ArgumentParser:
                    help='indices closer than this per element are duplicates')
     p.add_argument('--max-per-cell', type=int, default=TableConfig.max_per_cell)
     p.add_argument('--max-tip-error', type=float, default=TableConfig.max_tip_error,
-                   help='keep only indices whose decoded tip comes within this of the goal at '
-                   'their cell centre and one cell away along each axis [m] (each cell keeps '
-                   'its best; recorded in the manifest; position-goal models with --postures); '
-                   '0: keep every index (default)')
+                   help='mark the indices whose decoded tip comes within this of the goal at '
+                   'their cell centre and one cell away along each axis [m]: the look-up by '
+                   'position gives only those (each cell has its best marked; recorded in the '
+                   'manifest; position-goal models with --postures); 0: none marked (default)')
     p.add_argument('--orientations', action=argparse.BooleanOptionalAction, default=True,
                    help='keep each index\'s tip orientation (8 bits per element), so pose goals '
                    'can choose indices by orientation (default: on)')
@@ -75,7 +75,9 @@ def main(argv: Optional[List[str]] = None) -> int:
             table = build_table(ckpt, robot, ds, cfg, args.orientations, args.postures,
                                 progress=bar.update)
         table.save(out)
-        print(f'{table.manifest["cells"]} cells, {table.manifest["entries"]} indices '
+        realised = table.manifest.get('realised')
+        marked = f', {realised["entries"]} of them realised' if realised else ''
+        print(f'{table.manifest["cells"]} cells, {table.manifest["entries"]} indices{marked} '
               f'({out.stat().st_size / 1e6:.2f} MB) in {time.perf_counter() - t0:.1f} s')
         if args.bundle:
             rows = default_rows(robot)
