@@ -118,3 +118,19 @@ def test_sik_index_records_the_threshold_and_the_bundle_serves(
     ik = SelectiveIK.load(tmp_path / 'b')
     for refine in (True, False):
         assert ik.solve(target, num_solutions=4, refine=refine).solutions
+
+
+def test_the_report_describes_a_model_and_its_realised_indices():
+    """sik-eval's model line says how the checkpoint was trained and what its table marks."""
+    from sik_ros.eval.histories import TrainedModel
+    from sik_ros.eval.report import model_line
+    h = TrainedModel([{'val_dist_mean_m': 0.0161, 'val_orient_mean_deg': 11.13}], 9000, 2720.0,
+                     {'latent_dim': 4, 'encoder': (8,), 'decoder': (8,)},
+                     {'batch_size': 8192, 'sampler': 'uniform', 'init': 'a.pt'})
+    manifest = {'cells': 2, 'entries': 6, 'realised': {'max_tip_error': 0.015, 'probe': 0.05,
+                                                       'entries': 4}}
+    line = model_line('pose', h, manifest)
+    for words in ('4 elements', '9000 steps of 8192', 'fresh samples', 'earlier model',
+                  '1.61 cm', '11.1°', '6 indices in 2 cells', '4 of them realised', '1.5 cm'):
+        assert words in line, (words, line)
+    assert 'realised' not in model_line('position', h, {'cells': 2, 'entries': 6})

@@ -111,9 +111,9 @@ def model_line(goal: str, h: TrainedModel, manifest: Dict) -> str:
     if 'cells' in manifest:
         line += f' Its table: {manifest["entries"]:,} indices in {manifest["cells"]:,} cells'
         real = manifest.get('realised')
-        line += (f', those whose decoded tip lands within {100 * real["max_tip_error"]:g} cm of '
-                 f'the goal at and one cell around their cell (of {real["entries_before"]:,})'
-                 if real else '') + '.'
+        line += (f', {real["entries"]:,} of them realised (the decoded tip within '
+                 f'{100 * real["max_tip_error"]:g} cm of the goal at and one cell around their '
+                 'cell): the look-up by position gives those' if real else '') + '.'
     return line
 
 
