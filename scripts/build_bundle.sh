@@ -12,11 +12,14 @@ for goal in position pose; do
   [ -f "$run/model.pt" ] || $PY -c "
 from sik_ros.training import export_model, load_checkpoint
 export_model(load_checkpoint('$run/last.pt'), '$run/model.pt')"
-  # the position table keeps each index's orientation (pose goals choose indices by it) and
-  # its decoded posture at the cell centre (sik-index's default for position models)
-  orient=--orientations
-  [ "$goal" = pose ] && orient=--no-orientations
+  # both tables keep each index's orientation (pose goals choose indices by it); the position
+  # table also keeps its decoded posture at the cell centre (sik-index's default for position
+  # models) and marks the indices whose decoded tip lands within 1.5 cm of the goal at and one
+  # cell around their cell (the look-up by position gives those); the pose table keeps 12
+  # indices per cell
+  opts=(--max-tip-error 0.015)
+  [ "$goal" = pose ] && opts=(--max-per-cell 12)
   $PY -m sik_ros.cli.index --model "$run/model.pt" --dataset "$DATA" \
-    --out "$run/table.npz" --force --bundle "$OUT" "$orient"
+    --out "$run/table.npz" --force --bundle "$OUT" "${opts[@]}"
 done
 du -ch "$OUT"/* | tail -1

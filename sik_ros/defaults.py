@@ -39,15 +39,20 @@ class TableConfig:
         cell: edge of the position cells [m].
         dedup: indices closer than this (per element, in index units) count as one.
         max_per_cell: most indices kept per cell (a far-apart subset).
+        max_tip_error: mark the indices whose decoded tip comes within this of the goal at
+            their cell's centre and one cell away along each axis [m] (and each cell's best):
+            the look-up by position gives only those; 0 marks none. Position-goal models only.
     """
 
     cell: float = 0.05
     dedup: float = 0.05
     max_per_cell: int = 24
+    max_tip_error: float = 0.0
 
     def __post_init__(self):
         """Validate the fields."""
-        if not (self.cell > 0 and self.dedup > 0 and self.max_per_cell >= 1):
+        if not (self.cell > 0 and self.dedup > 0 and self.max_per_cell >= 1
+                and math.isfinite(self.max_tip_error) and self.max_tip_error >= 0):
             raise InvalidArgument(f'invalid table config {self}')
 
 

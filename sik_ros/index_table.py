@@ -13,11 +13,16 @@ A position-goal table may also keep, per index, its **decoded posture**: the dec
 that index at the centre of its cell (8 bits per joint over the joint range), computed once when
 the table is built. The solver refines from these instead of decoding the candidates at every
 call: a goal is at most half a cell from the centre, which costs the refinement about one
-iteration and saves the decoder's forward pass (see docs/benchmarks.md).
+iteration and saves the decoder's forward pass (see docs/benchmarks.md). Such a table may mark
+the indices the decoder **realises** (``sik-index --max-tip-error``, the manifest's ``realised``
+entry): those whose decoded tip lands near the goal around their cell. Its look-up by position
+then gives only those, from as many more cells as hold as many of them
+(:meth:`IndexTable.pool_cells`); the look-up by orientation still chooses among every row.
 """
 
 import functools
 import json
+import math
 from pathlib import Path
 from typing import Dict, Optional, Protocol, Tuple
 import zipfile
@@ -33,6 +38,7 @@ from sik_ros.kernels import as_arg
 from sik_ros.kernels.cells import (best_oriented, cell_rows, CellGrid, MAX_SHELLS,
                                    nearest_cells)
 from sik_ros.point_sets import farthest_point_subset, pairwise_distances  # noqa: F401
+from sik_ros.prior_table import PriorTable  # noqa: F401 (part of this module's API)
 from sik_ros.reach_grid import ReachGrid
 
 TABLE_KEYS = ('centers', 'offsets', 'indices', 'manifest')
@@ -61,6 +67,9 @@ class PostureTable(Protocol):
     def rows_near(self, position: np.ndarray, k_cells: int) -> np.ndarray:
         """Rows of the indices to try for a goal at ``position`` [m]."""
 
+    def pool_cells(self, k_cells: int) -> int:
+        """Cells holding about as many rows as ``k_cells`` cells of an unfiltered table."""
+
     def distance_to_data(self, position: np.ndarray) -> float:
         """How far ``position`` is from the data the table was made of [m]."""
 
@@ -75,61 +84,19 @@ class PostureTable(Protocol):
         """Rows near ``position`` whose tip orientations were nearest ``quaternion``."""
 
 
-class PriorTable:
-    """A :class:`PostureTable` for a PSIK model without a table: draws from its prior.
-
-    PSIK's posture indices are trained towards N(0, I), so a fixed set of draws (the same for
-    every target) stands in for the table's indices near the target. It knows nothing of the
-    workspace: every goal counts as near the data.
-    """
-
-    orientations = None
-    postures = None
-
-    def __init__(self, latent_dim: int, count: int = 48, seed: int = 0):
-        rng = np.random.default_rng(seed)
-        self.indices = rng.standard_normal((count, latent_dim)).astype(np.float32)
-        self.latent_dim = latent_dim
-
-    @property
-    def index_bounds(self) -> Tuple[np.ndarray, np.ndarray]:
-        """Element-wise (min, max) of the draws."""
-        return self.indices.min(axis=0), self.indices.max(axis=0)
-
-    def rows_near(self, position: np.ndarray, k_cells: int) -> np.ndarray:
-        """Every draw, whatever the position."""
-        return np.arange(len(self.indices))
-
-    def distance_to_data(self, position: np.ndarray) -> float:
-        """0: the prior covers every goal."""
-        return 0.0
-
-    def within(self, position: np.ndarray, distance: float) -> bool:
-        """True: the prior covers every goal."""
-        return True
-
-    def oriented_rows(self, position: np.ndarray, quaternion: np.ndarray, count: int,
-                      k_cells: int = 8) -> np.ndarray:
-        """Refused: prior draws carry no orientation.
-
-        Raises:
-            InvalidArgument: always.
-        """
-        raise InvalidArgument('a prior table keeps no orientations')
-
-
 class IndexTable:
     """Cells of tip positions, each with its distinct posture indices.
 
     ``orientations`` (optional, (M, 4) unit quaternions x, y, z, w): the tip orientation of the
     dataset row each index was kept from. ``postures`` (optional, (M, n) [rad]): each index
     decoded at its cell's centre (see :func:`decode_postures`); the manifest's ``postures``
-    entry holds the joint range they are quantised over.
+    entry holds the joint range they are quantised over. ``realised`` (optional, (M,) bool):
+    the rows the look-up by position gives (see :func:`~sik_ros.indexing.mark_realised`).
     """
 
     def __init__(self, centers: np.ndarray, offsets: np.ndarray, indices: np.ndarray,
                  manifest: Dict, orientations: Optional[np.ndarray] = None,
-                 postures: Optional[np.ndarray] = None):
+                 postures: Optional[np.ndarray] = None, realised: Optional[np.ndarray] = None):
         self.centers = np.asarray(centers, dtype=np.float64)
         self.offsets = np.asarray(offsets, dtype=np.int64)
         self.indices = np.asarray(indices, dtype=np.float32)
@@ -138,6 +105,7 @@ class IndexTable:
             quat = np.asarray(orientations, dtype=np.float32)
             self.orientations = quat / np.linalg.norm(quat, axis=1, keepdims=True)
         self.postures = None if postures is None else np.asarray(postures, dtype=np.float32)
+        self.realised = None if realised is None else np.asarray(realised, dtype=bool)
         self.manifest = manifest
         self.tree = cKDTree(self.centers)
         self.reach = ReachGrid(self.tree, self.centers)
@@ -171,7 +139,7 @@ class IndexTable:
         if self.orientations is None:
             raise InvalidArgument('this index table keeps no orientations (rebuild it with '
                                   'sik-index --orientations)')
-        rows = self.rows_near(position, k_cells)
+        rows = self.rows_in_cells(position, k_cells)
         return best_oriented(rows, self.orientations,
                              np.asarray(quaternion, dtype=np.float32).ravel(), count)
 
@@ -189,10 +157,26 @@ class IndexTable:
         manifest = dict(self.manifest, postures={'lower': [float(v) for v in lower],
                                                  'upper': [float(v) for v in upper]})
         return IndexTable(self.centers, self.offsets, self.indices, manifest, self.orientations,
-                          postures)
+                          postures, self.realised)
+
+    def pool_cells(self, k_cells: int) -> int:
+        """Cells whose realised rows are about as many as the rows of ``k_cells`` cells.
+
+        ``k_cells`` for a table that marks no realised rows; more for one that does, by the
+        share of rows it marks.
+        """
+        if self.realised is None:
+            return k_cells
+        share = np.count_nonzero(self.realised) / max(len(self.indices), 1)
+        return max(k_cells, math.ceil(k_cells / max(share, 1e-9)))
 
     def rows_near(self, position: np.ndarray, k_cells: int) -> np.ndarray:
-        """Table rows (indices into ``indices``) of the ``k_cells`` cells nearest a position."""
+        """Table rows of the ``k_cells`` cells nearest a position: the realised ones if marked."""
+        rows = self.rows_in_cells(position, k_cells)
+        return rows if self.realised is None else rows[self.realised[rows]]
+
+    def rows_in_cells(self, position: np.ndarray, k_cells: int) -> np.ndarray:
+        """Every table row (index into ``indices``) of the ``k_cells`` cells nearest a position."""
         k = min(k_cells, len(self.centers))
         point = as_arg(position).ravel()
         cells = np.empty(0, dtype=np.int64)
@@ -286,6 +270,8 @@ class IndexTable:
         extra = {}
         if self.orientations is not None:  # 8-bit quaternions: ~1 degree, enough to choose
             extra['orientations'] = np.round(self.orientations * 127).astype(np.int8)
+        if self.realised is not None:
+            extra['realised'] = np.packbits(self.realised)
         if self.postures is not None:  # 8 bits over each joint's range: < 0.015 rad
             lower, upper = (np.array(self.manifest['postures'][k]) for k in ('lower', 'upper'))
             extra['postures'] = range_codes(self.postures, lower, upper, np.uint8)
@@ -316,6 +302,7 @@ class IndexTable:
                 orientations = f['orientations'].astype(np.float32) \
                     if 'orientations' in f else None
                 codes = f['postures'] if 'postures' in f else None
+                bits = f['realised'] if 'realised' in f else None
         except CorruptArtifact:
             raise
         except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile) as exc:
@@ -323,8 +310,9 @@ class IndexTable:
         if manifest.get('kind') != 'sik_index_table':
             raise CorruptArtifact(f'{path} is not a sik_ros index table')
         if (len(offsets) != len(centers) + 1 or offsets[-1] != len(indices)
-                or len(centers) != manifest.get('cells')):
+                or len(centers) != manifest.get('cells') or np.any(np.diff(offsets) < 1)):
             raise CorruptArtifact(f'index table {path}: sizes disagree with its manifest')
+        realised = cls._realised_from_bits(path, manifest.get('realised'), bits, offsets)
         if bool(manifest.get('orientations', False)) != (orientations is not None) or (
                 orientations is not None and (orientations.shape != (len(indices), 4)
                                               or not np.all(np.any(orientations != 0, axis=1)))):
@@ -335,7 +323,29 @@ class IndexTable:
         if signature is not None and manifest.get('model') != signature:
             raise ArtifactMismatch(f'index table {path}: model', signature,
                                    manifest.get('model'))
-        return cls(centers, offsets, indices, manifest, orientations, postures)
+        return cls(centers, offsets, indices, manifest, orientations, postures, realised)
+
+    @staticmethod
+    def _realised_from_bits(path, spec: Optional[Dict], bits: Optional[np.ndarray],
+                            offsets: np.ndarray) -> Optional[np.ndarray]:
+        """The realised rows from their bits, checked against the manifest's entry.
+
+        Every cell must keep one at least.
+        """
+        if spec is None and bits is None:
+            return None
+        try:
+            mask = np.unpackbits(bits, count=int(offsets[-1])).astype(bool)
+            ok = (math.isfinite(spec['max_tip_error']) and spec['max_tip_error'] > 0
+                  and math.isfinite(spec['probe']) and spec['probe'] >= 0
+                  and int(spec['entries']) == np.count_nonzero(mask)
+                  and np.all(np.add.reduceat(mask, offsets[:-1]) >= 1))
+        except (TypeError, KeyError, ValueError):
+            ok = False
+        if not ok:
+            raise CorruptArtifact(f'index table {path}: its realised rows disagree with its '
+                                  f'manifest ({spec})')
+        return mask
 
     @staticmethod
     def _postures_from_codes(path, manifest: Dict, codes: Optional[np.ndarray],

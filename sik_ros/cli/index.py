@@ -20,6 +20,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument('--dedup', type=float, default=TableConfig.dedup,
                    help='indices closer than this per element are duplicates')
     p.add_argument('--max-per-cell', type=int, default=TableConfig.max_per_cell)
+    p.add_argument('--max-tip-error', type=float, default=TableConfig.max_tip_error,
+                   help='mark the indices whose decoded tip comes within this of the goal at '
+                   'their cell centre and one cell away along each axis [m]: the look-up by '
+                   'position gives only those (each cell has its best marked; recorded in the '
+                   'manifest; position-goal models with --postures); 0: none marked (default)')
     p.add_argument('--orientations', action=argparse.BooleanOptionalAction, default=True,
                    help='keep each index\'s tip orientation (8 bits per element), so pose goals '
                    'can choose indices by orientation (default: on)')
@@ -60,7 +65,7 @@ def main(argv: Optional[List[str]] = None) -> int:
             raise InvalidArgument(f'--out must end in .npz; got {out}')
         if args.seeds is not None and args.seeds < 0:
             raise InvalidArgument(f'--seeds must be >= 0; got {args.seeds}')
-        cfg = TableConfig(args.cell, args.dedup, args.max_per_cell)
+        cfg = TableConfig(args.cell, args.dedup, args.max_per_cell, args.max_tip_error)
         ckpt = load_checkpoint(args.model)
         robot = robot_from_manifest(ckpt['robot'], f'model {args.model}')
         ds = Dataset.load(args.dataset, robot)
@@ -70,7 +75,9 @@ def main(argv: Optional[List[str]] = None) -> int:
             table = build_table(ckpt, robot, ds, cfg, args.orientations, args.postures,
                                 progress=bar.update)
         table.save(out)
-        print(f'{table.manifest["cells"]} cells, {table.manifest["entries"]} indices '
+        realised = table.manifest.get('realised')
+        marked = f', {realised["entries"]} of them realised' if realised else ''
+        print(f'{table.manifest["cells"]} cells, {table.manifest["entries"]} indices{marked} '
               f'({out.stat().st_size / 1e6:.2f} MB) in {time.perf_counter() - t0:.1f} s')
         if args.bundle:
             rows = default_rows(robot)

@@ -5,7 +5,7 @@ beforehand, e.g. with ``scripts/latent_study.sh``); its results, like the traini
 evaluated bundle, come from the checkpoints' stored histories.
 """
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 import re
 from typing import Dict, List, Optional, Union
@@ -24,12 +24,14 @@ class TrainedModel:
         step: training steps taken.
         elapsed_s: training time [s].
         config: the model configuration (``latent_dim``, ``encoder``, ``decoder``, ...).
+        train_config: the training settings (``batch_size``, ``sampler``, ``init``, ...).
     """
 
     history: List[Dict]
     step: int
     elapsed_s: float
     config: Dict
+    train_config: Dict = field(default_factory=dict)
 
 
 @dataclass
@@ -62,7 +64,8 @@ def bundle_histories(ik: SelectiveIK) -> Dict[str, TrainedModel]:
     for goal, files in manifest['models'].items():
         ckpt = load_checkpoint(Path(ik.bundle) / files['model'])
         out[goal] = TrainedModel(ckpt.get('history', []), int(ckpt.get('step', 0)),
-                                 float(ckpt.get('elapsed_s', 0.0)), ckpt['model_config'])
+                                 float(ckpt.get('elapsed_s', 0.0)), ckpt['model_config'],
+                                 dict(ckpt.get('train_config', {})))
     return out
 
 

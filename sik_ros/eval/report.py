@@ -12,6 +12,7 @@ import numpy as np
 
 from sik_ros.eval.baselines import (Baseline, BASELINE_FILES, has_prior_table, Method,
                                     PRIOR_DRAWS, single_solution)
+from sik_ros.eval.histories import TrainedModel
 from sik_ros.eval.markdown import fmt, table, verdict
 from sik_ros.eval.metrics import mean_cm
 from sik_ros.eval.paper import NAMES, PAPER, RADII, VARIANTS
@@ -71,13 +72,8 @@ def models_section(ik: SelectiveIK, baselines: Dict[str, Method], missing: Dict[
     """Which models were evaluated."""
     lines = ['## Models', '', f'Bundle `{shown_path(ik.bundle)}`:', '']
     for goal, h in res.histories.items():
-        cfg = h.config
-        last = h.history[-1] if h.history else {}
-        lines.append(f'- SIK, {goal} goals: latent size {cfg["latent_dim"]}, encoder '
-                     f'{list(cfg["encoder"])}, decoder {list(cfg["decoder"])}, trained '
-                     f'{h.step} steps ({h.elapsed_s / 60:.0f} min); last validation '
-                     f'distance error {fmt(100 * last.get("val_dist_mean_m", np.nan))} cm '
-                     '(decoded from the true posture index).')
+        gm = ik.models.get(goal)
+        lines.append(model_line(goal, h, getattr(gm.table, 'manifest', {}) if gm else {}))
     lines += ['', 'Baselines:', '']
     for name in BASELINE_FILES:
         if name in baselines:
@@ -96,6 +92,29 @@ def models_section(ik: SelectiveIK, baselines: Dict[str, Method], missing: Dict[
         else:
             lines.append(f'- {NAMES[name]}: {missing.get(name, "not provided")}')
     return lines + ['']
+
+
+def model_line(goal: str, h: TrainedModel, manifest: Dict) -> str:
+    """One bundled model: its layers, its checkpoint's training, its last validation, its table."""
+    cfg, tc = h.config, h.train_config
+    last = h.history[-1] if h.history else {}
+    samples = {'uniform': ', fresh samples uniform in joint space'}.get(tc.get('sampler'), '')
+    start = ', started from the weights of an earlier model' if tc.get('init') else ''
+    batch = f' of {tc["batch_size"]}' if 'batch_size' in tc else ''
+    orient = last.get('val_orient_mean_deg')
+    orient = f', orientation {orient:.1f}°' if orient is not None else ''
+    line = (f'- SIK, {goal} goals: posture index of {cfg["latent_dim"]} elements, encoder '
+            f'{list(cfg["encoder"])}, decoder {list(cfg["decoder"])}; its checkpoint: '
+            f'{h.step} steps{batch}{samples}{start} ({h.elapsed_s / 60:.0f} min); last '
+            f'validation (decoded from the true posture index): distance error '
+            f'{fmt(100 * last.get("val_dist_mean_m", np.nan))} cm{orient}.')
+    if 'cells' in manifest:
+        line += f' Its table: {manifest["entries"]:,} indices in {manifest["cells"]:,} cells'
+        real = manifest.get('realised')
+        line += (f', {real["entries"]:,} of them realised (the decoded tip within '
+                 f'{100 * real["max_tip_error"]:g} cm of the goal at and one cell around their '
+                 'cell): the look-up by position gives those' if real else '') + '.'
+    return line
 
 
 def distance_section(res: Results, baselines: Dict[str, Method]) -> List[str]:

@@ -9,6 +9,7 @@ from sik_ros.eval.metrics import mean_cm
 from sik_ros.eval.obstacle import NoObstacleCase
 from sik_ros.eval.paper import LETTERS, NAMES, PAPER
 from sik_ros.eval.run import Results
+from sik_ros.eval.studies import ORIENTED_POOL
 
 
 def diversity_section(res: Results) -> List[str]:
@@ -117,9 +118,15 @@ def orientation_section(res: Results) -> List[str]:
     if o is None:
         return lines + ['Not run: the bundle has no pose model.', '']
     paper = PAPER['orientation']
+    pose = res.histories.get('pose')
+    latent = int(pose.config['latent_dim']) if pose is not None else 1
+    chosen = (f'of the pose model ({latent} elements) far apart among the {ORIENTED_POOL} table '
+              'rows near the target position whose tips had the orientation nearest the '
+              'target\'s (as the solver looks them up)' if latent > 1 else
+              'of the pose model (1-d) at the 0, 25, 50, 75 and 100 % quantiles of the table '
+              'indices near the target position')
     lines += ['Four reachable poses (tips of seeded uniform joint samples); for each, five '
-              'posture indices of the pose model (1-d) at the 0, 25, 50, 75 and 100 % '
-              'quantiles of the table indices near the target position, decoded (raw) and '
+              f'posture indices {chosen}, decoded (raw) and '
               'refined. Cosine similarity of orientation: the mean over the three axes of the '
               'tip frame of the cosine between the target axis and the reached one, '
               '(1 + 2 cos θ) / 3 for a rotation error θ. (The paper does not define its cosine; '

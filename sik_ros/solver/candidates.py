@@ -56,7 +56,9 @@ def table_candidates(ctx: Context, goal: Goal, q_seed: Optional[np.ndarray],
         rows = table.oriented_rows(goal.position, goal.quaternion, count,
                                    max(cfg.oriented_cells, count))
     else:
-        rows = table.rows_near(goal.position, cfg.k_cells)
+        # a table that marks the indices its decoder realises holds fewer of them per cell:
+        # as many from more cells
+        rows = table.rows_near(goal.position, table.pool_cells(cfg.k_cells))
     pool = table.indices[rows]
     if line:
         # a 1-d index is a line (one per branch code): also sweep it over the range the table

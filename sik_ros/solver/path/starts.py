@@ -59,7 +59,7 @@ def table_near_seed(ctx: Context, goal: Goal, q_seed: np.ndarray, count: int
     table = ctx.models[POSITION].table
     if table.postures is None or not ctx.config.cached_postures:
         return None
-    rows = table.rows_near(goal.position, ctx.config.k_cells)
+    rows = table.rows_near(goal.position, table.pool_cells(ctx.config.k_cells))
     q = np.clip(table.postures[rows].astype(np.float64), ctx.robot.lower, ctx.robot.upper)
     q = nearest_turns(ctx.robot, q, q_seed)
     if ctx.ignores_last(POSITION):
