@@ -230,20 +230,23 @@ def test_sik_build_makes_a_bundle_that_solves_with_2pi_equivalents(ur5_bundle, u
 
 
 def test_sik_build_starts_the_pose_model_from_the_position_model(ur5_bundle):
-    """sik-build trains the position model, then the pose model from its weights (manifest).
+    """sik-build starts the pose model from the position model's checkpoint (bundle.json says so).
 
-    The pose model keeps the position model's index size, its training names the position
-    model as its start, and the two shares of the training time are stated in bundle.json.
+    The pose model keeps the position model's index size and starts part way through the
+    position model's training (its start, time and the position model's step then stated in
+    bundle.json), from that checkpoint, with the pose recipe.
     """
     from sik_ros.checkpoints import load_checkpoint
     out, stdout = ur5_bundle
     training = json.loads((out / 'bundle.json').read_text())['training']
     assert training['position']['init'] == '' and training['pose']['init'] == 'position'
-    assert 0 < training['position']['share'] and 0 < training['pose']['share']
-    assert training['position']['share'] + training['pose']['share'] <= 1.0
-    assert 'started from the position model' in stdout
+    pose, position = training['pose'], training['position']
+    assert 0 < pose['start_s'] < position['seconds']
+    assert abs(pose['start_s'] + pose['seconds'] - position['seconds']) < 1.0
+    assert 0 < pose['init_step'] <= position['steps']
+    assert 'from the position model after' in stdout
     models = {g: load_checkpoint(out / f'sik_{g}.pt') for g in ('position', 'pose')}
-    assert models['pose']['train_config']['init'] == 'run_position/model.pt'
+    assert models['pose']['train_config']['init'] == 'run_pose/start.pt'
     assert models['pose']['model_config']['latent_dim'] == \
         models['position']['model_config']['latent_dim']
     assert models['pose']['train_config']['cycle_weight'] > 0
