@@ -5,8 +5,10 @@ reboot) continues where it stopped:
 
 1. **collect**: the uniform sampler (or the Algorithm 1 grid at the finest interval under the row
    budget) over the arm's joint space;
-2. **train**: the position and the pose model at once, one process each (both cores), sharing
-   the time budget; each checkpoints as it goes and resumes from its ``last.pt``;
+2. **train**: the position model on one core for the training time; the pose model on the
+   other, started part way from the position model's checkpoint and fine-tuned with the pose
+   recipe (:mod:`sik_ros.build_training`); each checkpoints as it goes and resumes from its
+   ``last.pt``;
 3. **index**: each model's posture-index table over the dataset;
 4. **bundle**: models and tables in a bundle directory, renamed onto ``--out`` only when
    complete (an interrupted build leaves nothing that looks finished);
@@ -18,52 +20,20 @@ the bundle is built.
 """
 
 from dataclasses import asdict
-import json
-import multiprocessing
 from pathlib import Path
 import time
-from typing import Callable, Dict, Optional
+from typing import Dict, Optional
 
 import numpy as np
 
 from sik_ros.artifacts import atomic_directory, read_json, write_json_atomic
+from sik_ros.build_training import (GOALS, history, latent_dims,  # noqa: F401 (API)
+                                    plan_training, run_training, Say, training_summary)
 from sik_ros.bundle import build_bundle, read_bundle_manifest
 from sik_ros.dataset import collect, Dataset, finest_interval, MAX_ROWS
 from sik_ros.defaults import BuildConfig  # noqa: F401 (part of this module's API)
 from sik_ros.errors import ArtifactMismatch, InvalidArgument
 from sik_ros.kinematics import Robot
-from sik_ros.models import PRESETS
-from sik_ros.robots import robot_from_manifest
-
-GOALS = ('position', 'pose')
-Say = Callable[[str], None]
-
-
-def latent_dims(robot: Robot) -> Dict[str, int]:
-    """Posture index sizes: the arm's redundancy per goal kind (at least 1, at most 4)."""
-    return {'position': max(1, min(4, robot.dof - 3)), 'pose': max(1, min(4, robot.dof - 6))}
-
-
-def _train_worker(robot_manifest: Dict, dataset: str, goal: str, run: str, cfg: Dict,
-                  seconds: float) -> None:
-    """One model's training (in its own process): resume, run for ``seconds``, export."""
-    import torch
-    from sik_ros.checkpoints import export_model, load_checkpoint
-    from sik_ros.models import ModelConfig
-    from sik_ros.training import TrainConfig, Trainer
-    robot = robot_from_manifest(robot_manifest, 'build')
-    ds = Dataset.load(dataset, robot)
-    model_cfg = ModelConfig.from_dict(cfg['model'])
-    trainer = Trainer(robot, ds, model_cfg, TrainConfig(**cfg['train']), Path(run))
-    if (Path(run) / 'last.pt').exists():
-        trainer.restore(load_checkpoint(Path(run) / 'last.pt'))
-    torch.set_num_threads(1)
-    try:
-        trainer.run(max_time=max(1.0, seconds - trainer.elapsed))
-    except KeyboardInterrupt:
-        trainer.save()
-        return
-    export_model(trainer.checkpoint(), Path(run) / 'model.pt')
 
 
 class Builder:
@@ -150,87 +120,23 @@ class Builder:
                                   f'other stages need about {spent + rest:.0f} s)')
         return seconds
 
-    def train_configs(self, seconds: float) -> Dict[str, Dict]:
-        """Model and training configs per goal kind, the schedule sized to ``seconds``."""
-        from sik_ros.training import TrainConfig
-        import torch
-        from sik_ros.models import branch_bits, ModelConfig
-        from sik_ros.training import Trainer
-        enc, dec = PRESETS[self.cfg.preset]
-        ds = Dataset.load(self.work / 'dataset', self.robot)
-        rows = len(ds)
-        out = {}
-        for goal, latent in latent_dims(self.robot).items():
-            # the pose model's index: the learned part and the arm's branch code (its
-            # shoulder and wrist flips), which tells the separate pieces of a pose's
-            # self-motion (or a 6-joint arm's isolated branches) apart
-            bits = branch_bits(self.robot.chain, self.robot.lower, self.robot.upper) \
-                if goal == 'pose' else ()
-            model = ModelConfig(kind='sik', goal=goal, dof=self.robot.dof, latent_dim=latent,
-                                encoder=enc, decoder=dec, branches=bits)
-            probe = TrainConfig(steps=100, batch_size=self.cfg.batch_size, fk_weight=0.005,
-                                val_rows=min(1000, rows // 10), device=self.cfg.device)
-            threads = torch.get_num_threads()
-            torch.set_num_threads(1)  # as each training process will run
-            try:
-                per_step = Trainer(self.robot, ds, model, probe,
-                                   self.work / 'probe').seconds_per_step()
-            finally:
-                torch.set_num_threads(threads)
-            steps = max(50, int(0.95 * seconds / per_step))
-            train = TrainConfig(steps=steps, batch_size=self.cfg.batch_size,
-                                warmup=min(500, steps // 10), fk_weight=0.005,
-                                fk_start=int(0.55 * steps), val_rows=min(20_000, rows // 10),
-                                eval_every=max(10, steps // 20),
-                                checkpoint_every=max(10, steps // 20), seed=self.cfg.seed,
-                                device=self.cfg.device)
-            out[goal] = {'model': asdict(model), 'train': asdict(train)}
-            self.say(f'{goal} model: {steps:,} steps of {self.cfg.batch_size} at '
-                     f'{1e3 * per_step:.0f} ms each (measured), index of {latent}'
-                     + (f' and a branch code of {len(bits)} bits' if bits else ''))
-        return out
-
     def train(self, seconds: float) -> Dict:
-        """Stage 2: both models at once, each in its own process, for ``seconds``."""
-        from tqdm import tqdm
+        """Stage 2: the position and the pose model (:mod:`sik_ros.build_training`)."""
         plan_file = self.work / 'train_plan.json'
         if plan_file.exists():  # a resumed build keeps its schedule
             plan = read_json(plan_file, 'training plan')
         else:
-            plan = {'seconds': seconds, 'configs': self.train_configs(seconds)}
+            plan = plan_training(self.robot, self.cfg, self.work, seconds, self.say)
             write_json_atomic(plan_file, plan)
-        ctx = multiprocessing.get_context('spawn')
-        procs = []
+        run_training(self.robot, self.work, plan, self.bars)
+        info = training_summary(self.work, plan)
         for goal in GOALS:
-            run = self.work / f'run_{goal}'
-            run.mkdir(parents=True, exist_ok=True)
-            p = ctx.Process(target=_train_worker, name=f'sik_train_{goal}',
-                            args=(self.robot.manifest(), str(self.work / 'dataset'), goal,
-                                  str(run), plan['configs'][goal], plan['seconds']))
-            p.start()
-            procs.append(p)
-        t0 = time.perf_counter()
-        with tqdm(total=round(plan['seconds']), desc='train position+pose', unit='s',
-                  disable=not self.bars) as bar:
-            try:
-                while any(p.is_alive() for p in procs):
-                    time.sleep(1.0)
-                    bar.update(min(round(time.perf_counter() - t0), bar.total) - bar.n)
-            except KeyboardInterrupt:
-                for p in procs:
-                    p.join(30)
-                raise
-        failed = [g for g, p in zip(GOALS, procs) if p.exitcode != 0
-                  or not (self.work / f'run_{g}' / 'model.pt').exists()]
-        if failed:
-            raise InvalidArgument(f'training of the {failed} model(s) stopped early; rerun to '
-                                  f'continue from the checkpoints in {self.work}')
-        info = {}
-        for goal in GOALS:
-            hist = json.loads(json.dumps(_history(self.work / f'run_{goal}' / 'model.pt')))
-            info[goal] = hist
+            hist = history(self.work / f'run_{goal}' / 'model.pt')
+            info[goal].update(hist)
             self.say(f'trained {goal} model: {hist["step"]} steps, validation error '
-                     f'{100 * hist.get("val_dist_mean_m", float("nan")):.2f} cm')
+                     f'{100 * hist.get("val_dist_mean_m", float("nan")):.2f} cm'
+                     + (f' / {hist["val_orient_mean_deg"]:.1f} deg'
+                        if 'val_orient_mean_deg' in hist else ''))
         return info
 
     def bundle(self) -> Dict:
@@ -242,6 +148,10 @@ class Builder:
             with tqdm(total=len(ds) * len(GOALS), desc='index', unit='rows', unit_scale=True,
                       disable=not self.bars) as bar:
                 build_bundle(tmp, self.robot, models, ds, progress=bar.update)
+            manifest = read_bundle_manifest(tmp)
+            manifest['training'] = training_summary(
+                self.work, read_json(self.work / 'train_plan.json', 'training plan'))
+            write_json_atomic(tmp / 'bundle.json', manifest)
         size = sum(f.stat().st_size for f in self.out.iterdir())
         self.say(f'bundle {self.out}: {size / 1e6:.1f} MB')
         return {'bytes': size}
@@ -276,12 +186,3 @@ class Builder:
         manifest['self_check'] = report
         write_json_atomic(self.out / 'bundle.json', manifest)
         return report
-
-
-def _history(model_file: Path) -> Dict:
-    """Steps, time and the last validation figures of an exported model."""
-    from sik_ros.checkpoints import load_checkpoint
-    ckpt = load_checkpoint(model_file)
-    last = ckpt.get('history', [{}])[-1] if ckpt.get('history') else {}
-    return {'step': int(ckpt.get('step', 0)), 'elapsed_s': float(ckpt.get('elapsed_s', 0.0)),
-            **{k: float(v) for k, v in last.items() if k.startswith('val')}}

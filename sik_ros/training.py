@@ -347,9 +347,10 @@ class Trainer:
 
         The model config, the robot and the normaliser must match; the optimiser, the step
         count and the schedule start afresh. A SIK model with a smaller posture index (fewer
-        learned elements, no branch code) also serves: its weights are copied in, the new
-        index elements' decoder inputs start at zero weight (the decoder starts as the old
-        one) and the encoder's new outputs at a tenth of their initial weights.
+        learned elements, no branch code), or a SIK position model for a pose model, also
+        serves: its weights are copied in, the new inputs (index elements, orientation
+        entries) start at zero weight (the model starts as the old one) and the encoder's new
+        outputs at a tenth of their initial weights.
         """
         found = ModelConfig.from_dict(ckpt['model_config'])
         state = ckpt['model_state']

@@ -3,7 +3,7 @@
 :class:`TrainData` holds a dataset's rows as float32 tensors; :func:`default_normalizer`
 centres and scales the workspace; :func:`turned_rot6` turns goal orientations for the cycle
 term; :func:`widens` and :func:`widened_state` start a model with a wider posture index from a
-smaller one (``sik-train --init``).
+smaller one, or a pose model from a position model (``sik-train --init``, ``sik-build``).
 """
 
 from dataclasses import replace
@@ -70,34 +70,63 @@ def turned_rot6(rot6: torch.Tensor, std: float, gen: torch.Generator) -> torch.T
 
 
 def widens(old: ModelConfig, new: ModelConfig) -> bool:
-    """Whether ``new`` is ``old`` with a wider posture index (more learned elements or bits)."""
-    same = replace(new, latent_dim=old.latent_dim, branches=old.branches) == old
-    return (same and old.kind == 'sik' and new.latent_dim >= old.latent_dim
+    """Whether ``new`` widens ``old``: a wider posture index, or a pose goal for a position one.
+
+    A wider index has more learned elements or more branch bits (the old ones first); a pose
+    model may start from a position model (its orientation inputs start at zero weight).
+    """
+    goals = new.goal == old.goal or (old.goal, new.goal) == ('position', 'pose')
+    same = replace(new, goal=old.goal, latent_dim=old.latent_dim, branches=old.branches) == old
+    return (same and goals and old.kind == 'sik' and new.latent_dim >= old.latent_dim
             and tuple(new.branches[:len(old.branches)]) == tuple(old.branches))
 
 
-def widened_state(fresh: Dict, old: Dict, old_cfg: ModelConfig, cfg: ModelConfig) -> Dict:
-    """``old`` weights in a model with a wider index (``fresh``: its initial state dict).
+def first_layer_columns(old_cfg: ModelConfig, cfg: ModelConfig, part: str) -> np.ndarray:
+    """Where each input of ``old_cfg``'s first ``part`` layer goes in ``cfg``'s (widened) one.
 
-    The decoder's first layer keeps its goal and old index columns; the new learned elements'
-    and bits' columns are zero. The encoder's last layer keeps its old outputs; new outputs
-    take a tenth of their initial weights.
+    The goal's entries keep their places (a position goal is a pose goal's first three); the
+    encoder's joints and the decoder's learned index and branch bits follow the wider goal,
+    the bits after the wider learned part.
+
+    Args:
+        old_cfg: the smaller model's config.
+        cfg: the widened model's config (:func:`widens`).
+        part: ``encoder`` or ``decoder``.
+
+    Returns:
+        The new column of each old input column, (old inputs,) integers.
+    """
+    og, ng = old_cfg.goal_dim, cfg.goal_dim
+    goal = np.arange(og)
+    if part == 'encoder':
+        return np.concatenate([goal, ng + np.arange(cfg.dof)])
+    learned = ng + np.arange(old_cfg.latent_dim)
+    bits = ng + cfg.latent_dim + np.arange(len(old_cfg.branches))
+    return np.concatenate([goal, learned, bits])
+
+
+def widened_state(fresh: Dict, old: Dict, old_cfg: ModelConfig, cfg: ModelConfig) -> Dict:
+    """``old`` weights in a widened model (``fresh``: its initial state dict; :func:`widens`).
+
+    The first layers keep the old inputs' columns (:func:`first_layer_columns`); the new
+    inputs' columns (orientation entries, learned elements, bits) are zero, so the widened
+    model computes what the old one did. The encoder's last layer keeps its old outputs; new
+    outputs take a tenth of their initial weights.
     """
     out = {k: v.clone() for k, v in fresh.items()}
     enc_last = 'encoder.%d.' % max(int(k.split('.')[1]) for k in old if k.startswith('encoder.'))
     for key, value in old.items():
         target = out[key]
-        if target.shape == value.shape:
-            out[key] = value.clone()
-        elif key == 'decoder.0.weight':
+        if key in ('encoder.0.weight', 'decoder.0.weight'):
             w = torch.zeros_like(target)
-            g = cfg.goal_dim
-            w[:, :g + old_cfg.latent_dim] = value[:, :g + old_cfg.latent_dim]
-            bits = len(old_cfg.branches)
-            if bits:  # the old bits keep theirs, after the wider learned part
-                w[:, g + cfg.latent_dim:g + cfg.latent_dim + bits] = \
-                    value[:, g + old_cfg.latent_dim:]
+            cols = torch.as_tensor(first_layer_columns(old_cfg, cfg, key.split('.')[0]))
+            if len(cols) != value.shape[1]:
+                raise ArtifactMismatch(f'weights {key} of the smaller model',
+                                       (target.shape[0], len(cols)), tuple(value.shape))
+            w[:, cols] = value
             out[key] = w
+        elif target.shape == value.shape:
+            out[key] = value.clone()
         elif key.startswith(enc_last):
             w = target * 0.1
             w[:value.shape[0]] = value

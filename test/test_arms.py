@@ -229,6 +229,29 @@ def test_sik_build_makes_a_bundle_that_solves_with_2pi_equivalents(ur5_bundle, u
     assert np.abs(first - seed).max() < 1e-3, (first, seed)
 
 
+def test_sik_build_starts_the_pose_model_from_the_position_model(ur5_bundle):
+    """sik-build starts the pose model from the position model's checkpoint (bundle.json says so).
+
+    The pose model keeps the position model's index size and starts part way through the
+    position model's training (its start, time and the position model's step then stated in
+    bundle.json), from that checkpoint, with the pose recipe.
+    """
+    from sik_ros.checkpoints import load_checkpoint
+    out, stdout = ur5_bundle
+    training = json.loads((out / 'bundle.json').read_text())['training']
+    assert training['position']['init'] == '' and training['pose']['init'] == 'position'
+    pose, position = training['pose'], training['position']
+    assert 0 < pose['start_s'] < position['seconds']
+    assert abs(pose['start_s'] + pose['seconds'] - position['seconds']) < 1.0
+    assert 0 < pose['init_step'] <= position['steps']
+    assert 'from the position model after' in stdout
+    models = {g: load_checkpoint(out / f'sik_{g}.pt') for g in ('position', 'pose')}
+    assert models['pose']['train_config']['init'] == 'run_pose/start.pt'
+    assert models['pose']['model_config']['latent_dim'] == \
+        models['position']['model_config']['latent_dim']
+    assert models['pose']['train_config']['cycle_weight'] > 0
+
+
 def test_build_model_reads_a_plain_urdf(ur5):
     """The URDF reader gives Pinocchio's model (revolute joints as they are)."""
     model = build_model(ur5.urdf_path)

@@ -261,6 +261,36 @@ def test_init_widens_the_index_of_a_smaller_model(panda, uniform_small, tmp_path
             load_checkpoint(tmp_path / 'b.pt'), 'b.pt')
 
 
+def test_a_pose_model_starts_from_a_position_model_as_that_model(panda, uniform_small, tmp_path):
+    """--init of a pose model from a position model: it computes what the position model did.
+
+    Whatever the goal's orientation entries (their inputs start at zero weight), the encoder
+    gives the position model's index and the decoder its posture; a pose model cannot start
+    a position model.
+    """
+    a = trainer(panda, uniform_small, tmp_path / 'a', steps=20)
+    a.run()
+    export_model(a.checkpoint(), tmp_path / 'a.pt')
+    pose = ModelConfig(goal='pose', encoder=PRESETS['tiny'][0], decoder=PRESETS['tiny'][1])
+    b = trainer(panda, uniform_small, tmp_path / 'b', model=pose, steps=20, cycle_weight=0.1,
+                cycle_turn=0.25, rot_weight=4.0)
+    b.initialise(load_checkpoint(tmp_path / 'a.pt'), 'a.pt')
+    g, x = torch.randn(6, 9), torch.rand(6, 7) * 2 - 1
+    with torch.no_grad():
+        z_old, _ = a.model.encode(g[:, :3], x)
+        z_new, _ = b.model.encode(g, x)
+        np.testing.assert_allclose(z_new.numpy(), z_old.numpy(), rtol=1e-5, atol=1e-6)
+        np.testing.assert_allclose(b.model.decode(g, z_old).numpy(),
+                                   a.model.decode(g[:, :3], z_old).numpy(), rtol=1e-5,
+                                   atol=1e-6)
+    b.run()  # and it trains from there (the pose recipe of sik-build)
+    assert b.step == 20 and np.isfinite(b.history[-1]['val_orient_mean_deg'])
+    export_model(b.checkpoint(), tmp_path / 'b.pt')
+    with pytest.raises(ArtifactMismatch, match='model config'):
+        trainer(panda, uniform_small, tmp_path / 'c').initialise(
+            load_checkpoint(tmp_path / 'b.pt'), 'b.pt')
+
+
 def test_a_run_stopped_by_time_ends_with_its_validation(panda, uniform_small, tmp_path):
     """A run stopped between validations (max_time) still reports validation figures."""
     t = trainer(panda, uniform_small, tmp_path, steps=60, eval_every=30)

@@ -46,7 +46,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help='pose goals: the cycle term also turns the goal orientation by about '
                    'this angle [rad]')
     p.add_argument('--init', help='start from the weights of this checkpoint or model file '
-                   '(same model config, robot and dataset normaliser)')
+                   '(same model config, robot and dataset normaliser; or a smaller index, or '
+                   'a position model for a pose model)')
     p.add_argument('--uni-position', action='store_true',
                    help='one row per distinct position (the paper\'s uni-position dataset)')
     p.add_argument('--eval-every', type=int)
