@@ -1,8 +1,8 @@
 """One solve, stage by stage.
 
-0. one solution (default ranking): the seed refined alone first, or without a seed the
-   oriented postures of a redundant arm's pose goal (:func:`from_starts`); the stages below
-   only when that gives no exact, free solution;
+0. one solution (default ranking): the seed refined first, then the oriented postures of a
+   redundant arm's pose goal (:mod:`sik_ros.solver.single`); the stages below only when that
+   gives no exact, free solution;
 1. candidates: the table's indices near the goal (the seed's own first) and, for pose goals,
    the position model's postures that had the goal's orientation;
 2. their postures (the table's decoded postures, or a decode at the goal; raw answers are
@@ -17,7 +17,6 @@
 """
 
 from dataclasses import dataclass
-import functools
 import math
 from typing import List, Optional, Sequence, Tuple
 
@@ -32,21 +31,18 @@ from sik_ros.solver.adjust import adjust_index, adjust_raw
 from sik_ros.solver.batch import Candidates
 from sik_ros.solver.candidates import (oriented_postures, own_index, starting_postures,
                                        table_candidates)
-from sik_ros.solver.codec import decode, encode
-from sik_ros.solver.config import (FAR_ITERATIONS, FREE_RESTARTS, FREE_ROUNDS, ORIENTED_MIN,
-                                   SolverConfig, START_MERGE)
+from sik_ros.solver.codec import decode
+from sik_ros.solver.config import (FAR_ITERATIONS, FREE_RESTARTS, FREE_ROUNDS, SolverConfig,
+                                   START_MERGE)
 from sik_ros.solver.context import Context, Goal, POSE, POSITION
 from sik_ros.solver.explore import (branch_starts, periodic_equivalents, restart, seed_starts,
                                     unindexed, walk)
-from sik_ros.solver.ranking import (assess, best_distinct, by_score, converged, distinct_mask,
-                                    merge, pose_score, rank)
+from sik_ros.solver.ranking import (assess, best_distinct, by_score, distinct_mask, merge,
+                                    pose_score, rank)
 from sik_ros.solver.refine import errors, refine
-from sik_ros.solver.results import IKResult, PendingIndices, Solution
-
-
-def oriented_count(cfg: SolverConfig, num: int) -> int:
-    """Oriented postures a pose goal asking for ``num`` solutions starts from."""
-    return min(cfg.oriented_candidates, max(ORIENTED_MIN, 2 * num))
+from sik_ros.solver.results import IKResult, Solution
+from sik_ros.solver.single import (fill_indices, from_starts, oriented_count,
+                                   single_starts, turns_centre)
 
 
 def initial_postures(ctx: Context, goal: Goal, num: int, q_seed: Optional[np.ndarray],
@@ -86,20 +82,6 @@ def spare(cfg: SolverConfig, num: int) -> int:
     return min(cfg.early_stop_margin, num - 1)
 
 
-def fill_indices(ctx: Context, goal: Goal, sols: List[Solution]) -> None:
-    """Posture indices of solutions that came without one: the encoding of their q.
-
-    Encoded when first read (:class:`PendingIndices`), all of them in one call.
-    """
-    if not sols:
-        return
-    # one check over all of them (one per solution took 2 us each)
-    todo = [sols[i] for i in np.flatnonzero(
-        np.isnan(np.array([s.posture_index for s in sols])).any(axis=1))]
-    if todo:
-        PendingIndices(todo, functools.partial(encode, ctx, goal))
-
-
 def distinct_postures(ctx: Context, c: Candidates, goal: Goal,
                       q_seed: Optional[np.ndarray]) -> Candidates:
     """Stage 4 before ranking: the exact candidates (all when none is), one per posture.
@@ -115,7 +97,7 @@ def distinct_postures(ctx: Context, c: Candidates, goal: Goal,
     periodic = ctx.robot.periodic
     if not periodic.any():
         return best_distinct(c, cfg.distinct_threshold, ignore_last)
-    centre = q_seed if q_seed is not None else (ctx.robot.lower + ctx.robot.upper) / 2
+    centre = turns_centre(ctx, q_seed)
     q = nearest_turns(ctx.robot, c.q, centre)
     # exact ones nearest the seed first (of nearly one posture, the one kept), then by score
     near = np.linalg.norm(q - centre, axis=1)
@@ -145,60 +127,6 @@ def seed_posture_first(ctx: Context, goal: Goal, own: Candidates, sols: List[Sol
     rest = [s for s in sols if np.linalg.norm((s.q - first[0].q)[cols])
             >= ctx.config.distinct_threshold]
     return (first + rest)[:num]
-
-
-def from_starts(ctx: Context, goal: Goal, starts: np.ndarray, q_seed: Optional[np.ndarray],
-                obstacles: Sequence[Obstacle], deadline: Deadline) -> Optional[IKResult]:
-    """One solution: the first of ``starts`` refined onto the goal that is exact and free.
-
-    None when none is. The single-solution path: with a seed (default ranking), a solution
-    ranked by its distance to the seed is nearly always the seed's own posture refined onto
-    the goal; without one, the first exact solution is as good as any (as TRAC-IK's first
-    answer), and for a pose goal the position model's postures that had the goal's
-    orientation reach it first. The stages of :func:`solve` only when this gives nothing.
-    Periodic joints take the turns nearest the seed (or the middle of their ranges).
-    """
-    cut = False
-    while len(starts) and not deadline.expired():
-        r = refine(ctx, starts, goal, deadline, enough=1)
-        cut = cut or r.cut_short
-        exact = np.flatnonzero(converged(r.perr, r.oerr, goal.kind, ctx.config))
-        if len(exact) == 0:
-            return None
-        # rows are refined in order and stop at the first exact one: it alone is exact
-        first = exact[0]
-        q = r.q[first:first + 1]
-        if ctx.robot.periodic.any():
-            centre = q_seed if q_seed is not None else (ctx.robot.lower + ctx.robot.upper) / 2
-            q = nearest_turns(ctx.robot, q, centre)
-        starts = starts[first + 1:]  # the starts after it, not yet refined
-        selfc = ctx.checker.self_collision(q)
-        if selfc[0]:
-            continue
-        c = Candidates(q, unindexed(q, ctx.models[goal.kind].table.indices.shape[1]),
-                       r.perr[exact[:1]], r.oerr[exact[:1]], np.ones(1, dtype=bool))
-        sols = rank(ctx, c, q_seed, obstacles, None, limit=1, deadline=deadline,
-                    self_collision=selfc)
-        if sols and not sols[0].in_collision:
-            fill_indices(ctx, goal, sols)
-            return IKResult(True, sols, goal.kind, cut)
-    return None
-
-
-def single_starts(ctx: Context, goal: Goal, q_seed: Optional[np.ndarray],
-                  obstacles: Sequence[Obstacle]) -> np.ndarray:
-    """The starts of :func:`from_starts` for one solution with the default ranking, (M, n).
-
-    The seed first; then, for a pose goal of an arm with more than six joints near the data
-    and without obstacles (which need every start refined), the position model's postures
-    that had the goal's orientation: the starts the stages of :func:`solve` would refine
-    first, the seed having failed. Empty: the full stages.
-    """
-    seed = np.empty((0, ctx.robot.dof)) if q_seed is None else q_seed[None]
-    if goal.kind != POSE or ctx.robot.dof <= 6 or obstacles or \
-            not ctx.models[goal.kind].table.within(goal.position, ctx.config.reach_margin):
-        return seed
-    return np.concatenate([seed, oriented_postures(ctx, goal, oriented_count(ctx.config, 1))])
 
 
 @dataclass(frozen=True)
