@@ -30,7 +30,6 @@ from typing import Dict, Optional, Tuple
 import zipfile
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from sik_ros.artifacts import (atomic_write, check_robot_manifest, FORMAT_VERSION, range_codes,
                                range_values)
@@ -38,9 +37,11 @@ from sik_ros.chain import chain_forward
 from sik_ros.dataset import Dataset
 from sik_ros.defaults import SEED_TABLE_ROWS
 from sik_ros.errors import ArtifactMismatch, CorruptArtifact, InvalidArgument
+from sik_ros.kernels.kdtree import KDTree
+from sik_ros.kernels.seeds import axis_key, table_starts
 from sik_ros.kinematics import Robot
-from sik_ros.periodic import into_limits, TURN, within
-from sik_ros.point_sets import farthest_point_subset
+from sik_ros.periodic import TURN
+from sik_ros.point_sets import SAME_DISTANCE
 from sik_ros.rotations import rotation_to_quaternion, z_to_axis
 
 #: Configurations a seed table keeps by default (6 MB for 6 joints).
@@ -50,15 +51,15 @@ DEFAULT_ROWS = SEED_TABLE_ROWS
 QUATERNION_SCALE = 0.3
 #: Nearest configurations by tip pose that the far-apart starts are chosen among.
 NEIGHBOURS = 100
-#: Relative slack of the KD-tree look-up (scipy's ``eps``: each row found within 1.5 times the
-#: distance of the true k-th nearest): nearly the exact look-up's rows in half its time.
+#: Relative slack of the KD-tree look-up (each row found within 1.5 times the distance of the
+#: true k-th nearest): nearly the exact look-up's rows in half its time.
 LOOKUP_EPS = 0.5
 #: Starts no nearer each other than this (distance of their joints' cosines and sines, about
 #: radians when near), at least ``START_LEAST`` of them: nearer ones reach the same solution.
 START_SPACING = 1.2
 START_LEAST = 8
-#: The KD-tree's layout (scipy's ``cKDTree`` arguments).
-TREE_LAYOUT = dict(leafsize=32, balanced_tree=False, compact_nodes=False)
+#: Rows per leaf of the KD-tree.
+LEAF_SIZE = 32
 #: The turn [rad] of the first joint with which :func:`first_axis` checks an arm.
 BASE_CHECK_ANGLE = 0.7
 
@@ -83,25 +84,24 @@ class SeedTable:
         self._axis = first_axis(robot)
         self._base_q = self.q
         if self._axis is not None:
+            self._axis = tuple(np.ascontiguousarray(a, dtype=np.float64) for a in self._axis)
             # the frame's inverse as a quaternion, once (a look-up would convert it every call)
-            self._inverse = rotation_to_quaternion(self._axis[1].T[None])[0]
+            self._inverse = np.ascontiguousarray(
+                rotation_to_quaternion(self._axis[1].T[None])[0])
             p, quat = to_axis_frame(self._axis, p, quat, self._inverse)
             azimuth = np.arctan2(p[:, 1], p[:, 0])
             p, quat = turned(p, quat, -azimuth)
             self._base_q = self.q.copy()
             self._base_q[:, 0] -= azimuth
-        # leaves of 32 rows: look-ups 0.86x the time of the default 16's on a UR5 table (the
-        # same rows found)
-        keys = np.concatenate([p, QUATERNION_SCALE * quat], axis=1)
-        self.tree = cKDTree(keys, **TREE_LAYOUT)
-        order = self.tree.indices
+        self.tree = KDTree(np.concatenate([p, QUATERNION_SCALE * quat], axis=1), LEAF_SIZE)
+        order = self.tree.order
         if np.any(order != np.arange(len(order))):
             # the rows in the tree's leaf order (a table saved after this loads in it): a leaf's
             # rows lie together in memory, for look-ups after other work has emptied the caches
             same = self._base_q is self.q  # no first axis: one array, kept one
             self.q = self.q[order]
             self._base_q = self.q if same else self._base_q[order]
-            self.tree = cKDTree(keys[order], **TREE_LAYOUT)
+        self._base_q = np.ascontiguousarray(self._base_q)
 
     def __len__(self) -> int:
         """Number of configurations."""
@@ -122,13 +122,7 @@ class SeedTable:
         k = min(neighbours, len(self.q))
         if count < 1 or k < 1:
             return np.empty((0, self.q.shape[1]))
-        azimuth = 0.0
-        if self._axis is not None:
-            key, azimuth = self.turned_key(position, quaternion)
-        else:
-            quat = np.asarray(quaternion, dtype=float)
-            quat = -quat if quat[3] < 0 else quat  # as the table's
-            key = np.concatenate([np.asarray(position, dtype=float), QUATERNION_SCALE * quat])
+        key, azimuth = self.turned_key(position, quaternion)
         # rows whose first joint cannot take the goal's azimuth within its limits are left
         # out: look further until ``k`` of them can (a first joint short of a whole turn). The
         # first look-up asks for as many more as the joint's share of a turn leaves out, and a
@@ -138,73 +132,32 @@ class SeedTable:
         share = (self._upper - self._lower) / TURN
         if self._axis is not None and share < 1.0:
             wanted = min(len(self.q), math.ceil(1.25 * k / max(share, 1e-3)))
-        while True:
-            rows = self._nearest(key, wanted)
-            q = self._base_q[rows]
-            if self._axis is None:
-                break
-            q = q.copy()
-            q[:, 0] += azimuth
-            # the first joint back within its limits by a whole turn where one does it
-            into_limits(q[:, 0], self._lower, self._upper)
-            fits = within(q[:, 0], self._lower, self._upper)
-            if fits.sum() >= k or wanted >= len(self.q):
-                q = q[fits][:k]
-                q[:, 0] = np.clip(q[:, 0], self._lower, self._upper)
-                break
-            wanted = min(2 * wanted, len(self.q))
+        # a quaternion and its negative are one rotation (the table's have w >= 0): the other
+        # sign's key is looked up too, where it can be nearer than the k-th row found (keys
+        # with w near 0: every row is at least ``scale * w`` from it)
+        other = np.concatenate([key[:3], -key[3:]])
         # far apart in joint space, an angle and its 2 pi equivalents alike; no two within
         # START_SPACING, which head for one solution (at least START_LEAST of them)
-        pick = farthest_point_subset(np.concatenate([np.cos(q), np.sin(q)], axis=1),
-                                     min(count, len(q)), spacing=START_SPACING,
-                                     at_least=START_LEAST)
-        return q[pick]
+        return table_starts(*self.tree.arrays(), self._base_q, key, other, azimuth,
+                            self._axis is not None, float(self._lower), float(self._upper),
+                            int(k), int(wanted), LOOKUP_EPS, int(count), START_SPACING,
+                            START_LEAST, SAME_DISTANCE)
 
     def turned_key(self, position: np.ndarray, quaternion: np.ndarray
                    ) -> Tuple[np.ndarray, float]:
-        """A goal's key in the axis frame turned to azimuth 0, and its azimuth [rad].
+        """A goal's key (7,) and its azimuth [rad] (0 without a first axis).
 
-        :func:`to_axis_frame` then :func:`turned` for one pose, in Python floats (cheaper than
-        NumPy on 1-row arrays).
+        The key: the goal's position [m] and :data:`QUATERNION_SCALE` times its quaternion
+        (w >= 0), in the first axis's frame turned to azimuth 0 (:func:`to_axis_frame`, then
+        :func:`turned`) when the arm has one.
         """
-        origin, rot = self._axis
-        x, y, z = (float(v) for v in np.asarray(position, dtype=float) - origin)
-        px, py, pz = (x * rot[0, j] + y * rot[1, j] + z * rot[2, j] for j in range(3))
-        cx, cy, cz, cw = self._inverse
-        qx, qy, qz, qw = (float(v) for v in quaternion)
-        qx, qy, qz, qw = (cw * qx + cx * qw + cy * qz - cz * qy, cw * qy - cx * qz + cy * qw
-                          + cz * qx, cw * qz + cx * qy - cy * qx + cz * qw,
-                          cw * qw - cx * qx - cy * qy - cz * qz)
-        azimuth = math.atan2(py, px)
-        c, s = math.cos(-azimuth), math.sin(-azimuth)
-        sa, ca = math.sin(-azimuth / 2), math.cos(-azimuth / 2)
-        quat = np.array([ca * qx - sa * qy, ca * qy + sa * qx, ca * qz + sa * qw,
-                         ca * qw - sa * qz])
-        quat = -quat if quat[3] < 0 else quat  # as the table's
-        return np.array([c * px - s * py, s * px + c * py, pz, *(QUATERNION_SCALE * quat)]), \
-            azimuth
-
-    def _nearest(self, key: np.ndarray, k: int) -> np.ndarray:
-        """The ``k`` rows nearest a key (position, scale * quaternion with w >= 0), nearest first.
-
-        Nearly: the look-up takes :data:`LOOKUP_EPS` of slack.
-
-        A quaternion and its negative are one rotation (the table's have w >= 0): the other
-        sign, only as near as the k-th found, matters for keys with w near 0 (every row is at
-        least ``scale * w`` from it, so it is looked up only when that is nearer).
-        """
-        dist, rows = self.tree.query(key, k=k, eps=LOOKUP_EPS)
-        dist, rows = np.atleast_1d(dist), np.atleast_1d(rows)
-        if key[6] < dist[-1]:
-            other = np.concatenate([key[:3], -key[3:]])
-            d2, r2 = self.tree.query(other, k=k, distance_upper_bound=float(dist[-1]))
-            found = np.isfinite(np.atleast_1d(d2))
-            if found.any():
-                dist = np.concatenate([dist, np.atleast_1d(d2)[found]])
-                rows = np.concatenate([rows, np.atleast_1d(r2)[found]])
-                rows = rows[np.argsort(dist, kind='stable')]                 # nearest first
-                rows = rows[np.sort(np.unique(rows, return_index=True)[1])][:k]  # each row once
-        return rows
+        position = np.asarray(position, dtype=np.float64)
+        quaternion = np.asarray(quaternion, dtype=np.float64)
+        if self._axis is None:
+            quat = -quaternion if quaternion[3] < 0 else quaternion  # as the table's
+            return np.concatenate([position, QUATERNION_SCALE * quat]), 0.0
+        return axis_key(self._axis[0], self._axis[1], self._inverse, position, quaternion,
+                        QUATERNION_SCALE)
 
     # -- building and files -----------------------------------------------------------------
 

@@ -165,3 +165,34 @@ def test_null_directions_are_the_svds_up_to_sign(bundled):
     singular[:, :, 1] = singular[:, :, 0]
     singular[:, :, 2] = singular[:, :, 0]
     assert not null_directions(singular, np.empty((2, 7))).any()
+
+
+def test_kd_tree_finds_the_exact_nearest_rows_for_one_key_or_two():
+    """The k nearest rows are scipy's exact ones; with a second key, the union's nearest.
+
+    A column every point shares (the seed table's y = 0) is left out of the tree and its
+    distance added back; with ``eps`` every row returned is within ``1 + eps`` of the k-th.
+    """
+    from scipy.spatial import cKDTree
+
+    from sik_ros.kernels.kdtree import KDTree
+    rng = np.random.default_rng(3)
+    points = rng.normal(size=(20000, 7)).astype(np.float32).astype(np.float64)
+    points[:, 1] = 0.25
+    tree, reference = KDTree(points, 16), cKDTree(points)
+    assert list(tree.columns) == [0, 2, 3, 4, 5, 6]
+    for key in rng.normal(size=(40, 7)) * 0.7:
+        rows, dist = tree.nearest(key, 30)
+        d_ref, r_ref = reference.query(key, k=30)
+        np.testing.assert_array_equal(tree.order[rows], r_ref)
+        np.testing.assert_allclose(dist, d_ref, rtol=0, atol=1e-12)
+        other = np.concatenate([key[:3], -key[3:]])
+        rows, dist = tree.nearest(key, 30, other=other)
+        d_other, r_other = reference.query(other, k=30)
+        both = np.concatenate([d_ref, d_other])
+        order = np.argsort(both, kind='stable')
+        union = np.concatenate([r_ref, r_other])[order]
+        union = union[np.sort(np.unique(union, return_index=True)[1])][:30]
+        np.testing.assert_array_equal(tree.order[rows], union)
+        rows, dist = tree.nearest(key, 30, eps=0.5)
+        assert len(np.unique(rows)) == 30 and dist.max() <= 1.5 * d_ref[-1] + 1e-12
