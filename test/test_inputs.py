@@ -204,6 +204,31 @@ def test_a_goal_quaternion_becomes_the_rotation_scipy_gives():
                                       Rotation.from_quat(quat).as_matrix())
 
 
+def test_waypoint_quaternions_become_scipys_rotations_and_back():
+    """A path's rotations are scipy's to the last bit, and a matrix's quaternion to 1e-15.
+
+    The quaternion of one matrix (either sign) has w >= 0, at the half turns too.
+    """
+    from scipy.spatial.transform import Rotation
+    from sik_ros.rotations import matrix_quaternion, quaternion_matrices
+    from sik_ros.solver.inputs import check_path
+    rng = np.random.default_rng(5)
+    raw = rng.normal(size=(300, 4)) * 10.0 ** rng.uniform(-3, 3, (300, 1))
+    goals = check_path(np.zeros((300, 3)), raw, ('pose',))
+    unit = np.array([g.given_quaternion for g in goals])
+    np.testing.assert_array_equal(np.array([g.rotation for g in goals]),
+                                  Rotation.from_quat(unit).as_matrix())
+    np.testing.assert_array_equal(quaternion_matrices(unit), Rotation.from_quat(unit).as_matrix())
+    rots = np.concatenate([Rotation.from_quat(unit).as_matrix(), np.eye(3)[None],
+                           np.diag([1.0, -1.0, -1.0])[None], np.diag([-1.0, 1.0, -1.0])[None],
+                           np.diag([-1.0, -1.0, 1.0])[None]])
+    ours = np.array([matrix_quaternion(r) for r in rots])
+    theirs = Rotation.from_matrix(rots).as_quat()
+    assert np.all(ours[:, 3] >= 0)
+    assert np.minimum(np.abs(ours - theirs).max(axis=1),
+                      np.abs(ours + theirs).max(axis=1)).max() < 1e-15
+
+
 def test_a_distinct_threshold_of_a_whole_turn_or_more_is_refused(ik):
     """2 pi equivalents are told apart by a whole turn of a joint: the threshold stays below."""
     with pytest.raises(InvalidArgument, match='distinct_threshold must be below 2 pi'):

@@ -9,7 +9,7 @@ import pinocchio as pin
 from sik_ros.bundle import GoalModel
 from sik_ros.collision import CollisionChecker
 from sik_ros.kinematics import Robot
-from sik_ros.rotations import rotation_to_quaternion
+from sik_ros.rotations import matrix_quaternion
 from sik_ros.solver.config import SolverConfig
 
 POSITION, POSE = 'position', 'pose'
@@ -42,7 +42,7 @@ class Goal:
         """
         quat = self.given_quaternion
         if quat is None:
-            quat = rotation_to_quaternion(np.asarray(self.rotation)[None])[0]
+            quat = matrix_quaternion(self.rotation)
         return -quat if quat[3] < 0 else quat
 
 
