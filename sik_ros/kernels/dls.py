@@ -327,3 +327,35 @@ def follow_rows(frames, lower, upper, q, p, r, jac, djac, pos, rot, pose, per_ro
                              max_step, jm, a, x)
             place(frames, q[row], p[row], r[row], jac[row], True)
             steps[row] += 1
+
+
+@njit(f'void({F2}, {F3}, {F3}, {F3}, int64, float64, {F1}, {F1}, {F3})', cache=True,
+      nogil=True)
+def predict_rows(q, jac, djac, move, dims, lam2, lower, upper,
+                 out):  # pragma: no cover (compiled)
+    """Each track's configurations at the next waypoints, predicted to second order.
+
+    Track ``t`` (``q`` (T, n), its Jacobian ``jac`` (T, 6, n) and change per step ``djac``)
+    takes step ``k`` of ``move`` (m, T, dims) by damped least squares on the Jacobian
+    extrapolated to the step's midpoint, ``jac + (k + 1/2) djac``; ``out`` (m, T, n): the
+    steps summed, each within the limits.
+    """
+    m, t_count, n = move.shape[0], q.shape[0], q.shape[1]
+    jm, a = np.empty((6, n)), np.empty((6, 6))
+    x = np.empty(6)
+    acc = np.empty(n)
+    for t in range(t_count):
+        for j in range(n):
+            acc[j] = q[t, j]
+        for k in range(m):
+            mid = k + 0.5
+            for i in range(dims):
+                for j in range(n):
+                    jm[i, j] = jac[t, i, j] + mid * djac[t, i, j]
+            damped_solve(jm, move[k, t], dims, n, lam2, a, x)
+            for j in range(n):
+                s = 0.0
+                for i in range(dims):
+                    s += jm[i, j] * x[i]
+                acc[j] += s
+                out[k, t, j] = min(max(acc[j], lower[j]), upper[j])

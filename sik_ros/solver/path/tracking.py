@@ -5,6 +5,8 @@ from typing import List, Optional, Tuple
 import numpy as np
 
 from sik_ros.deadline import Deadline
+from sik_ros.kernels import as_arg
+from sik_ros.kernels.dls import predict_rows
 from sik_ros.rotations import rotation_log
 from sik_ros.solver.config import TRACK_ITERATIONS
 from sik_ros.solver.context import Context, Goal
@@ -91,17 +93,16 @@ def predicted(ctx: Context, q: np.ndarray, ev: Evaluation, pos: np.ndarray,
     """(m * T, n) the tracks ``q`` (T, n) predicted at each of the waypoints ``pos``, ``rot``.
 
     Step ``k`` solves the waypoints' move on the track's Jacobian extrapolated to that step's
-    midpoint (``jac + (k + 1/2) djac``), all in one batched solve, within the limits.
+    midpoint (``jac + (k + 1/2) djac``), the steps summed within the limits
+    (:func:`~sik_ros.kernels.dls.predict_rows`, one compiled call).
     """
     cfg, robot = ctx.config, ctx.robot
     (t, n), m = q.shape, len(pos)
     move = moves(ev, pos, rot)
-    dims = move.shape[2]
     djac = jacobian_change(ctx, q, ev, move[0])
-    mid = (np.arange(m) + 0.5)[:, None, None, None]
-    jac = (ev.jac[None, :, :dims] + mid * djac[None, :, :dims]).reshape(m * t, dims, n)
-    dq = dls_step(jac, move.reshape(m * t, dims), cfg.damping ** 2, np.eye(dims))
-    guess = np.clip(q + np.cumsum(dq.reshape(m, t, n), axis=0), robot.lower, robot.upper)
+    guess = np.empty((m, t, n))
+    predict_rows(as_arg(q), as_arg(ev.jac), as_arg(djac), move, move.shape[2],
+                 cfg.damping ** 2, robot.lower, robot.upper, guess)
     return guess.reshape(m * t, n)
 
 
