@@ -261,7 +261,9 @@ def test_a_path_cut_short_by_its_timeout_says_so(ik, pose):
     Before, a step that ran past the deadline (the first waypoint's solve, a clearance check)
     could end the path with ``timed_out`` False and "feasible up to waypoint k".
     """
-    pos, quat = line(ik, 0.3, 30, (1.0, 0.0, 0.0))
+    # 20 cm (the tool held, 30 cm along x leaves the reach at waypoint 28 of 30)
+    pos, quat = line(ik, 0.2, 30, (1.0, 0.0, 0.0))
+    assert ik.solve_path(pos, quat if pose else None, seed=Q0).success  # feasible
     for timeout in (0.0005, 0.001, 0.002, 0.003, 0.005, 0.008):
         res = ik.solve_path(pos, quat if pose else None, seed=Q0, timeout=timeout)
         assert res.success or (res.timed_out and res.message.startswith('timed out')), \
