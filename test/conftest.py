@@ -24,10 +24,8 @@ E2E_TESTS = {
     'test_index_table::test_sik_index_cli_builds_a_bundle',
     'test_inputs::test_malformed_dataset_manifests_are_one_line_errors',
     'test_inputs::test_sik_solve_exits_non_zero_when_it_prints_failed',
-    'test_inputs::test_sik_solve_usage_and_input_errors_are_one_line_and_exit_2',
     'test_solver::test_sik_solve_cli_bad_input',
     'test_solver::test_sik_solve_cli_json',
-    'test_training::test_cli_bad_arguments',
     'test_training::test_two_gloo_processes_train_in_sync_and_the_checkpoint_serves',
     'test_xacro::test_sik_build_from_xacro',
 }
