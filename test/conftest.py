@@ -24,10 +24,8 @@ E2E_TESTS = {
     'test_index_table::test_sik_index_cli_builds_a_bundle',
     'test_inputs::test_malformed_dataset_manifests_are_one_line_errors',
     'test_inputs::test_sik_solve_exits_non_zero_when_it_prints_failed',
-    'test_inputs::test_sik_solve_usage_and_input_errors_are_one_line_and_exit_2',
     'test_solver::test_sik_solve_cli_bad_input',
     'test_solver::test_sik_solve_cli_json',
-    'test_training::test_cli_bad_arguments',
     'test_training::test_two_gloo_processes_train_in_sync_and_the_checkpoint_serves',
     'test_xacro::test_sik_build_from_xacro',
 }
@@ -107,8 +105,10 @@ def ur5():
 def ur5_bundle(tmp_path_factory):
     """A tiny UR5 bundle made by ``sik-build`` end to end (tiny model, small sampler)."""
     out = tmp_path_factory.mktemp('arms') / 'ur5'
+    # --time 25: about 10 s of training after the other stages' estimate (13 s); every test of
+    # this bundle passed with --time 20, and 40 cost 15 s more for the same checks
     cmd = [sys.executable, '-m', 'sik_ros.cli.build', '--robot', 'ur5', '--out', str(out),
-           '--time', '40', '--rows', '20000', '--preset', 'tiny', '--check-targets', '20',
+           '--time', '25', '--rows', '20000', '--preset', 'tiny', '--check-targets', '20',
            '--quiet']
     run = subprocess.run(cmd, capture_output=True, text=True, timeout=300)
     assert run.returncode == 0, run.stderr[-2000:]

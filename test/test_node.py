@@ -574,7 +574,12 @@ def test_solver_processes_answer_and_a_dead_one_is_replaced(ros, panda, node_pro
             answer = solve(ros, request(p))
             assert answer.error_code == R.SUCCESS, answer.message
         check_answer(panda, answer, p)
-        time.sleep(load_time + 2.0)  # the replacement has loaded and joined the idle ones
+        # the replacement has loaded and joined the idle ones: the pool logs it as 'restarted'
+        # (the wait's bound, a start-up and 60 s, guards against a hang)
+        deadline = time.monotonic() + load_time + 60.0
+        while 'restarted' not in log_path.read_text() and time.monotonic() < deadline:
+            time.sleep(0.2)
+        assert 'restarted' in log_path.read_text(), node_log()
         fresh = children(2)
         assert len(fresh) == 2 and workers[0] not in fresh, (workers, fresh)
         for pid in fresh:

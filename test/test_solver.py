@@ -312,11 +312,12 @@ def test_sik_solve_cli_json(tiny_bundle, targets):
 
 
 def test_sik_solve_cli_bad_input(tiny_bundle):
-    """sik-solve with a bad seed exits 2 with a one-line reason."""
+    """sik-solve with a bad seed exits 2 with a one-line reason (as a process, no traceback)."""
     r = subprocess.run([sys.executable, '-m', 'sik_ros.cli.solve', '0.4', '0', '0.4',
                         '--bundle', str(tiny_bundle), '--seed', '1', '2'],
                        capture_output=True, text=True, timeout=120)
     assert r.returncode == 2 and 'seed must have 7' in r.stderr
+    assert len(r.stderr.strip().splitlines()) == 1 and 'Traceback' not in r.stderr, r.stderr
 
 
 def test_configure_changes_settings_in_place_and_keeps_the_instance_data(tiny_bundle, targets):
