@@ -29,12 +29,29 @@ def test_collect_writes_dataset(tmp_path):
     (['--sampler', 'uniform', '--samples', '0'], '--samples'),
     (['--urdf', '/no/such.urdf', '--base', 'a', '--tip', 'b'], 'not found'),
 ])
-def test_bad_arguments_give_one_line_errors(tmp_path, args, message):
-    """Bad input exits with code 2 and a one-line message naming the problem."""
-    r = run(*args, '--out', str(tmp_path / 'ds'), '--quiet')
-    assert r.returncode == 2
-    assert message in r.stderr
-    assert len(r.stderr.strip().splitlines()) == 1
+def test_bad_arguments_give_one_line_errors(tmp_path, capsys, args, message):
+    """Bad input exits with code 2 and a one-line message naming the problem.
+
+    The first case runs sik-collect as a process (its exit code and stderr as a shell sees
+    them, no traceback); the others call its ``main`` here, where an exception other than
+    SystemExit fails the test as a traceback would.
+    """
+    argv = [*args, '--out', str(tmp_path / 'ds'), '--quiet']
+    if args == ['--robot', 'nope']:
+        r = run(*argv)
+        code, err = r.returncode, r.stderr
+        assert 'Traceback' not in err
+    else:
+        from sik_ros.cli.collect import main
+        capsys.readouterr()
+        try:
+            code = main(argv)
+        except SystemExit as exc:
+            code = exc.code
+        err = capsys.readouterr().err
+    assert code == 2, (code, err)
+    assert message in err
+    assert len(err.strip().splitlines()) == 1
     assert not (tmp_path / 'ds').exists()
 
 
