@@ -15,9 +15,6 @@ from typing import Tuple
 from numba import njit
 import numpy as np
 
-#: Deepest stack a look-up may need: the tree's depth is at most this (checked when built).
-MAX_DEPTH = 200
-
 
 @njit('Tuple((int64[::1], int64[::1], int64[::1], float64[::1], int64[::1], int64[::1], '
       'float64[:, ::1], float64[:, ::1], int64))(float64[:, ::1], int64)', cache=True,
@@ -268,8 +265,6 @@ class KDTree:
         kept = np.ascontiguousarray(given[:, self.columns])
         order, start, end, self._split, dim, child, low, high, self._depth = tree_build(
             kept.astype(np.float64), int(leaf_size))
-        if self._depth > MAX_DEPTH:  # pragma: no cover (points all but equal)
-            raise ValueError(f'KD-tree {self._depth} levels deep')
         # what a look-up reads of a node, together (the boxes stay out of its way)
         self._nodes = np.ascontiguousarray(np.stack([dim, child, start, end], axis=1),
                                            dtype=np.int32)
