@@ -128,3 +128,21 @@ def graph(request):
     yield env, node
     node.destroy_node()
     rclpy.shutdown()
+
+
+@pytest.fixture
+def run_main(capsys):
+    """Call a command's ``main(argv)`` in this process; returns its exit code and its stderr.
+
+    An exception other than SystemExit (a traceback, as a process would print it) fails the
+    test. Each command keeps a test that runs it as a process (its exit code and stderr as a
+    shell sees them).
+    """
+    def run(main, argv):
+        capsys.readouterr()
+        try:
+            code = main(list(argv))
+        except SystemExit as exc:
+            code = exc.code
+        return code, capsys.readouterr().err
+    return run

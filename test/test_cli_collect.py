@@ -29,12 +29,11 @@ def test_collect_writes_dataset(tmp_path):
     (['--sampler', 'uniform', '--samples', '0'], '--samples'),
     (['--urdf', '/no/such.urdf', '--base', 'a', '--tip', 'b'], 'not found'),
 ])
-def test_bad_arguments_give_one_line_errors(tmp_path, capsys, args, message):
+def test_bad_arguments_give_one_line_errors(tmp_path, run_main, args, message):
     """Bad input exits with code 2 and a one-line message naming the problem.
 
     The first case runs sik-collect as a process (its exit code and stderr as a shell sees
-    them, no traceback); the others call its ``main`` here, where an exception other than
-    SystemExit fails the test as a traceback would.
+    them, no traceback); the others call its ``main`` here (``run_main``).
     """
     argv = [*args, '--out', str(tmp_path / 'ds'), '--quiet']
     if args == ['--robot', 'nope']:
@@ -43,12 +42,7 @@ def test_bad_arguments_give_one_line_errors(tmp_path, capsys, args, message):
         assert 'Traceback' not in err
     else:
         from sik_ros.cli.collect import main
-        capsys.readouterr()
-        try:
-            code = main(argv)
-        except SystemExit as exc:
-            code = exc.code
-        err = capsys.readouterr().err
+        code, err = run_main(main, argv)
     assert code == 2, (code, err)
     assert message in err
     assert len(err.strip().splitlines()) == 1

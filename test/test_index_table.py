@@ -167,7 +167,7 @@ def test_mismatched_or_corrupt_table_is_refused(tmp_path):
         IndexTable.load(path)
 
 
-def test_sik_index_cli_builds_a_bundle(tiny_bundle, uniform_small, tmp_path, capsys):
+def test_sik_index_cli_builds_a_bundle(tiny_bundle, uniform_small, tmp_path, run_main):
     """sik-index encodes a dataset with a trained model and adds model and table to a bundle.
 
     The build runs sik-index as a process; its two refusals (exit 2, the reason on stderr) call
@@ -175,14 +175,6 @@ def test_sik_index_cli_builds_a_bundle(tiny_bundle, uniform_small, tmp_path, cap
     """
     from sik_ros.cli.index import main
     from sik_ros.solver import SelectiveIK
-
-    def refused(*argv):
-        capsys.readouterr()
-        try:
-            code = main(list(argv))
-        except SystemExit as exc:
-            code = exc.code
-        return code, capsys.readouterr().err
     model = tiny_bundle / 'sik_position.pt'
     r = subprocess.run([sys.executable, '-m', 'sik_ros.cli.index', '--model', str(model),
                         '--dataset', str(uniform_small.path), '--out', str(tmp_path / 't.npz'),
@@ -193,12 +185,12 @@ def test_sik_index_cli_builds_a_bundle(tiny_bundle, uniform_small, tmp_path, cap
     assert ik.goals == ['position']
     target = load_robot('panda').fk_batch(np.asarray(uniform_small.q[:1]))[0][0]
     assert ik.solve(target, num_solutions=2).solutions
-    code, err = refused('--model', str(model), '--dataset', str(uniform_small.path), '--out',
-                        str(tmp_path / 't.npz'), '--quiet')
+    code, err = run_main(main, ['--model', str(model), '--dataset', str(uniform_small.path),
+                                '--out', str(tmp_path / 't.npz'), '--quiet'])
     assert code == 2 and '--force' in err, err
-    code, err = refused('--model', str(tiny_bundle / 'sik_pose.pt'), '--dataset',
-                        str(uniform_small.path), '--out', str(tmp_path / 'p.npz'), '--postures',
-                        '--quiet')
+    code, err = run_main(main, ['--model', str(tiny_bundle / 'sik_pose.pt'), '--dataset',
+                                str(uniform_small.path), '--out', str(tmp_path / 'p.npz'),
+                                '--postures', '--quiet'])
     assert code == 2 and 'position-goal model' in err, err
     assert not (tmp_path / 'p.npz').exists()
 

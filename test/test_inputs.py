@@ -122,27 +122,12 @@ def _cli(*args, timeout=120):
                           timeout=timeout)
 
 
-def _main(main, argv, capsys):
-    """A command's ``main(argv)`` run in this process: its exit code and its stderr.
-
-    An exception other than SystemExit (a traceback, as a process would print it) fails the
-    test. The commands' exit codes and stderr as processes are checked by ``_cli`` tests
-    (test_solver's sik-solve bad input, and the first manifest case below for sik-train).
-    """
-    capsys.readouterr()
-    try:
-        code = main(list(argv))
-    except SystemExit as exc:
-        code = exc.code
-    return code, capsys.readouterr().err
-
-
 @pytest.mark.parametrize('args', [(), ('0.4', '0.1'), ('0.4', '0', 'x'), ('1e300', '0', '0.4'),
                                   ('0.4', '0', '0.4', '--orientation', '0', '0', '0', '0')])
-def test_sik_solve_usage_and_input_errors_are_one_line_and_exit_2(args, capsys):
+def test_sik_solve_usage_and_input_errors_are_one_line_and_exit_2(args, run_main):
     """Missing or bad arguments: exit 2, one line on stderr, no traceback."""
     from sik_ros.cli.solve import main
-    code, err = _main(main, args, capsys)
+    code, err = run_main(main, args)
     assert code == 2, (code, err)
     assert len(err.strip().splitlines()) == 1 and 'Traceback' not in err
 
@@ -182,7 +167,7 @@ def _dataset(tmp_path, panda, **manifest_changes):
     ({'count': 0}, 'row count'),
     ({'robot': ['panda']}, 'robot manifest'),
 ])
-def test_malformed_dataset_manifests_are_one_line_errors(tmp_path, panda, capsys, change,
+def test_malformed_dataset_manifests_are_one_line_errors(tmp_path, panda, run_main, change,
                                                          words):
     """sik-train on a dataset whose manifest lacks or garbles its count or robot: one line.
 
@@ -197,7 +182,7 @@ def test_malformed_dataset_manifests_are_one_line_errors(tmp_path, panda, capsys
         code, err = run.returncode, run.stderr
         assert 'Traceback' not in err
     else:
-        code, err = _main(main, argv, capsys)
+        code, err = run_main(main, argv)
     assert code == 2 and words in err, err
     assert len(err.strip().splitlines()) == 1
 

@@ -120,19 +120,16 @@ def test_psik_fcn_and_anfis_train(panda, uniform_small, tmp_path):
     (['--max-time', '-1'], '--max-time'),
     (['--resume'], 'does not exist'),
 ])
-def test_cli_bad_arguments(uniform_small, tmp_path, capsys, args, message):
+def test_cli_bad_arguments(uniform_small, tmp_path, run_main, args, message):
     """sik-train refuses bad arguments with a short message and a non-zero exit.
 
     Its ``main`` runs here (test_inputs runs sik-train as a process on a bad dataset).
     """
     from sik_ros.cli.train import main
-    try:
-        code = main(['--dataset', str(uniform_small.path), '--out', str(tmp_path / 'run'),
-                     '--quiet', '--steps', '2', *args])
-    except SystemExit as exc:
-        code = exc.code
+    code, err = run_main(main, ['--dataset', str(uniform_small.path), '--out',
+                                str(tmp_path / 'run'), '--quiet', '--steps', '2', *args])
     assert code not in (0, None)  # as a process's exit status: non-zero
-    assert message in capsys.readouterr().err
+    assert message in err
 
 
 def test_pso_trains_an_anfis_through_the_same_loop(panda, uniform_small, tmp_path):
