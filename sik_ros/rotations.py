@@ -58,17 +58,6 @@ def matrix_quaternion(rot) -> np.ndarray:
     return np.array([x / norm, y / norm, z / norm, w / norm])
 
 
-def quaternion_matrices(quat: np.ndarray) -> np.ndarray:
-    """Rotation matrices (N, 3, 3) of unit quaternions (N, 4), x y z w (normalised first)."""
-    quat = np.asarray(quat, dtype=np.float64)
-    x, y, z, w = (quat / np.linalg.norm(quat, axis=1)[:, None]).T
-    x2, y2, z2, w2 = x * x, y * y, z * z, w * w
-    xy, zw, xz, yw, yz, xw = x * y, z * w, x * z, y * w, y * z, x * w
-    return np.stack([x2 - y2 - z2 + w2, 2 * (xy - zw), 2 * (xz + yw),
-                     2 * (xy + zw), -x2 + y2 - z2 + w2, 2 * (yz - xw),
-                     2 * (xz - yw), 2 * (yz + xw), -x2 - y2 + z2 + w2], axis=1).reshape(-1, 3, 3)
-
-
 def rotation_to_quaternion(rot: np.ndarray) -> np.ndarray:
     """Rotation matrices (N, 3, 3) to unit quaternions (N, 4), x y z w, w >= 0."""
     quat = Rotation.from_matrix(rot).as_quat()

@@ -222,7 +222,7 @@ def test_waypoint_quaternions_become_scipys_rotations_and_back():
     The quaternion of one matrix (either sign) has w >= 0, at the half turns too.
     """
     from scipy.spatial.transform import Rotation
-    from sik_ros.rotations import matrix_quaternion, quaternion_matrices
+    from sik_ros.rotations import matrix_quaternion
     from sik_ros.solver.inputs import check_path
     rng = np.random.default_rng(5)
     raw = rng.normal(size=(300, 4)) * 10.0 ** rng.uniform(-3, 3, (300, 1))
@@ -230,7 +230,6 @@ def test_waypoint_quaternions_become_scipys_rotations_and_back():
     unit = np.array([g.given_quaternion for g in goals])
     np.testing.assert_array_equal(np.array([g.rotation for g in goals]),
                                   Rotation.from_quat(unit).as_matrix())
-    np.testing.assert_array_equal(quaternion_matrices(unit), Rotation.from_quat(unit).as_matrix())
     rots = np.concatenate([Rotation.from_quat(unit).as_matrix(), np.eye(3)[None],
                            np.diag([1.0, -1.0, -1.0])[None], np.diag([-1.0, 1.0, -1.0])[None],
                            np.diag([-1.0, -1.0, 1.0])[None]])

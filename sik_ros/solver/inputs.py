@@ -6,11 +6,12 @@ Every problem raises a :class:`~sik_ros.errors.SikError` subclass naming the fie
 from typing import List, Optional, Sequence
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 from sik_ros.collision import Obstacle
 from sik_ros.errors import InvalidArgument, InvalidGoal, InvalidSeed, JointLimitViolation
 from sik_ros.kinematics import Robot
-from sik_ros.rotations import quaternion_matrices, quaternion_matrix
+from sik_ros.rotations import quaternion_matrix
 from sik_ros.solver.context import Goal
 from sik_ros.validation import MAX_DISTANCE, quaternion, real_array, vector
 
@@ -74,8 +75,9 @@ def check_path(positions, orientations, goals: Sequence[str],
         if quat is None:
             return [Goal(p) for p in pos.copy()]
         unit = quat / scale[:, None]  # normalised row by row as quaternion() does it
-        unit /= np.linalg.norm(unit, axis=1)[:, None]
-        return [Goal(p, r, u) for p, r, u in zip(pos.copy(), quaternion_matrices(unit), unit)]
+        unit = np.array([u / np.linalg.norm(u) for u in unit])
+        rot = Rotation.from_quat(unit).as_matrix()
+        return [Goal(p, r, u) for p, r, u in zip(pos.copy(), rot, unit)]
     for i, p in enumerate(pos):  # one is bad: name it, as check_goal says it
         try:
             check_goal(p, None if quat is None else quat[i], goals)
