@@ -196,3 +196,38 @@ def test_kd_tree_finds_the_exact_nearest_rows_for_one_key_or_two():
         np.testing.assert_array_equal(tree.order[rows], union)
         rows, dist = tree.nearest(key, 30, eps=0.5)
         assert len(np.unique(rows)) == 30 and dist.max() <= 1.5 * d_ref[-1] + 1e-12
+
+
+def test_exact_rows_by_margin_are_the_general_rankings_order():
+    """Exact rows by goal error, one per posture, then by joint-limit margin: as NumPy ranks.
+
+    The reference is the general stages' own functions: :func:`best_distinct` over the exact
+    rows, then :class:`JointLimitMargin` sorted stably. Ties in the goal error and in the
+    cost (rows repeated) keep the row order.
+    """
+    from sik_ros.kernels.sets import exact_by_margin
+    from sik_ros.objectives import JointLimitMargin
+    from sik_ros.solver.config import ORIENTATION_WEIGHT
+    from sik_ros.solver.ranking import assess, best_distinct
+    from sik_ros.solver.config import SolverConfig
+    robot = SelectiveIK.load('panda').robot
+    cfg = SolverConfig()
+    rng = np.random.default_rng(11)
+    for trial in range(50):
+        m = int(rng.integers(0, 30))
+        q = rng.uniform(robot.lower, robot.upper, (m, robot.dof))
+        perr = rng.choice([1e-6, 5e-5, 2e-4, 0.01], m)
+        oerr = rng.choice([1e-5, 5e-4, 2e-3], m)
+        if m > 4:  # repeated rows: equal scores and costs, one posture
+            q[3], perr[3], oerr[3] = q[1], perr[1], oerr[1]
+            q[4] = q[2] + 0.1
+        keep, cost = exact_by_margin(q, perr, oerr, cfg.position_tolerance,
+                                     cfg.orientation_tolerance, ORIENTATION_WEIGHT,
+                                     cfg.distinct_threshold, robot.lower, robot.upper)
+        c = assess(q, np.zeros((m, 1)), perr, oerr, 'pose', cfg)
+        c = c.take(c.exact)
+        ref = best_distinct(c, cfg.distinct_threshold, False)
+        ref_cost = JointLimitMargin(robot)(ref.q)
+        order = np.argsort(ref_cost, kind='stable')
+        np.testing.assert_array_equal(q[keep], ref.q[order])
+        np.testing.assert_array_equal(cost, ref_cost[order])

@@ -248,3 +248,45 @@ def test_a_first_joint_short_of_a_turn_still_gets_its_neighbours(monkeypatch, tm
         monkeypatch.undo()
         assert len(pool) == 100
         assert np.all(pool >= so100.lower) and np.all(pool <= so100.upper)
+
+
+def test_the_lean_path_answers_as_the_general_stages(ur5_bundle, monkeypatch):
+    """Isolated pose goals without seed or obstacles: the same ranked answer either way.
+
+    :mod:`sik_ros.solver.isolated` takes the UR5's calls (its joints made non-periodic here,
+    so that its own ranking runs, not the general one of 2 pi equivalents); the general
+    stages answer the same goals when it is switched off. Every field is equal.
+    """
+    from sik_ros import SelectiveIK
+    import sik_ros.solver.isolated as isolated
+    import sik_ros.solver.pipeline as pipeline
+    ik = SelectiveIK.load(ur5_bundle[0])
+    monkeypatch.setattr(ik.robot, 'periodic', np.zeros(ik.robot.dof, dtype=bool))
+    answered = []
+    every_branch = isolated.every_branch
+
+    def spy(*args):
+        out = every_branch(*args)
+        answered.append(out[0] is not None)
+        return out
+
+    monkeypatch.setattr(pipeline, 'every_branch', spy)
+    rng = np.random.default_rng(21)
+    for q in rng.uniform(ik.robot.lower, ik.robot.upper, (12, ik.robot.dof)):
+        p, quat = ik.fk(q)
+        for num in (16, 2, 1):
+            lean = ik.solve(p, quat, num_solutions=num)
+            with monkeypatch.context() as m:
+                m.setattr(pipeline, 'lean', lambda call: False)
+                general = ik.solve(p, quat, num_solutions=num)
+            assert (lean.success, lean.timed_out, lean.message) == \
+                (general.success, general.timed_out, general.message)
+            assert len(lean.solutions) == len(general.solutions)
+            for a, b in zip(lean.solutions, general.solutions):
+                np.testing.assert_array_equal(a.q, b.q)
+                np.testing.assert_array_equal(a.posture_index, b.posture_index)
+                assert (a.position_error, a.orientation_error, a.score, a.tier,
+                        a.self_collision, a.converged, a.min_obstacle_distance) == \
+                    (b.position_error, b.orientation_error, b.score, b.tier,
+                     b.self_collision, b.converged, b.min_obstacle_distance)
+    assert sum(answered) >= 30  # the lean path answered (exact solutions found)

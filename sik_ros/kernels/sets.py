@@ -77,3 +77,56 @@ def distinct_rows(q, threshold, cols, periodic):  # pragma: no cover (compiled)
                 break
         keep[i] = ok
     return keep
+
+
+@njit('void(int64[::1], float64[::1], int64, int64, float64)', cache=True, nogil=True)
+def _insert(rows, keys, count, row, key):  # pragma: no cover (compiled)
+    """Put ``row`` with ``key`` into the first ``count`` rows sorted by key, after equal keys.
+
+    An insertion sort's step: a stable order, as NumPy's stable sort gives.
+    """
+    j = count
+    while j > 0 and keys[j - 1] > key:
+        rows[j], keys[j] = rows[j - 1], keys[j - 1]
+        j -= 1
+    rows[j], keys[j] = row, key
+
+
+@njit('Tuple((int64[::1], float64[::1]))(float64[:, ::1], float64[::1], float64[::1], '
+      'float64, float64, float64, float64, float64[::1], float64[::1])', cache=True, nogil=True)
+def exact_by_margin(q, perr, oerr, position_tolerance, orientation_tolerance, weight,
+                    threshold, lower, upper):  # pragma: no cover (compiled)
+    """The exact rows, one per posture, ordered by closeness to the joint limits.
+
+    Exact: ``perr`` and ``oerr`` within the tolerances. Taken by their goal error (``perr +
+    weight * oerr``, ties in row order), a row within ``threshold`` [rad] of one taken before
+    is left out; the rest are ordered by their cost, 1 minus the smallest of the joints'
+    margins to a limit, each over half its range (ties in the previous order).
+
+    Returns:
+        the rows' indices (K,) and their costs (K,).
+    """
+    m, n = q.shape
+    rows = np.empty(m, dtype=np.int64)
+    score = np.empty(m)
+    k = 0
+    for i in range(m):
+        if perr[i] <= position_tolerance and oerr[i] <= orientation_tolerance:
+            _insert(rows, score, k, i, perr[i] + weight * oerr[i])
+            k += 1
+    keep = distinct_rows(q[rows[:k]], threshold, n, np.zeros(n, dtype=np.bool_))
+    out = np.empty(k, dtype=np.int64)
+    cost = np.empty(k)
+    kept = 0
+    for a in range(k):
+        if not keep[a]:
+            continue
+        i = rows[a]
+        margin = np.inf
+        for c in range(n):
+            half = (upper[c] - lower[c]) / 2
+            v = min(q[i, c] - lower[c], upper[c] - q[i, c]) / half
+            margin = min(margin, v)
+        _insert(out, cost, kept, i, 1.0 - margin)
+        kept += 1
+    return out[:kept].copy(), cost[:kept].copy()

@@ -37,6 +37,7 @@ from sik_ros.solver.config import (FAR_ITERATIONS, FREE_RESTARTS, FREE_ROUNDS, S
 from sik_ros.solver.context import Context, Goal, POSE, POSITION
 from sik_ros.solver.explore import (branch_starts, periodic_equivalents, restart, seed_starts,
                                     unindexed, walk)
+from sik_ros.solver.isolated import every_branch
 from sik_ros.solver.ranking import (assess, best_distinct, by_score, distinct_mask, merge,
                                     pose_score, rank)
 from sik_ros.solver.refine import errors, refine
@@ -178,13 +179,21 @@ def solve(ctx: Context, goal: Goal, num: int, q_seed: Optional[np.ndarray],
             return result
     call = make_call(ctx, goal, num, q_seed, obstacles, refined, objective, deadline,
                      first_found, single)
-    c = initial_postures(ctx, goal, num, None if single else q_seed, refined,
-                         seeded=call.seeds is not None)
     timed_out = False
     own = None
-    if refined:
+    if lean(call):
+        # every branch, unless one is asked for
+        enough = early_stop(ctx.config, call) if num == 1 else None
+        result, c, timed_out = every_branch(ctx, goal, call.seeds, num, enough, deadline)
+        if result is not None:
+            return result
+        c, timed_out = more_starts(ctx, call, c, enough, timed_out)
+    elif refined:
+        c = initial_postures(ctx, goal, num, None if single else q_seed, refined,
+                             seeded=call.seeds is not None)
         c, timed_out = refine_all(ctx, call, c)
     else:
+        c = initial_postures(ctx, goal, num, q_seed, refined)
         c = assess(c.q, c.z, *errors(ctx, c.q, goal), goal.kind, ctx.config)
         if goal.kind == POSE:  # Algorithm 2 on the tip pose error: still decoded postures
             c = adjust_raw(ctx, goal, c, num, q_seed is not None, call.deadline)
@@ -211,6 +220,16 @@ def make_call(ctx: Context, goal: Goal, num: int, q_seed: Optional[np.ndarray],
     seeds = ctx.models[goal.kind].seeds if isolated and cfg.seed_starts > 0 else None
     return Call(goal, num, q_seed, obstacles, refined, objective, deadline, first_found,
                 single, far, seeds, isolated)
+
+
+def lean(call: Call) -> bool:
+    """Whether a call takes :mod:`sik_ros.solver.isolated`'s lean path.
+
+    Isolated pose solutions with the seed table's starts, ranked by the default objective:
+    no seed, obstacles or objective, and not a path's starts.
+    """
+    return call.seeds is not None and call.q_seed is None and not call.obstacles and \
+        call.objective is None and not call.first_found
 
 
 def early_stop(cfg: SolverConfig, call: Call) -> Optional[int]:
@@ -250,7 +269,17 @@ def refine_all(ctx: Context, call: Call, c: Candidates) -> Tuple[Candidates, boo
     r = refine(ctx, c.q, goal, deadline, FAR_ITERATIONS if call.far else None,
                prune=call.seeds is None, enough=enough)
     c = assess(r.q, c.z, r.perr, r.oerr, goal.kind, cfg)
-    timed_out = r.cut_short
+    return more_starts(ctx, call, c, enough, r.cut_short)
+
+
+def more_starts(ctx: Context, call: Call, c: Candidates, enough: Optional[int],
+                timed_out: bool) -> Tuple[Candidates, bool]:
+    """Stage 3 after the first refinement ``c``: restarts and the walk where it fell short.
+
+    Returns:
+        the refined candidates, and whether the deadline cut refinement short.
+    """
+    cfg, goal, num, deadline = ctx.config, call.goal, call.num, call.deadline
     if goal.kind == POSE and not call.far and not c.exact.any() and \
             not deadline.expired() and call.seeds is None and \
             oriented_count(cfg, num) < cfg.oriented_candidates:

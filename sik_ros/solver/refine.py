@@ -10,6 +10,8 @@ or at the deadline; all stop once enough distinct rows are exact (see
 """
 
 from dataclasses import dataclass
+import functools
+import math
 from typing import Optional, Tuple
 
 import numpy as np
@@ -18,11 +20,13 @@ from sik_ros.deadline import Deadline, NO_DEADLINE
 from sik_ros.goal_error import goal_errors
 from sik_ros.kernels import as_arg, follow_rows, refine_rows
 from sik_ros.kernels.dls import INTS, REALS
-from sik_ros.solver.config import ORIENTATION_WEIGHT
+from sik_ros.solver.config import ORIENTATION_WEIGHT, SolverConfig
 from sik_ros.solver.context import Context, Goal
 
 #: The rotation handed to the kernels with a position goal (not read).
 NO_ROTATION = np.eye(3)
+#: Where the deadline is in :func:`refine_rows`'s real settings.
+DEADLINE = REALS.index('deadline')
 
 
 @dataclass(frozen=True)
@@ -114,23 +118,38 @@ def refine(ctx: Context, q: np.ndarray, goal: Goal, deadline: Deadline = NO_DEAD
     q = np.array(q, dtype=float, order='C')
     m = len(q)
     perr, oerr, status = np.empty(m), np.empty(m), np.empty(m, dtype=np.int8)
+    reals, ints, prune_at = kernel_settings(cfg, iterations or cfg.refine_iterations,
+                                            enough or 0, bool(prune),
+                                            ctx.ignores_last(goal.kind))
+    reals = reals.copy()
+    reals[DEADLINE] = deadline.at
+    pose = goal.rotation is not None
+    cut = refine_rows(robot.frames, robot.lower, robot.upper, robot.periodic, q,
+                      as_arg(goal.position), as_arg(goal.rotation) if pose else NO_ROTATION,
+                      pose, reals, ints, prune_at, perr, oerr, status)
+    return Refined(q, perr, oerr, bool(cut))
+
+
+@functools.lru_cache(maxsize=256)
+def kernel_settings(cfg: SolverConfig, iterations: int, enough: int, prune: bool,
+                    roll_free: bool) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`refine_rows`'s settings arrays (its ``deadline`` left infinite), made once each.
+
+    Shared: not to be written (a caller copies ``reals`` to set its deadline; the kernels
+    take writeable arrays only).
+    """
     settings = {'position_tolerance': cfg.position_tolerance,
                 'orientation_tolerance': cfg.orientation_tolerance,
                 'damping2': cfg.damping ** 2, 'max_step': cfg.max_step,
                 'stall_ratio': cfg.stall_ratio, 'prune_radius': cfg.prune_radius,
                 'distinct_threshold': cfg.distinct_threshold,
-                'deadline': deadline.at, 'orientation_weight': ORIENTATION_WEIGHT,
-                'iterations': iterations or cfg.refine_iterations,
-                'stall_window': cfg.stall_window, 'stall_after': cfg.stall_after,
-                'give_up_after': cfg.give_up_after, 'enough': enough or 0, 'prune': int(prune),
-                'roll_free': int(ctx.ignores_last(goal.kind))}
-    pose = goal.rotation is not None
-    cut = refine_rows(robot.frames, robot.lower, robot.upper, robot.periodic, q,
-                      as_arg(goal.position), as_arg(goal.rotation) if pose else NO_ROTATION,
-                      pose, np.array([settings[k] for k in REALS], dtype=float),
-                      np.array([settings[k] for k in INTS], dtype=np.int64),
-                      np.array(cfg.prune_at, dtype=np.int64), perr, oerr, status)
-    return Refined(q, perr, oerr, bool(cut))
+                'deadline': math.inf, 'orientation_weight': ORIENTATION_WEIGHT,
+                'iterations': iterations, 'stall_window': cfg.stall_window,
+                'stall_after': cfg.stall_after, 'give_up_after': cfg.give_up_after,
+                'enough': enough, 'prune': int(prune), 'roll_free': int(roll_free)}
+    return (np.array([settings[k] for k in REALS], dtype=float),
+            np.array([settings[k] for k in INTS], dtype=np.int64),
+            np.array(cfg.prune_at, dtype=np.int64))
 
 
 def follow(ctx: Context, q: np.ndarray, start: Evaluation, goal: Goal, iterations: int,
