@@ -289,13 +289,25 @@ def render_service(files: List[dict]) -> str:
         x = r.get('ratio')
         return NA if not x else f'**{num(x["p50"])}** / {num(x["p90"])}'
 
+    def message_ratio(r: dict) -> str:
+        x = r.get('message_ratio')
+        return NA if not x else f'{num(x["p50"])} / {num(x["p90"])}'
+
     def rate(r: dict, clients: int) -> str:
         cells = r.get('throughput', {}).get(str(clients))
         if cells:
-            return f'{cells["sik"]:.0f} / {cells["floor"]:.0f} requests/s'
+            return ' / '.join(NA if key not in cells else f'{cells[key]:.0f}'
+                              for key in ('sik', 'message', 'floor')) + ' requests/s'
         if clients == r['clients']:  # a run from before the empty service was measured
             return f'{r["throughput_rps"]:.0f} / {NA} requests/s'
         return NA
+
+    def cpu(r: dict, clients: int) -> str:
+        cells = r.get('cpu_ms_per_answer', {}).get(str(clients))
+        if not cells:
+            return NA
+        return ' / '.join(f'{num(cells[key]["server"])} + {num(cells[key]["client"])}'
+                          for key in ('sik', 'message', 'floor')) + ' ms'
 
     cols = []
     for data in files:
@@ -311,20 +323,27 @@ def render_service(files: List[dict]) -> str:
             ('empty service round trip p50 / p90 / p99 (same run, A B A B)',
              lambda r: p(r.get('floor_round_trip'))),
             ('round trip ÷ empty service, p50 / p90', ratio),
+            ('16-solution answer without a solve (message service, same run) p50 / p90 / p99',
+             lambda r: p(r.get('message_round_trip'))),
+            ('… ÷ empty service, p50 / p90', message_ratio),
             ('solver in the node p50 / p90 / p99', lambda r: p(r['solver_in_node'])),
             ('ROS overhead (round trip − solver) p50 / p90 / p99', lambda r: p(r['overhead'])),
             ('solver alone in the benchmark process p50 / p90 / p99',
              lambda r: p(r['solver_alone'])),
-            ('throughput, 1 client: node / empty service', lambda r: rate(r, 1)),
-            (f'throughput, {many} clients: node / empty service', lambda r: rate(r, many)),
+            ('throughput, 1 client: node / message / empty service', lambda r: rate(r, 1)),
+            (f'throughput, {many} clients: node / message / empty service',
+             lambda r: rate(r, many)),
+            (f'processor time per answer, {many} clients, server + clients: node / message / '
+             'empty service', lambda r: cpu(r, many)),
             ('node RSS growth (requests)',
              lambda r: f'{r["rss_growth_mb"]:+.1f} MB ({r["requests_total"]:,})'),
             ('SUCCESS answers', lambda r: pct(r['success']))]
     rows = [[name] + [fn(r) for _, r in cols] for name, fn in spec]
     return ('16 ranked refined solutions per request, goals at FK of random configurations, '
             'sequential round trips from a background-spun `SolveIKClient`, each followed by '
-            'a call of the empty service, then concurrent clients (phases of the node and of '
-            'the empty service in turn):\n\n' + table([''] + [c for c, _ in cols], rows))
+            'a call of the empty service and of the message service, then concurrent clients '
+            '(phases of the node and of the two floors in turn):\n\n'
+            + table([''] + [c for c, _ in cols], rows))
 
 
 def render_service_probe(data: dict) -> str:

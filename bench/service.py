@@ -11,8 +11,12 @@ alternating: ``--goals mixed``) and 16 ranked refined solutions:
 - the floor of a round trip in the same run: an empty ``std_srvs/Trigger`` service served as
   the node serves (``bench/empty_service.py``, a process beside the node), called by the same
   client code, one call of each in turn (A B A B), and the ratio of the two;
-- throughput with 1 and with several concurrent clients [requests/s], of the node and of the
-  empty service, in alternating phases;
+- the floor of an answer of the node's size, in the same turns: a ``SolveIK`` service of the
+  same process answering every request with the same 16 solutions (solved once, converted as
+  the node converts them): what rclpy's messages cost without a solve;
+- throughput with 1 and with several concurrent clients [requests/s], of the node, the empty
+  service and the message service, in alternating phases, and the processor time each
+  answer took in the serving process and in the clients' process [ms] (``/proc``);
 - resident memory (VmRSS) growth of the node and its solver processes over all the requests
   sent [MB].
 
@@ -88,10 +92,14 @@ def percentiles(seconds) -> str:
 
 
 class Service:
-    """One service the benchmark calls: its name, type, and the request of the i-th call."""
+    """One service the benchmark calls: its name, type, the i-th call's request, its process.
+
+    ``pid``: the process serving it, set once started.
+    """
 
     def __init__(self, label: str, name: str, srv_type, request: Callable[[int], object]):
         self.label, self.name, self.srv_type, self.request = label, name, srv_type, request
+        self.pid: Optional[int] = None
 
     def client(self, node_name: str) -> SolveIKClient:
         """A background-spun client of this service."""
@@ -99,24 +107,41 @@ class Service:
 
 
 def services(goals: List[tuple]) -> Dict[str, Service]:
-    """The node's ``~/solve_ik`` (``sik``) and the empty service (``floor``)."""
+    """The node's ``~/solve_ik`` (``sik``), the empty (``floor``) and message services."""
     requests = [ros_client.pose_request(p, quat, max_solutions=NUM_SOLUTIONS)
                 for p, quat in goals]
     empty = Trigger.Request()
     return {'sik': Service('sik_node ~/solve_ik', SERVICE, SolveIK,
                            lambda i: requests[i % len(requests)]),
             'floor': Service('empty Trigger service', empty_service.SERVICE, Trigger,
-                             lambda i: empty)}
+                             lambda i: empty),
+            'message': Service('16-solution SolveIK service', empty_service.MESSAGE_SERVICE,
+                               SolveIK, lambda i: requests[i % len(requests)])}
 
 
-def sequential(sik: SolveIKClient, floor: SolveIKClient, goals: List[tuple]):
-    """Time one request per goal, one at a time, each followed by a call of the empty service.
+def cpu_seconds(pid: int) -> float:
+    """Processor time (user + system) of a process and of its children's live processes [s]."""
+    with open(f'/proc/{pid}/stat') as f:
+        fields = f.read().rsplit(')', 1)[1].split()
+    total = (int(fields[11]) + int(fields[12])) / os.sysconf('SC_CLK_TCK')
+    for task in os.listdir(f'/proc/{pid}/task'):
+        with open(f'/proc/{pid}/task/{task}/children') as f:
+            total += sum(cpu_seconds(int(c)) for c in f.read().split())
+    return total
+
+
+def sequential(sik: SolveIKClient, floor: SolveIKClient, message: SolveIKClient,
+               goals: List[tuple]):
+    """Time one request per goal, one at a time, then the empty and message services in turn.
+
+    The message service gets the same request.
 
     Returns:
         round trips [s], the node's solver time of each (from the answer's message) [s], the
-        answer codes (None: no answer), and the empty service's round trips [s].
+        answer codes (None: no answer), the empty service's and the message service's round
+        trips [s].
     """
-    times, inside, codes, empty = [], [], [], []
+    times, inside, codes, empty, canned = [], [], [], [], []
     nothing = Trigger.Request()
     for p, quat in goals:
         req = ros_client.pose_request(p, quat, max_solutions=NUM_SOLUTIONS)
@@ -124,12 +149,15 @@ def sequential(sik: SolveIKClient, floor: SolveIKClient, goals: List[tuple]):
         answer = sik.call(req)
         t1 = time.perf_counter()
         floor.call(nothing)
-        empty.append(time.perf_counter() - t1)
+        t2 = time.perf_counter()
+        message.call(req)
+        canned.append(time.perf_counter() - t2)
+        empty.append(t2 - t1)
         times.append(t1 - t0)
         codes.append(None if answer is None else answer.error_code)
         took = None if answer is None else SOLVER_MS.search(answer.message)
         inside.append(float(took.group(1)) * 1e-3 if took else np.nan)
-    return times, inside, codes, empty
+    return times, inside, codes, empty, canned
 
 
 def concurrent(service: Service, clients: int, duration: float):
@@ -168,22 +196,33 @@ def throughput(svcs: Dict[str, Service], clients: List[int], duration: float
     """Requests/s of every service with each client count, phases alternating.
 
     Each (service, clients) pair gets ``ROUNDS`` phases of ``duration / ROUNDS`` seconds, in
-    turn with the other service's, so both see the same machine.
+    turn with the other services', so all see the same machine. The processor time of the
+    serving process (``Service.pid``, its solver processes included) and of this one (the
+    clients) is read around each phase.
 
     Returns:
-        ``{str(clients): {key: {'answers', 'seconds', 'rps'}}}`` for the keys of ``svcs``.
+        ``{str(clients): {key: {'answers', 'seconds', 'rps', 'server_cpu_ms',
+        'client_cpu_ms'}}}`` for the keys of ``svcs`` (processor time per answer).
     """
     out: Dict[str, Dict[str, dict]] = {}
     for _ in range(ROUNDS):
         for k in clients:
             for key, svc in svcs.items():
+                server0, client0 = cpu_seconds(svc.pid), time.process_time()
                 answered, wall = concurrent(svc, k, duration / ROUNDS)
-                cell = out.setdefault(str(k), {}).setdefault(key, {'answers': 0, 'seconds': 0.0})
+                server, client = cpu_seconds(svc.pid) - server0, time.process_time() - client0
+                cell = out.setdefault(str(k), {}).setdefault(
+                    key, {'answers': 0, 'seconds': 0.0, 'server_cpu': 0.0, 'client_cpu': 0.0})
                 cell['answers'] += answered
                 cell['seconds'] += wall
+                cell['server_cpu'] += server
+                cell['client_cpu'] += client
     for cells in out.values():
         for cell in cells.values():
             cell['rps'] = cell['answers'] / cell['seconds']
+            per = 1e3 / max(cell['answers'], 1)
+            cell['server_cpu_ms'] = cell.pop('server_cpu') * per
+            cell['client_cpu_ms'] = cell.pop('client_cpu') * per
     return out
 
 
@@ -202,8 +241,8 @@ def in_process(bundle: str, goals: List[tuple]) -> List[float]:
             for p, quat in goals]
 
 
-def figures(args: argparse.Namespace, n: int, duration: float, rtt, inside, empty, solver,
-            rates: Dict[str, Dict[str, dict]], rss0: float, rss1: float, ok: int,
+def figures(args: argparse.Namespace, n: int, duration: float, rtt, inside, empty, canned,
+            solver, rates: Dict[str, Dict[str, dict]], rss0: float, rss1: float, ok: int,
             goals: List[tuple]) -> dict:
     """The printed figures as a dict for ``--json`` (times [ms], memory [MB])."""
     def pct(seconds) -> dict:
@@ -211,18 +250,25 @@ def figures(args: argparse.Namespace, n: int, duration: float, rtt, inside, empt
         return {'p50_ms': float(p50), 'p90_ms': float(p90), 'p99_ms': float(p99)}
 
     rtt_a, inside_a = np.asarray(rtt), np.asarray(inside)
-    sik, floor = pct(rtt_a), pct(empty)
+    sik, floor, message = pct(rtt_a), pct(empty), pct(canned)
     answered = sum(cells['sik']['answers'] for cells in rates.values())
     out = {'goals': args.goals, 'requests': n, 'clients': args.clients,
            'duration_s': duration, 'params': args.param, 'solutions': NUM_SOLUTIONS,
            'round_trip': sik, 'floor_round_trip': floor,
            'ratio': {'p50': sik['p50_ms'] / floor['p50_ms'],
                      'p90': sik['p90_ms'] / floor['p90_ms']},
+           'message_round_trip': message,
+           'message_ratio': {'p50': message['p50_ms'] / floor['p50_ms'],
+                             'p90': message['p90_ms'] / floor['p90_ms']},
            'solver_in_node': pct(inside_a),
            'overhead': pct(rtt_a - inside_a), 'solver_alone': pct(solver),
            'throughput_rps': rates[str(args.clients)]['sik']['rps'],
            'throughput': {k: {key: cell['rps'] for key, cell in cells.items()}
                           for k, cells in rates.items()},
+           'cpu_ms_per_answer': {k: {key: {'server': cell['server_cpu_ms'],
+                                           'client': cell['client_cpu_ms']}
+                                     for key, cell in cells.items()}
+                                 for k, cells in rates.items()},
            'rss_start_mb': rss0, 'rss_end_mb': rss1,
            'rss_growth_mb': rss1 - rss0, 'requests_total': n + answered,
            'success': ok / len(rtt)}
@@ -279,15 +325,18 @@ def main(argv: Optional[List[str]] = None) -> int:
             print(f'sik_node did not come up (exit code {proc.poll()})')
             return 1
         svcs = services(goals)
+        svcs['sik'].pid = proc.pid
+        svcs['floor'].pid = svcs['message'].pid = floor_proc.pid
         with svcs['sik'].client('sik_bench') as client, \
-                svcs['floor'].client('sik_bench_floor') as floor:
-            if not floor.wait_for_service(30.0):
+                svcs['floor'].client('sik_bench_floor') as floor, \
+                svcs['message'].client('sik_bench_message') as message:
+            if not (floor.wait_for_service(60.0) and message.wait_for_service(10.0)):
                 print(f'the empty service did not come up (exit code {floor_proc.poll()})')
                 return 1
             client.wait_for_service(10.0)
-            sequential(client, floor, targets(20, seed=1, kinds=args.goals))  # warm-up
+            sequential(client, floor, message, targets(20, seed=1, kinds=args.goals))  # warm-up
             rss0 = vm_rss_mb(proc.pid)
-            rtt, inside, codes, empty = sequential(client, floor, goals)
+            rtt, inside, codes, empty, canned = sequential(client, floor, message, goals)
         rates = throughput(svcs, sorted({1, args.clients}), duration)
         rss1 = vm_rss_mb(proc.pid)
     finally:
@@ -296,22 +345,33 @@ def main(argv: Optional[List[str]] = None) -> int:
         rclpy.try_shutdown()
     solver = in_process(bundle, goals)
     ok = sum(c == SolveIK.Response.SUCCESS for c in codes)
-    data = figures(args, n, duration, rtt, inside, empty, solver, rates, rss0, rss1, ok, goals)
+    data = figures(args, n, duration, rtt, inside, empty, canned, solver, rates, rss0, rss1, ok,
+                   goals)
     ratio = data['ratio']
     rows = [
         ('round trip p50 / p90 / p99 [ms]', percentiles(rtt), ''),
         ('empty service round trip p50 / p90 / p99 [ms]', percentiles(empty), ''),
         ('round trip / empty service, p50 / p90',
          f'{ratio["p50"]:.2f} / {ratio["p90"]:.2f}', '<= 2.0 (p50)'),
+        ('16-solution message service round trip p50 / p90 / p99 [ms]', percentiles(canned),
+         ''),
+        ('message service / empty service, p50 / p90',
+         f'{data["message_ratio"]["p50"]:.2f} / {data["message_ratio"]["p90"]:.2f}', ''),
         ('solver in the node p50 / p90 / p99 [ms]', percentiles(inside), ''),
         ('ROS overhead (round trip - solver) p50 / p90 / p99 [ms]',
          percentiles(np.asarray(rtt) - np.asarray(inside)), ''),
         ('solver alone p50 / p90 / p99 [ms] (this process)', percentiles(solver), ''),
     ]
     for k, cells in data['throughput'].items():
-        rows.append((f'throughput, {k} client{"s" if k != "1" else ""}: node / empty '
-                     f'service [req/s]', f'{cells["sik"]:.0f} / {cells["floor"]:.0f}',
+        rows.append((f'throughput, {k} client{"s" if k != "1" else ""}: node / message / '
+                     f'empty service [req/s]',
+                     f'{cells["sik"]:.0f} / {cells["message"]:.0f} / {cells["floor"]:.0f}',
                      '>= 600 (node)' if k == str(args.clients) else ''))
+        cpu = data['cpu_ms_per_answer'][k]
+        rows.append(('  processor time per answer, server + clients: node / message / '
+                     'empty [ms]', ' / '.join(f'{cpu[key]["server"]:.2f} + '
+                                              f'{cpu[key]["client"]:.2f}'
+                                              for key in ('sik', 'message', 'floor')), ''))
     rows += [
         (f'node RSS growth over {data["requests_total"]} requests [MB]',
          f'{rss1 - rss0:+.1f} ({rss0:.0f} -> {rss1:.0f})', '< 10 over 10,000'),
