@@ -42,15 +42,15 @@ from scipy.spatial import cKDTree  # noqa: E402
 import torch  # noqa: E402
 
 from sik_ros import SelectiveIK  # noqa: E402
-from sik_ros.chain import chain_forward  # noqa: E402
-from sik_ros.dataset import Dataset  # noqa: E402
-from sik_ros.index_table import farthest_point_subset  # noqa: E402
-from sik_ros.seed_table import SeedTable  # noqa: E402
+from sik_ros.kinematics.chain import chain_forward  # noqa: E402
 from sik_ros.solver import pipeline  # noqa: E402
 from sik_ros.solver.batch import Candidates  # noqa: E402
 from sik_ros.solver.candidates import (oriented_postures, starting_postures,  # noqa: E402
                                        table_candidates)
 from sik_ros.solver.context import Goal, POSE  # noqa: E402
+from sik_ros.tables.dataset import Dataset  # noqa: E402
+from sik_ros.tables.index_table import farthest_point_subset  # noqa: E402
+from sik_ros.tables.seed_table import SeedTable  # noqa: E402
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from arms import branches  # noqa: E402,I100 (bench/arms.py, beside this script)

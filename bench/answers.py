@@ -21,7 +21,7 @@ os.environ.setdefault('OMP_NUM_THREADS', '1')
 
 import numpy as np  # noqa: E402
 
-from sik_ros.collision import Obstacle  # noqa: E402
+from sik_ros.kinematics.collision import Obstacle  # noqa: E402
 from sik_ros.solver import SelectiveIK  # noqa: E402
 
 #: The four ways each target is solved: (name, keyword arguments, uses a seed).

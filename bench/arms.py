@@ -30,7 +30,7 @@ import numpy as np  # noqa: E402
 import torch  # noqa: E402
 
 from sik_ros import SelectiveIK  # noqa: E402
-from sik_ros.checkpoints import load_checkpoint  # noqa: E402
+from sik_ros.learning.checkpoints import load_checkpoint  # noqa: E402
 from sik_ros.solver.context import tip_on_last_axis  # noqa: E402
 from sik_ros.solver.ranking import distinct_mask  # noqa: E402
 

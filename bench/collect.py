@@ -42,7 +42,7 @@ def main() -> None:
     tmp = tempfile.mkdtemp(prefix='sik-bench-collect-')
     try:
         results = [one_run(args.interval, os.path.join(tmp, 'ds')) for _ in range(args.runs)]
-        from sik_ros.dataset import Dataset
+        from sik_ros.tables.dataset import Dataset
         rows = len(Dataset.load(os.path.join(tmp, 'ds')))
     finally:
         shutil.rmtree(tmp, ignore_errors=True)

@@ -28,8 +28,8 @@ from scipy.spatial.transform import Rotation  # noqa: E402
 import torch  # noqa: E402
 
 from sik_ros import Obstacle, SelectiveIK  # noqa: E402
-from sik_ros.chain import chain_forward  # noqa: E402
-from sik_ros.kinematics import find_frame  # noqa: E402
+from sik_ros.kinematics.chain import chain_forward  # noqa: E402
+from sik_ros.kinematics.robot import find_frame  # noqa: E402
 
 from peers import TracIK  # noqa: E402,I100 (bench/peers.py)
 from report import add_json_argument, write_json  # noqa: E402 (bench/report.py)

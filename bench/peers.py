@@ -9,7 +9,7 @@ import numpy as np
 import pinocchio as pin
 import pytracik
 
-from sik_ros.kinematics import find_frame
+from sik_ros.kinematics.robot import find_frame
 
 
 class DLS:

@@ -23,10 +23,10 @@ os.environ.setdefault('OMP_NUM_THREADS', '1')
 import numpy as np  # noqa: E402
 import torch  # noqa: E402
 
-from sik_ros.bundle import resolve_bundle  # noqa: E402
-from sik_ros.checkpoints import load_checkpoint  # noqa: E402
+from sik_ros.bundles.bundle import resolve_bundle  # noqa: E402
 from sik_ros.eval.plots import new_figure, save_figure  # noqa: E402
 from sik_ros.eval.studies import diversity_study  # noqa: E402
+from sik_ros.learning.checkpoints import load_checkpoint  # noqa: E402
 from sik_ros.solver import SelectiveIK  # noqa: E402
 
 from report import add_json_argument, write_json  # noqa: E402,I100 (bench/report.py)

@@ -41,11 +41,11 @@ from rclpy.signals import SignalHandlerOptions
 from std_srvs.srv import Trigger
 
 from sik_interfaces.srv import SolveIK
-from sik_ros.robots import load_robot
+from sik_ros.kinematics.robots import load_robot
 from sik_ros.ros import client as ros_client, launch
 from sik_ros.ros.client import SolveIKClient
+from sik_ros.serving.pool import single_threaded
 from sik_ros.solver import SelectiveIK
-from sik_ros.solver_pool import single_threaded
 
 import empty_service  # noqa: I100 (bench/empty_service.py)
 from report import add_json_argument, write_json  # noqa: I100 (bench/report.py)

@@ -24,7 +24,7 @@ from rclpy.executors import SingleThreadedExecutor
 from rclpy.signals import SignalHandlerOptions
 
 from sik_interfaces.srv import SolveIK
-from sik_ros.robots import load_robot
+from sik_ros.kinematics.robots import load_robot
 from sik_ros.ros import client as ros_client, launch
 from sik_ros.ros.client import SolveIKClient
 

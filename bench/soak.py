@@ -23,7 +23,7 @@ from rcl_interfaces.srv import SetParameters
 import rclpy
 from shape_msgs.msg import SolidPrimitive
 
-from sik_ros.robots import load_robot
+from sik_ros.kinematics.robots import load_robot
 from sik_ros.ros import client as ros_client, launch
 from sik_ros.ros.client import SolveIKClient
 

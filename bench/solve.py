@@ -23,7 +23,7 @@ import numpy as np  # noqa: E402
 from scipy.spatial.transform import Rotation  # noqa: E402
 import torch  # noqa: E402
 
-from sik_ros.collision import CollisionChecker, Obstacle  # noqa: E402
+from sik_ros.kinematics.collision import CollisionChecker, Obstacle  # noqa: E402
 from sik_ros.solver import SelectiveIK  # noqa: E402
 from sik_ros.solver.candidates import (oriented_postures, starting_postures,  # noqa: E402
                                        table_candidates)
@@ -196,7 +196,7 @@ def obstacle_case(ik):
     checker = CollisionChecker(ik.robot)
     best = free.solutions[0]
     # a box between the base and the target, at the height of the best posture's elbow
-    from sik_ros.chain import chain_forward
+    from sik_ros.kinematics.chain import chain_forward
     _, _, origins, _ = chain_forward(ik.robot.chain, best.q[None], frames=True)
     elbow = origins[0, 3]
     box = Obstacle('box', (0.15, 0.3, 0.15), tuple(float(v) for v in elbow))

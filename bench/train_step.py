@@ -19,10 +19,10 @@ os.environ.setdefault('OMP_NUM_THREADS', '1')
 import numpy as np  # noqa: E402
 import torch  # noqa: E402
 
-from sik_ros.dataset import collect  # noqa: E402
-from sik_ros.models import ModelConfig, PRESETS  # noqa: E402
-from sik_ros.robots import load_robot  # noqa: E402
-from sik_ros.training import TrainConfig, Trainer  # noqa: E402
+from sik_ros.kinematics.robots import load_robot  # noqa: E402
+from sik_ros.learning.models import ModelConfig, PRESETS  # noqa: E402
+from sik_ros.learning.training import TrainConfig, Trainer  # noqa: E402
+from sik_ros.tables.dataset import collect  # noqa: E402
 
 from report import add_json_argument, write_json  # noqa: E402,I100 (bench/report.py)
 

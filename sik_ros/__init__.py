@@ -19,11 +19,11 @@ _EXPORTS = {
     'FrameNotFound': 'sik_ros.errors', 'IKResult': 'sik_ros.solver.results',
     'InvalidArgument': 'sik_ros.errors', 'InvalidGoal': 'sik_ros.errors',
     'InvalidModel': 'sik_ros.errors', 'InvalidSeed': 'sik_ros.errors',
-    'JointLimitViolation': 'sik_ros.errors', 'Obstacle': 'sik_ros.collision',
-    'Robot': 'sik_ros.kinematics', 'RobotNotFound': 'sik_ros.errors',
+    'JointLimitViolation': 'sik_ros.errors', 'Obstacle': 'sik_ros.kinematics.collision',
+    'Robot': 'sik_ros.kinematics.robot', 'RobotNotFound': 'sik_ros.errors',
     'SelectiveIK': 'sik_ros.solver.selective_ik', 'SikError': 'sik_ros.errors',
     'Solution': 'sik_ros.solver.results', 'SolverConfig': 'sik_ros.solver.config',
-    'TrainingDiverged': 'sik_ros.errors', 'load_robot': 'sik_ros.robots',
+    'TrainingDiverged': 'sik_ros.errors', 'load_robot': 'sik_ros.kinematics.robots',
 }
 
 __all__ = sorted(_EXPORTS)

@@ -1,9 +1,9 @@
 """Defaults of the data, model, table and build settings, in one light module.
 
 The command-line tools read their defaults here to build their ``--help`` without loading
-torch or Pinocchio; the library modules that use them (:mod:`~sik_ros.dataset`,
-:mod:`~sik_ros.models`, :mod:`~sik_ros.index_table`, :mod:`~sik_ros.seed_table`,
-:mod:`~sik_ros.build`) import them from here.
+torch or Pinocchio; the library modules that use them (:mod:`~sik_ros.tables.dataset`,
+:mod:`~sik_ros.learning.models`, :mod:`~sik_ros.tables.index_table`,
+:mod:`~sik_ros.tables.seed_table`, :mod:`~sik_ros.bundles.build`) import them from here.
 """
 
 from dataclasses import dataclass
@@ -64,7 +64,7 @@ class BuildConfig:
         time: total wall-clock budget [s]; training gets what the other stages leave.
         sampler: ``uniform`` or ``grid`` (the finest interval whose grid fits ``rows``).
         rows: uniform samples, or the grid's row budget.
-        preset: layer widths (:data:`sik_ros.models.PRESETS`).
+        preset: layer widths (:data:`sik_ros.learning.models.PRESETS`).
         device: ``cpu`` or ``cuda``.
         batch_size: samples per training step.
         check_targets: targets per goal kind of the self-check.

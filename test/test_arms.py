@@ -11,14 +11,15 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from sik_ros.dataset import grid_count
 from sik_ros.errors import ArtifactMismatch, InvalidModel
-from sik_ros.kinematics import Robot
-from sik_ros.robots import build_model, chain_differences, load_robot, robot_from_manifest
+from sik_ros.kinematics.robot import Robot
+from sik_ros.kinematics.robots import (build_model, chain_differences, load_robot,
+                                       robot_from_manifest)
 from sik_ros.solver import SelectiveIK
 from sik_ros.solver.context import Goal
 from sik_ros.solver.ranking import posture_mask
 from sik_ros.solver.refine import refine
+from sik_ros.tables.dataset import grid_count
 
 CLI = [sys.executable, '-m']
 
@@ -236,7 +237,7 @@ def test_sik_build_starts_the_pose_model_from_the_position_model(ur5_bundle):
     position model's training (its start, time and the position model's step then stated in
     bundle.json), from that checkpoint, with the pose recipe.
     """
-    from sik_ros.checkpoints import load_checkpoint
+    from sik_ros.learning.checkpoints import load_checkpoint
     out, stdout = ur5_bundle
     training = json.loads((out / 'bundle.json').read_text())['training']
     assert training['position']['init'] == '' and training['pose']['init'] == 'position'
@@ -264,7 +265,7 @@ def test_position_path_starts_take_the_turns_nearest_the_seed(ur5_bundle, ur5):
 
     Each periodic joint within its limits, as a brute force over the turns finds.
     """
-    from sik_ros.periodic import nearest_turns
+    from sik_ros.kinematics.periodic import nearest_turns
     from sik_ros.solver.path import starts
     ik = SelectiveIK.load(ur5_bundle[0])
     rng = np.random.default_rng(3)

@@ -6,10 +6,10 @@ import math
 import numpy as np
 import pytest
 
-from sik_ros.dataset import collect, Dataset, grid_count, grid_values
 from sik_ros.errors import (ArtifactExists, ArtifactMismatch, CorruptArtifact,
                             InvalidArgument)
-from sik_ros.robots import load_robot
+from sik_ros.kinematics.robots import load_robot
+from sik_ros.tables.dataset import collect, Dataset, grid_count, grid_values
 
 
 def test_panda_grid_count_is_the_papers(panda):

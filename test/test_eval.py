@@ -7,13 +7,13 @@ import re
 import numpy as np
 import pytest
 
-from sik_ros.checkpoints import export_model
 from sik_ros.cli.eval import main
 from sik_ros.eval import Baseline, load_baselines, position_errors
-from sik_ros.index_table import PriorTable
-from sik_ros.models import ModelConfig, PRESETS
+from sik_ros.learning.checkpoints import export_model
+from sik_ros.learning.models import ModelConfig, PRESETS
+from sik_ros.learning.training import TrainConfig, Trainer
 from sik_ros.solver import SelectiveIK
-from sik_ros.training import TrainConfig, Trainer
+from sik_ros.tables.index_table import PriorTable
 
 PNG_MAGIC = b'\x89PNG\r\n\x1a\n'
 

@@ -23,7 +23,7 @@ from shape_msgs.msg import SolidPrimitive
 import harness
 from sik_interfaces.msg import IKSolutionArray
 from sik_interfaces.srv import SolveIK, SolvePath
-from sik_ros.robots import load_robot
+from sik_ros.kinematics.robots import load_robot
 from sik_ros.ros.conversions import ERROR_NAMES
 
 pytestmark = pytest.mark.timeout(600)

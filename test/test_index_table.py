@@ -7,10 +7,10 @@ import numpy as np
 import pytest
 
 from sik_ros.errors import ArtifactMismatch, CorruptArtifact
-from sik_ros.index_table import IndexTable, TableConfig
-from sik_ros.point_sets import (farthest_point_subset, GRAM_ROWS, pairwise_distances,
-                                SAME_DISTANCE)
-from sik_ros.robots import load_robot
+from sik_ros.kinematics.robots import load_robot
+from sik_ros.tables.index_table import IndexTable, TableConfig
+from sik_ros.tables.point_sets import (farthest_point_subset, GRAM_ROWS, pairwise_distances,
+                                       SAME_DISTANCE)
 
 
 def small_table(cell=0.1, dedup=0.5, max_per_cell=4):
@@ -126,8 +126,8 @@ def test_decoded_postures_are_the_decoder_at_the_cell_centres(tiny_bundle, tmp_p
     import json
     import torch
     from sik_ros.errors import InvalidArgument
-    from sik_ros.indexing import decode_postures
-    from sik_ros.checkpoints import load_checkpoint, model_from_checkpoint
+    from sik_ros.learning.checkpoints import load_checkpoint, model_from_checkpoint
+    from sik_ros.learning.indexing import decode_postures
     panda = load_robot('panda')
     table = IndexTable.load(tiny_bundle / 'sik_position_table.npz')
     assert table.postures is not None and table.postures.shape == (len(table.indices), 7)

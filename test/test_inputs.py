@@ -150,7 +150,7 @@ def test_sik_solve_heads_its_table_with_the_words_that_tell_joints_apart():
 def _dataset(tmp_path, panda, **manifest_changes):
     """A tiny valid dataset, then its manifest or arrays changed."""
     import json
-    from sik_ros.dataset import collect
+    from sik_ros.tables.dataset import collect
     ds = collect(panda, tmp_path / 'ds', sampler='uniform', samples=50, seed=1)
     m = json.loads((ds.path / 'manifest.json').read_text())
     for key, value in manifest_changes.items():
@@ -189,8 +189,8 @@ def test_malformed_dataset_manifests_are_one_line_errors(tmp_path, panda, run_ma
 
 def test_dataset_arrays_of_the_wrong_type_or_not_finite_are_refused(tmp_path, panda):
     """q.npy stored as int8, or NaN positions: CorruptArtifact naming the file."""
-    from sik_ros.dataset import Dataset
     from sik_ros.errors import CorruptArtifact
+    from sik_ros.tables.dataset import Dataset
     path = _dataset(tmp_path, panda)
     q = np.load(path / 'q.npy')
     np.save(path / 'q.npy', q.astype(np.int8))
@@ -207,7 +207,7 @@ def test_dataset_arrays_of_the_wrong_type_or_not_finite_are_refused(tmp_path, pa
 def test_a_goal_quaternion_becomes_the_rotation_scipy_gives():
     """The goal's rotation matrix, made in Python floats, is scipy's to the last bit."""
     from scipy.spatial.transform import Rotation
-    from sik_ros.rotations import quaternion_matrix
+    from sik_ros.kinematics.rotations import quaternion_matrix
     from sik_ros.validation import quaternion
     rng = np.random.default_rng(4)
     for raw in rng.normal(size=(200, 4)) * 10.0 ** rng.uniform(-3, 3, (200, 1)):
@@ -222,7 +222,7 @@ def test_waypoint_quaternions_become_scipys_rotations_and_back():
     The quaternion of one matrix (either sign) has w >= 0, at the half turns too.
     """
     from scipy.spatial.transform import Rotation
-    from sik_ros.rotations import matrix_quaternion
+    from sik_ros.kinematics.rotations import matrix_quaternion
     from sik_ros.solver.inputs import check_path
     rng = np.random.default_rng(5)
     raw = rng.normal(size=(300, 4)) * 10.0 ** rng.uniform(-3, 3, (300, 1))

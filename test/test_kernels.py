@@ -73,8 +73,8 @@ def test_a_past_deadline_leaves_every_row_as_it_started(bundled):
 
 def test_a_row_heading_for_an_earlier_solution_is_pruned(bundled):
     """With ``prune`` a second start near the first one's solution stops at a prune step."""
-    from sik_ros.kernels.dls import INTS, REALS
     from sik_ros.kernels import refine_rows
+    from sik_ros.kernels.dls import INTS, REALS
     robot, cfg = bundled.robot, bundled.config
     q_goal, p, r = _target(robot, 4)
     start = np.clip(q_goal + 0.02, robot.lower, robot.upper)
@@ -206,10 +206,10 @@ def test_exact_rows_by_margin_are_the_general_rankings_order():
     cost (rows repeated) keep the row order.
     """
     from sik_ros.kernels.sets import exact_by_margin
-    from sik_ros.objectives import JointLimitMargin
     from sik_ros.solver.config import ORIENTATION_WEIGHT
-    from sik_ros.solver.ranking import assess, best_distinct
     from sik_ros.solver.config import SolverConfig
+    from sik_ros.solver.objectives import JointLimitMargin
+    from sik_ros.solver.ranking import assess, best_distinct
     robot = SelectiveIK.load('panda').robot
     cfg = SolverConfig()
     rng = np.random.default_rng(11)

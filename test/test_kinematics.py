@@ -5,7 +5,7 @@ import pinocchio as pin
 import pytest
 
 from sik_ros.errors import FrameNotFound, InvalidArgument, RobotNotFound
-from sik_ros.robots import load_robot
+from sik_ros.kinematics.robots import load_robot
 
 
 def test_panda_is_reduced_to_seven_arm_joints(panda):
@@ -102,7 +102,7 @@ def test_kernels_match_pinocchio_on_several_arms(name):
 
 def test_kernels_match_the_vectorised_chain(panda):
     """The kernels' FK equals the NumPy chain FK the training loss uses, to 1e-12."""
-    from sik_ros.chain import chain_forward
+    from sik_ros.kinematics.chain import chain_forward
     q = np.random.default_rng(3).uniform(panda.lower, panda.upper, size=(25, panda.dof))
     p1, r1 = chain_forward(panda.chain, q)
     p2, r2 = panda.fk_rot(q)
@@ -138,7 +138,7 @@ def test_rotation_error_kernel_matches_scipy_near_pi():
 def test_rotation_log_matches_scipy_everywhere():
     """The SO(3) logarithm against SciPy's rotation vectors: random, near pi and near zero."""
     from scipy.spatial.transform import Rotation
-    from sik_ros.rotations import rotation_log
+    from sik_ros.kinematics.rotations import rotation_log
     rots = Rotation.random(500, random_state=3)
     np.testing.assert_allclose(rotation_log(rots.as_matrix()), rots.as_rotvec(), atol=1e-9)
     edge = np.array([[np.pi, 0, 0], [0, np.pi - 1e-8, 0], [1e-12, 0, 0], [0.0, 0, 0]])

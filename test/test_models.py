@@ -5,8 +5,8 @@ import pytest
 import torch
 
 from sik_ros.errors import InvalidArgument
-from sik_ros.models import (anfis_forward, anfis_sizes, build_model, kl_normal, ModelConfig,
-                            Normalizer, PRESETS, TorchChain)
+from sik_ros.learning.models import (anfis_forward, anfis_sizes, build_model, kl_normal,
+                                     ModelConfig, Normalizer, PRESETS, TorchChain)
 
 
 def tiny(kind='sik', goal='position', latent=None):
@@ -129,7 +129,7 @@ def test_branch_bits_are_the_arms_flip_joints(panda, ur5):
     The Panda's elbow lines its neighbours up only outside its limits (q4 < 0); a bit is the
     sign of sin(q - s) with s the lining-up angle (0 or pi), in normalised joint units.
     """
-    from sik_ros.models import branch_bits
+    from sik_ros.learning.models import branch_bits
     bits = branch_bits(panda.chain, panda.lower, panda.upper)
     assert [b[0] for b in bits] == [1, 5]
     assert [b[0] for b in branch_bits(ur5.chain, ur5.lower, ur5.upper)] == [4]
@@ -146,7 +146,7 @@ def test_branch_bits_are_the_arms_flip_joints(panda, ur5):
 def test_the_branch_code_follows_the_learned_index(panda):
     """With a branch code the index is the encoder's output and the bits (torch and NumPy)."""
     from dataclasses import asdict
-    from sik_ros.models import branch_bits
+    from sik_ros.learning.models import branch_bits
     from sik_ros.solver.codec import branch_code, branch_codes, NumpyMLP
     bits = branch_bits(panda.chain, panda.lower, panda.upper)
     enc, dec = PRESETS['tiny']

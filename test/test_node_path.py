@@ -10,7 +10,7 @@ from rclpy.signals import SignalHandlerOptions
 
 import harness
 from sik_interfaces.srv import SolvePath
-from sik_ros.robots import load_robot
+from sik_ros.kinematics.robots import load_robot
 
 pytestmark = pytest.mark.timeout(180)
 R = SolvePath.Response

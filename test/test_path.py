@@ -5,7 +5,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from sik_ros import InvalidArgument, InvalidGoal, Obstacle, SelectiveIK
-from sik_ros.chain import chain_forward
+from sik_ros.kinematics.chain import chain_forward
 
 Q0 = np.array([0.0, -0.3, 0.0, -2.2, 0.0, 2.0, 0.8])
 

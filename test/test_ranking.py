@@ -3,9 +3,9 @@
 import numpy as np
 import pytest
 
-from sik_ros.chain import chain_forward
-from sik_ros.objectives import FromFunction, Obstacle, SeedDistance
+from sik_ros.kinematics.chain import chain_forward
 from sik_ros.solver import SelectiveIK
+from sik_ros.solver.objectives import FromFunction, Obstacle, SeedDistance
 from sik_ros.solver.results import COLLIDING, FREE_EXACT, FREE_INEXACT, tier_label
 
 

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from sik_ros.errors import CorruptArtifact, InvalidArgument
-from sik_ros.index_table import IndexTable, PriorTable, TableConfig
-from sik_ros.indexing import mark_realised
+from sik_ros.learning.indexing import mark_realised
+from sik_ros.tables.index_table import IndexTable, PriorTable, TableConfig
 
 
 def three_cells():
@@ -76,8 +76,8 @@ def test_build_marks_the_indices_the_decoder_realises(tiny_bundle, uniform_small
     The tip errors' centre probe is the FK of the decoded postures; a pose-goal model, or a
     table without postures, cannot be filtered.
     """
-    from sik_ros.checkpoints import load_checkpoint, model_from_checkpoint
-    from sik_ros.indexing import build_table, tip_errors
+    from sik_ros.learning.checkpoints import load_checkpoint, model_from_checkpoint
+    from sik_ros.learning.indexing import build_table, tip_errors
     ckpt = load_checkpoint(tiny_bundle / 'sik_position.pt')
     full = build_table(ckpt, panda, uniform_small, TableConfig(cell=0.08))
     model, _, norm = model_from_checkpoint(ckpt)

@@ -6,13 +6,13 @@ import shutil
 import numpy as np
 import pytest
 
-from sik_ros.bundle import add_to_bundle, load_bundle
-from sik_ros.dataset import collect
+from sik_ros.bundles.bundle import add_to_bundle, load_bundle
 from sik_ros.errors import ArtifactMismatch, CorruptArtifact, InvalidArgument
-from sik_ros.robots import load_robot
-from sik_ros.seed_table import (default_rows, first_axis, NEIGHBOURS, QUATERNION_SCALE,
-                                SeedTable)
+from sik_ros.kinematics.robots import load_robot
 from sik_ros.solver.ranking import posture_mask
+from sik_ros.tables.dataset import collect
+from sik_ros.tables.seed_table import (default_rows, first_axis, NEIGHBOURS, QUATERNION_SCALE,
+                                       SeedTable)
 
 
 @pytest.fixture(scope='module')
@@ -67,7 +67,7 @@ def test_starts_are_the_nearest_rows_by_tip_pose_and_far_apart(ur5, table):
     # every start is among the 100 rows nearest the goal in the table's key space: tip poses
     # in a frame along the first joint's axis, turned to azimuth 0 (position, 0.3 x
     # quaternion, either sign of it)
-    from sik_ros.seed_table import to_axis_frame, turned
+    from sik_ros.tables.seed_table import to_axis_frame, turned
     frame = first_axis(ur5)
 
     def keys(positions, quats):
@@ -87,7 +87,7 @@ def test_starts_are_the_nearest_rows_by_tip_pose_and_far_apart(ur5, table):
 
 def test_the_goal_key_in_floats_is_the_tables_key_arithmetic(ur5, table):
     """A goal's key, computed in Python floats, is the axis frame and turn the rows get."""
-    from sik_ros.seed_table import to_axis_frame, turned
+    from sik_ros.tables.seed_table import to_axis_frame, turned
     rng = np.random.default_rng(8)
     for q in rng.uniform(ur5.lower, ur5.upper, (50, 6)):
         p, quat = ur5.fk(q)
@@ -212,7 +212,7 @@ def test_starts_turn_with_the_goal_about_the_first_axis(ur5, table):
 
 def test_a_first_axis_off_the_base_origin_is_found_and_turns_the_arm():
     """The SO-100's first joint turns it about a line 4.5 cm off the base's z axis."""
-    from sik_ros.seed_table import to_axis_frame, turned
+    from sik_ros.tables.seed_table import to_axis_frame, turned
     so100 = load_robot('so100')
     frame = first_axis(so100)
     assert frame is not None and abs(frame[0][1]) > 0.04
@@ -232,7 +232,7 @@ def test_a_first_joint_short_of_a_turn_still_gets_its_neighbours(monkeypatch, tm
     need joint 1 beyond its limits are left out, and the look-up goes further until it has
     its ``neighbours`` rows (all within the limits).
     """
-    import sik_ros.seed_table as seed_table
+    import sik_ros.tables.seed_table as seed_table
     so100 = load_robot('so100')
     data = collect(so100, tmp_path / 'so100', sampler='uniform', samples=6000, seed=5)
     small = SeedTable.build(so100, data, rows=4000, seed=1)

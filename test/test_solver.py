@@ -8,15 +8,15 @@ import sys
 import numpy as np
 import pytest
 
-from sik_ros.chain import chain_forward
 from sik_ros.errors import ArtifactMismatch, InvalidArgument, InvalidGoal, InvalidSeed
-from sik_ros.objectives import CollisionChecker, ElbowHeight, Obstacle
+from sik_ros.kinematics.chain import chain_forward
 from sik_ros.solver import SelectiveIK
 from sik_ros.solver.candidates import (align_last_joint, oriented_postures, starting_postures,
                                        table_candidates)
 from sik_ros.solver.codec import decode, encode
 from sik_ros.solver.config import FREE_RESTARTS
 from sik_ros.solver.context import Goal
+from sik_ros.solver.objectives import CollisionChecker, ElbowHeight, Obstacle
 from sik_ros.solver.ranking import converged, pose_score, posture_mask
 from sik_ros.solver.refine import refine
 
@@ -529,7 +529,7 @@ def test_one_solution_is_exact_free_and_its_index_encodes_it(panda):
     With the seed's own posture when the seed reaches the goal; its posture index, computed
     when read, is the encoding of its configuration (as a 16-solution call reports it).
     """
-    from sik_ros.rotations import quaternion_matrix
+    from sik_ros.kinematics.rotations import quaternion_matrix
     from sik_ros.solver.codec import encode
     from sik_ros.solver.context import Goal
     bundled = SelectiveIK.load('panda')

@@ -10,9 +10,9 @@ import time
 
 import numpy as np
 
-from sik_ros.collision import Obstacle
+from sik_ros.kinematics.collision import Obstacle
+from sik_ros.serving.pool import SolverPool
 from sik_ros.solver import SolverConfig
-from sik_ros.solver_pool import SolverPool
 
 
 def test_a_request_whose_process_dies_is_retried_on_another(panda, tiny_bundle):

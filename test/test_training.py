@@ -8,11 +8,11 @@ import pinocchio as pin
 import pytest
 import torch
 
-from sik_ros.checkpoints import export_model, load_checkpoint, model_from_checkpoint
 from sik_ros.errors import ArtifactMismatch, CorruptArtifact, TrainingDiverged
-from sik_ros.kinematics import find_frame
-from sik_ros.models import ModelConfig, PRESETS
-from sik_ros.training import TrainConfig, Trainer
+from sik_ros.kinematics.robot import find_frame
+from sik_ros.learning.checkpoints import export_model, load_checkpoint, model_from_checkpoint
+from sik_ros.learning.models import ModelConfig, PRESETS
+from sik_ros.learning.training import TrainConfig, Trainer
 
 TINY = ModelConfig(encoder=PRESETS['tiny'][0], decoder=PRESETS['tiny'][1])
 
@@ -157,9 +157,9 @@ def test_two_gloo_processes_train_in_sync_and_the_checkpoint_serves(
     """Two CPU processes under torchrun: same weights on both ranks; rank 0's model solves."""
     import json
     import os
-    from sik_ros.bundle import build_bundle
-    from sik_ros.index_table import TableConfig
+    from sik_ros.bundles.bundle import build_bundle
     from sik_ros.solver import SelectiveIK
+    from sik_ros.tables.index_table import TableConfig
     out = tmp_path / 'ddp'
     env = {**os.environ, 'OMP_NUM_THREADS': '1'}
     run = subprocess.run(
@@ -235,7 +235,7 @@ def test_init_widens_the_index_of_a_smaller_model(panda, uniform_small, tmp_path
     new elements' values, the decoder's output is the old model's at the old index, and the
     encoder's old output is kept.
     """
-    from sik_ros.models import branch_bits
+    from sik_ros.learning.models import branch_bits
     small = ModelConfig(goal='pose', latent_dim=1, encoder=PRESETS['tiny'][0],
                         decoder=PRESETS['tiny'][1])
     a = trainer(panda, uniform_small, tmp_path / 'a', model=small, steps=20)

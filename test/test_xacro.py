@@ -13,10 +13,10 @@ import numpy as np
 import pytest
 
 from sik_ros.cli.build import main as build_main
-from sik_ros.description import (expand_xacro, is_xacro_text, parse_xacro_args,
-                                 resolve_package_uris, write_xacro_urdf)
 from sik_ros.errors import InvalidArgument, InvalidModel
-from sik_ros.robots import chain_differences, load_robot
+from sik_ros.kinematics.description import (expand_xacro, is_xacro_text, parse_xacro_args,
+                                            resolve_package_uris, write_xacro_urdf)
+from sik_ros.kinematics.robots import chain_differences, load_robot
 
 MACROS = """<?xml version="1.0"?>
 <robot xmlns:xacro="http://www.ros.org/wiki/xacro">

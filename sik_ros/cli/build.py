@@ -7,7 +7,7 @@ from typing import List, Optional
 
 from sik_ros.cli import argv_or_default, Parser, run_cli
 from sik_ros.defaults import BuildConfig
-from sik_ros.description import is_xacro_file, parse_xacro_args, write_xacro_urdf
+from sik_ros.kinematics.description import is_xacro_file, parse_xacro_args, write_xacro_urdf
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -55,8 +55,8 @@ def main(argv: Optional[List[str]] = None) -> int:
         parser.error('--xacro-arg needs --urdf')
 
     def body() -> int:
-        from sik_ros.build import Builder
-        from sik_ros.robots import load_robot, package_dirs
+        from sik_ros.bundles.build import Builder
+        from sik_ros.kinematics.robots import load_robot, package_dirs
         urdf = args.urdf
         if urdf is not None and (is_xacro_file(urdf) or args.xacro_arg):
             urdf = str(write_xacro_urdf(Path(urdf), Path(args.out.rstrip('/\\') + '.urdf'),

@@ -48,8 +48,8 @@ def main(argv: Optional[List[str]] = None) -> int:
     def body() -> int:
         from tqdm import tqdm
 
-        from sik_ros.dataset import (check_budget, collect, estimate_seconds, finest_interval,
-                                     free_disk, grid_count, row_bytes)
+        from sik_ros.tables.dataset import (check_budget, collect, estimate_seconds,
+                                            finest_interval, free_disk, grid_count, row_bytes)
         robot = robot_from_args(args)
         print(f'robot {robot.name}: {robot.dof} joints, base {robot.base_frame}, tip '
               f'{robot.tip_frame}; periodic: '

@@ -4,7 +4,7 @@ import argparse
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:  # loaded when a robot is: Pinocchio
-    from sik_ros.kinematics import Robot
+    from sik_ros.kinematics.robot import Robot
 
 
 def add_robot_args(parser: argparse.ArgumentParser) -> None:
@@ -18,5 +18,5 @@ def add_robot_args(parser: argparse.ArgumentParser) -> None:
 
 def robot_from_args(args: argparse.Namespace) -> 'Robot':
     """Load the robot the arguments name."""
-    from sik_ros.robots import load_robot
+    from sik_ros.kinematics.robots import load_robot
     return load_robot(args.robot, args.urdf, args.base, args.tip)

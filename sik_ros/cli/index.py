@@ -52,12 +52,12 @@ def main(argv: Optional[List[str]] = None) -> int:
 
         from tqdm import tqdm
 
-        from sik_ros.bundle import add_to_bundle, bundle_files
-        from sik_ros.checkpoints import load_checkpoint
-        from sik_ros.dataset import Dataset
-        from sik_ros.indexing import build_table
-        from sik_ros.robots import robot_from_manifest
-        from sik_ros.seed_table import default_rows, SeedTable
+        from sik_ros.bundles.bundle import add_to_bundle, bundle_files
+        from sik_ros.kinematics.robots import robot_from_manifest
+        from sik_ros.learning.checkpoints import load_checkpoint
+        from sik_ros.learning.indexing import build_table
+        from sik_ros.tables.dataset import Dataset
+        from sik_ros.tables.seed_table import default_rows, SeedTable
         out = Path(args.out)
         if out.exists() and not args.force:
             raise ArtifactExists(f'{out} already exists (use --force to replace it)')

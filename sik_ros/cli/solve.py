@@ -129,7 +129,7 @@ def main(argv: Optional[List[str]] = None) -> int:
     def body() -> int:
         if args.path is None and None in (args.x, args.y, args.z):
             raise InvalidArgument('give a target x y z, or --path FILE')
-        from sik_ros.collision import Obstacle
+        from sik_ros.kinematics.collision import Obstacle
         from sik_ros.solver import SelectiveIK
         ik = SelectiveIK.load(args.bundle)
         if args.path is not None:

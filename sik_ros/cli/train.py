@@ -78,11 +78,11 @@ def train(args: argparse.Namespace) -> int:
     """One run: its configs, the trainer with a progress bar, the history and a summary line."""
     from tqdm import tqdm
 
-    from sik_ros import distributed
     from sik_ros.artifacts import write_text_atomic
-    from sik_ros.checkpoints import export_model, load_checkpoint, model_signature
-    from sik_ros.dataset import Dataset
-    from sik_ros.training import Trainer
+    from sik_ros.learning import distributed
+    from sik_ros.learning.checkpoints import export_model, load_checkpoint, model_signature
+    from sik_ros.learning.training import Trainer
+    from sik_ros.tables.dataset import Dataset
     rank, size = distributed.init(args.device or 'cpu')
     out = Path(args.out)
     ckpt, model_cfg, train_cfg = run_configs(args, out)
@@ -125,9 +125,9 @@ def run_configs(args: argparse.Namespace, out: Path):
         InvalidArgument: contradicting or bad options.
         ArtifactExists: a new run where one already is.
     """
-    from sik_ros.checkpoints import load_checkpoint
-    from sik_ros.models import ModelConfig
-    from sik_ros.training import TrainConfig, with_overrides
+    from sik_ros.learning.checkpoints import load_checkpoint
+    from sik_ros.learning.models import ModelConfig
+    from sik_ros.learning.training import TrainConfig, with_overrides
     if args.max_time is not None and args.max_time <= 0:
         raise InvalidArgument(f'--max-time must be positive; got {args.max_time}')
     if args.resume and args.init:
@@ -162,9 +162,9 @@ def run_configs(args: argparse.Namespace, out: Path):
 
 def for_robot(args: argparse.Namespace, model_cfg):
     """The dataset's robot and the model config fitted to it (its joints, branch bits)."""
-    from sik_ros.dataset import Dataset
-    from sik_ros.models import branch_bits, ModelConfig
-    from sik_ros.robots import robot_from_manifest
+    from sik_ros.kinematics.robots import robot_from_manifest
+    from sik_ros.learning.models import branch_bits, ModelConfig
+    from sik_ros.tables.dataset import Dataset
     robot = robot_from_manifest(Dataset.load(args.dataset).manifest['robot'],
                                 f'dataset {args.dataset}')
     if model_cfg.dof != robot.dof:

@@ -11,7 +11,7 @@ import re
 from typing import Dict, List, Optional, Union
 
 from sik_ros.artifacts import read_json
-from sik_ros.checkpoints import load_checkpoint
+from sik_ros.learning.checkpoints import load_checkpoint
 from sik_ros.solver import SelectiveIK
 
 

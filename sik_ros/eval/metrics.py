@@ -8,9 +8,9 @@ from typing import Sequence, Tuple
 
 import numpy as np
 
-from sik_ros.chain import chain_forward
-from sik_ros.goal_error import goal_errors
-from sik_ros.kinematics import Robot
+from sik_ros.kinematics.chain import chain_forward
+from sik_ros.kinematics.goal_error import goal_errors
+from sik_ros.kinematics.robot import Robot
 
 
 def arm_points(robot: Robot, q: np.ndarray) -> np.ndarray:

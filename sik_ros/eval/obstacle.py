@@ -10,8 +10,8 @@ from typing import Optional, Sequence, Tuple, Union
 
 import numpy as np
 
-from sik_ros.collision import CollisionChecker, Obstacle
 from sik_ros.eval.metrics import position_errors
+from sik_ros.kinematics.collision import CollisionChecker, Obstacle
 from sik_ros.solver import SelectiveIK
 
 #: Goals tried in turn for the obstacle case [m].

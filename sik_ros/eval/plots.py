@@ -14,9 +14,9 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from sik_ros.artifacts import atomic_write
-from sik_ros.collision import Obstacle
 from sik_ros.eval.metrics import arm_points
-from sik_ros.kinematics import Robot
+from sik_ros.kinematics.collision import Obstacle
+from sik_ros.kinematics.robot import Robot
 
 #: Colours of several postures in one picture.
 COLORS = ('tab:blue', 'tab:orange', 'tab:green', 'tab:purple', 'tab:brown', 'tab:pink',

@@ -24,14 +24,14 @@ from scipy.spatial.transform import Rotation
 from sik_ros.eval.baselines import Baseline, Method
 from sik_ros.eval.metrics import mean_cm, orientation_cosine, position_errors
 from sik_ros.eval.paper import DIVERSITY_TARGETS, RADII, SWEEP_TARGET
-from sik_ros.goal_error import goal_errors
-from sik_ros.index_table import farthest_point_subset, PostureTable
-from sik_ros.kinematics import Robot
+from sik_ros.kinematics.goal_error import goal_errors
+from sik_ros.kinematics.robot import Robot
 from sik_ros.solver import SelectiveIK
 from sik_ros.solver.codec import decode
 from sik_ros.solver.context import Goal, POSITION
 from sik_ros.solver.ranking import posture_mask
 from sik_ros.solver.refine import refine
+from sik_ros.tables.index_table import farthest_point_subset, PostureTable
 
 #: Called with how many steps of work were just done.
 Progress = Optional[Callable[[int], None]]

@@ -10,9 +10,9 @@ from typing import Any, Dict, Iterable
 
 import numpy as np
 
-from sik_ros.collision import Obstacle
 from sik_ros.eval.obstacle import ObstacleCase
 from sik_ros.eval.run import Results
+from sik_ros.kinematics.collision import Obstacle
 
 
 def to_jsonable(obj: Any) -> Any:

@@ -3,7 +3,8 @@
 The chain is one array ``frames`` (n + 2, 4, 3) (:func:`chain_frames`): rows 0-2 of
 ``frames[i]`` are joint ``i``'s rotation in its parent joint's frame and row 3 its translation
 [m]; ``frames[n]`` is the base (the world in the base frame), ``frames[n + 1]`` the tip in the
-last joint's frame. Every joint turns about its own z axis (:class:`~sik_ros.chain.SerialChain`),
+last joint's frame. Every joint turns about its own z axis
+(:class:`~sik_ros.kinematics.chain.SerialChain`),
 so a joint's rotation mixes two columns of the running rotation. The kernels keep the running
 placement in scalars (no allocation per joint) and write into arrays the caller owns.
 """
@@ -13,7 +14,7 @@ import math
 from numba import njit
 import numpy as np
 
-from sik_ros.chain import SerialChain
+from sik_ros.kinematics.chain import SerialChain
 
 
 def chain_frames(chain: SerialChain) -> np.ndarray:

@@ -17,7 +17,7 @@ import numpy as np
 
 from sik_ros.kernels.chain import F1, F2, F3, place, rotation_error
 from sik_ros.kernels.clock import monotonic
-from sik_ros.periodic import TURN
+from sik_ros.kinematics.periodic import TURN
 
 #: Row outcomes of :func:`refine_rows` (``status``).
 UNTOUCHED, CONVERGED, GIVEN_UP, ITERATIONS, PRUNED, DEADLINE = range(6)

@@ -1,6 +1,6 @@
 """The seed table's look-up in compiled calls: a goal's key, then its starts from the table.
 
-:mod:`sik_ros.seed_table` holds what they compute and why; here are the loops, so that a
+:mod:`sik_ros.tables.seed_table` holds what they compute and why; here are the loops, so that a
 look-up is two calls, not some twenty NumPy calls on arrays of a hundred rows.
 """
 
@@ -11,7 +11,7 @@ import numpy as np
 
 from sik_ros.kernels.kdtree import nearest_rows, TREE_TYPES
 from sik_ros.kernels.sets import farthest_rows
-from sik_ros.periodic import LIMIT_SLACK, TURN
+from sik_ros.kinematics.periodic import LIMIT_SLACK, TURN
 
 
 @njit('Tuple((float64[::1], float64))(float64[::1], float64[:, ::1], float64[::1], '

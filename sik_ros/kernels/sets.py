@@ -9,7 +9,7 @@ import math
 from numba import njit
 import numpy as np
 
-from sik_ros.periodic import PER_TURN, TURN
+from sik_ros.kinematics.periodic import PER_TURN, TURN
 
 
 @njit('int64[::1](float64[:, ::1], int64, int64, float64, int64, float64)', cache=True,

@@ -1,7 +1,8 @@
 """Conversions between ROS 2 messages and the sik_ros library (goals, seeds, obstacles, answers).
 
 Part of :mod:`sik_ros.ros`, the only package that imports ROS message types. Functions here are
-pure: they turn messages into arrays and :class:`~sik_ros.collision.Obstacle` objects (raising
+pure: they turn messages into arrays and :class:`~sik_ros.kinematics.collision.Obstacle` objects
+(raising
 :class:`~sik_ros.errors.SikError` subclasses on bad input, as the library does), and results
 back into ``sik_interfaces`` messages and RViz markers. Units are SI: metres, radians, seconds.
 """
@@ -20,10 +21,10 @@ from visualization_msgs.msg import Marker, MarkerArray
 
 from sik_interfaces.msg import IKSolution, IKSolutionArray
 from sik_interfaces.srv import SolveIK
-from sik_ros.chain import chain_forward
-from sik_ros.collision import BOX, CYLINDER, Obstacle, SPHERE
 from sik_ros.errors import (InvalidArgument, InvalidFrame, InvalidGoal, InvalidSeed, SikError,
                             SolverCrashed, SolverUnavailable)
+from sik_ros.kinematics.chain import chain_forward
+from sik_ros.kinematics.collision import BOX, CYLINDER, Obstacle, SPHERE
 from sik_ros.solver import Solution
 
 #: Name of every SolveIK error code, by value (for logs and tables).
@@ -231,7 +232,7 @@ def posture_markers(chain, solutions: Sequence[Solution], header: Header,
     the others translucent (blue, or orange when they touch an obstacle).
 
     Args:
-        chain: the robot's :class:`~sik_ros.chain.SerialChain`.
+        chain: the robot's :class:`~sik_ros.kinematics.chain.SerialChain`.
         solutions: ranked solutions, best first.
         header: frame (the base frame) and stamp of every marker.
         target_position: the goal position [m] (no target marker if None).

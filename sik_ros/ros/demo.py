@@ -130,7 +130,7 @@ def run_demo(node: Node, client: 'SolveIKClient', goals: List[str]) -> bool:
     Service calls go through ``client`` (spun in its own thread, see
     :mod:`sik_ros.ros.client`); the topic goal through ``node``.
     """
-    from sik_ros.robots import load_robot
+    from sik_ros.kinematics.robots import load_robot
     robot = load_robot('panda')
     fk = {name: robot.fk(np.array(q)) for name, q in
           (('ready', READY), ('left', REACH_LEFT), ('low', REACH_LOW), ('right', REACH_RIGHT))}

@@ -17,7 +17,7 @@ from sik_interfaces.srv import SolveIK
 from sik_ros.errors import InvalidFrame
 from sik_ros.ros import conversions as conv
 from sik_ros.ros.params import NodeParams
-from sik_ros.ros.solvers import NodeSolvers
+from sik_ros.serving.solvers import NodeSolvers
 from sik_ros.solver import IKResult
 
 R = SolveIK.Response

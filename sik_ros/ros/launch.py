@@ -91,7 +91,7 @@ def bundle_goals(model_dir: Optional[str]) -> List[str]:
     if model_dir:
         path = Path(model_dir)
     else:
-        from sik_ros.bundle import BUNDLES  # imported here: it loads torch
+        from sik_ros.bundles.bundle import BUNDLES  # imported here: it loads torch
         path = BUNDLES / 'panda'
     try:
         return sorted(json.loads((path / 'bundle.json').read_text())['models'])

@@ -6,7 +6,7 @@ Service ``~/solve_ik`` (``sik_interfaces/srv/SolveIK``), service ``~/solve_path`
 command): ``sik_node --ros-args --params-file config/panda.yaml``. See docs/interfaces.md.
 
 The node is wiring: its constructor declares the parameters, loads the bundle, starts the
-solvers (:class:`~sik_ros.ros.solvers.NodeSolvers`) and creates the ROS interfaces; each
+solvers (:class:`~sik_ros.serving.solvers.NodeSolvers`) and creates the ROS interfaces; each
 callback hands its request to :class:`~sik_ros.ros.guard.RequestGuard` with a handler from
 :mod:`~sik_ros.ros.ik_service` or :mod:`~sik_ros.ros.path_service`. A
 :class:`MultiThreadedExecutor` runs the callbacks in a reentrant callback group.
@@ -32,16 +32,16 @@ from visualization_msgs.msg import MarkerArray
 from sik_interfaces.msg import IKSolutionArray
 from sik_interfaces.srv import SolveIK, SolvePath
 from sik_ros.errors import SikError
-from sik_ros.robots import chain_differences
+from sik_ros.kinematics.robots import chain_differences
 from sik_ros.ros import conversions as conv
 from sik_ros.ros.diagnostics import NodeDiagnostics
 from sik_ros.ros.guard import RequestGuard
 from sik_ros.ros.ik_service import Arm, solution_msgs, solve_request, solver_settings
 from sik_ros.ros.params import declarations, NodeParams, validate
 from sik_ros.ros.path_service import path_markers, solve_path_request
-from sik_ros.ros.solvers import NodeSolvers
+from sik_ros.serving.pool import single_threaded
+from sik_ros.serving.solvers import NodeSolvers
 from sik_ros.solver import SelectiveIK
-from sik_ros.solver_pool import single_threaded
 
 NODE_NAME = 'sik_node'
 #: Goals ``~/goal`` keeps while the solvers are busy (KEEP_LAST): a burst of more loses the

@@ -7,13 +7,13 @@ from std_msgs.msg import Header
 from visualization_msgs.msg import Marker, MarkerArray
 
 from sik_interfaces.srv import SolvePath
-from sik_ros.chain import chain_forward
 from sik_ros.errors import InvalidGoal
+from sik_ros.kinematics.chain import chain_forward
 from sik_ros.ros import conversions as conv
 from sik_ros.ros.ik_service import Arm, solver_settings
 from sik_ros.ros.params import NodeParams
-from sik_ros.ros.solvers import NodeSolvers
 from sik_ros.ros.trajectories import trajectory_msg, waypoints_from_msgs
+from sik_ros.serving.solvers import NodeSolvers
 from sik_ros.solver import PathResult, Solution
 from sik_ros.solver.config import PATH_DEFAULTS
 

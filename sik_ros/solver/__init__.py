@@ -21,7 +21,7 @@ from sik_ros._lazy import lazy_exports
 #: Where each public name lives (loaded on first use, PEP 562: ``sik_ros.solver.config`` or
 #: ``.results`` do not load torch).
 _EXPORTS = {
-    'GoalModel': 'sik_ros.bundle', 'IKResult': 'sik_ros.solver.results',
+    'GoalModel': 'sik_ros.bundles.bundle', 'IKResult': 'sik_ros.solver.results',
     'JointPath': 'sik_ros.solver.path', 'PathResult': 'sik_ros.solver.path',
     'SelectiveIK': 'sik_ros.solver.selective_ik', 'Solution': 'sik_ros.solver.results',
     'SolverConfig': 'sik_ros.solver.config', 'dumps': 'sik_ros.solver.results',

@@ -9,9 +9,9 @@ from typing import List, Optional, Sequence
 
 import numpy as np
 
-from sik_ros.collision import Obstacle
 from sik_ros.deadline import Deadline, NO_DEADLINE
-from sik_ros.rotations import rotation_log
+from sik_ros.kinematics.collision import Obstacle
+from sik_ros.kinematics.rotations import rotation_log
 from sik_ros.solver.batch import Candidates
 from sik_ros.solver.codec import decode
 from sik_ros.solver.config import (ADJUST_STARTS, ADJUST_STEP, RAW_DAMPING, RAW_DIFFERENCE,

@@ -14,9 +14,9 @@ import numpy as np
 
 from sik_ros.kernels import as_arg
 from sik_ros.kernels.chain import align_last_many
-from sik_ros.point_sets import farthest_point_subset
 from sik_ros.solver.codec import branch_codes, decode, encode
 from sik_ros.solver.context import Context, Goal, POSITION
+from sik_ros.tables.point_sets import farthest_point_subset
 
 
 def table_candidates(ctx: Context, goal: Goal, q_seed: Optional[np.ndarray],

@@ -14,7 +14,7 @@ import numpy as np
 import torch
 
 from sik_ros.kernels import as_arg, mlp_rows, pack_layers
-from sik_ros.models import make_goal, SIK
+from sik_ros.learning.models import make_goal, SIK
 from sik_ros.solver.config import KERNEL_ROWS
 from sik_ros.solver.context import Context, Goal
 

@@ -10,7 +10,7 @@ import math
 from typing import Tuple
 
 from sik_ros.errors import InvalidArgument
-from sik_ros.periodic import TURN
+from sik_ros.kinematics.periodic import TURN
 
 
 @dataclass(frozen=True)
@@ -180,7 +180,7 @@ class SolverConfig:
             the candidates missed (0 disables it). Used where the seed table is not: bundles
             without one, or ``seed_starts`` 0.
         seed_starts: pose goals of arms with six joints or fewer whose bundle has a seed
-            table (:mod:`sik_ros.seed_table`): up to this many starts from it, the dataset
+            table (:mod:`sik_ros.tables.seed_table`): up to this many starts from it, the dataset
             configurations nearest the goal pose chosen far apart in joint space (no two
             within ``seed_table.START_SPACING``, at least ``START_LEAST``), in place of
             the oriented and table postures and of the ``branch_restarts`` random ones (0: those

@@ -6,10 +6,10 @@ from typing import Dict, Optional
 import numpy as np
 import pinocchio as pin
 
-from sik_ros.bundle import GoalModel
-from sik_ros.collision import CollisionChecker
-from sik_ros.kinematics import Robot
-from sik_ros.rotations import matrix_quaternion
+from sik_ros.bundles.bundle import GoalModel
+from sik_ros.kinematics.collision import CollisionChecker
+from sik_ros.kinematics.robot import Robot
+from sik_ros.kinematics.rotations import matrix_quaternion
 from sik_ros.solver.config import SolverConfig
 
 POSITION, POSE = 'position', 'pose'

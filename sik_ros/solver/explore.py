@@ -6,7 +6,7 @@ give the isolated pose solutions of arms with six joints or fewer a start per br
 converged. :func:`walk` moves found pose solutions along the null space of their Jacobian (the
 self-motion manifold of a redundant arm at a 6-d pose) and refines them back onto the goal, for
 distinct exact solutions the table did not give. :func:`periodic_equivalents` adds the 2 pi
-turns of periodic joints (:mod:`sik_ros.periodic`).
+turns of periodic joints (:mod:`sik_ros.kinematics.periodic`).
 """
 
 from typing import Tuple
@@ -16,14 +16,14 @@ import numpy as np
 
 from sik_ros.deadline import Deadline
 from sik_ros.kernels.chain import null_directions
-from sik_ros.periodic import equivalents
-from sik_ros.point_sets import pairwise_distances
-from sik_ros.seed_table import SeedTable
+from sik_ros.kinematics.periodic import equivalents
 from sik_ros.solver.batch import Candidates
 from sik_ros.solver.config import EQUIVALENTS_PER_SOLUTION, RESTART_SPREAD, RESTARTS
 from sik_ros.solver.context import Context, Goal
 from sik_ros.solver.ranking import assess, distinct_mask, pose_score
 from sik_ros.solver.refine import refine
+from sik_ros.tables.point_sets import pairwise_distances
+from sik_ros.tables.seed_table import SeedTable
 
 
 def unindexed(q: np.ndarray, latent: int) -> np.ndarray:
@@ -76,7 +76,7 @@ def seed_starts(ctx: Context, goal: Goal, seeds: SeedTable, count: int,
     """Up to ``count`` dataset configurations whose tips were near the goal pose, far apart.
 
     Isolated solutions each need a start of their own; the bundle's seed table
-    (:mod:`sik_ros.seed_table`) has configurations near the goal on every branch the data
+    (:mod:`sik_ros.tables.seed_table`) has configurations near the goal on every branch the data
     covers, a few refinement steps from their solutions, where uniform random starts
     (:func:`branch_starts`) land in the larger branches' basins again and again.
     """
@@ -92,7 +92,8 @@ def periodic_equivalents(ctx: Context, c: Candidates,
 
     A periodic joint's q and q +- 2 pi place the arm alike; each equivalent within the joint
     limits is a further solution (cable wrap, distance to the current state). Per row, at most
-    ``per_solution`` of them: one joint turned, then two (:func:`sik_ros.periodic.equivalents`).
+    ``per_solution`` of them: one joint turned, then two
+    (:func:`sik_ros.kinematics.periodic.equivalents`).
     With ``ignore_last`` (position goals whose last joint only turns the tool: postures told
     apart without it) the last joint is never turned: that would give the same posture again.
     """

@@ -8,10 +8,10 @@ from typing import List, Optional, Sequence
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from sik_ros.collision import Obstacle
 from sik_ros.errors import InvalidArgument, InvalidGoal, InvalidSeed, JointLimitViolation
-from sik_ros.kinematics import Robot
-from sik_ros.rotations import quaternion_matrix
+from sik_ros.kinematics.collision import Obstacle
+from sik_ros.kinematics.robot import Robot
+from sik_ros.kinematics.rotations import quaternion_matrix
 from sik_ros.solver.context import Goal
 from sik_ros.validation import MAX_DISTANCE, quaternion, real_array, vector
 

@@ -20,7 +20,6 @@ import numpy as np
 
 from sik_ros.deadline import Deadline
 from sik_ros.kernels.sets import exact_by_margin
-from sik_ros.seed_table import SeedTable
 from sik_ros.solver.batch import Candidates
 from sik_ros.solver.codec import encode
 from sik_ros.solver.config import ORIENTATION_WEIGHT
@@ -29,6 +28,7 @@ from sik_ros.solver.explore import unindexed
 from sik_ros.solver.ranking import assess
 from sik_ros.solver.refine import refine, Refined
 from sik_ros.solver.results import COLLIDING, FREE_EXACT, IKResult, PendingIndices, Solution
+from sik_ros.tables.seed_table import SeedTable
 
 #: What :func:`every_branch` returns: the answer, or None and the refined starts as candidates
 #: for the general stages; and whether the deadline cut refinement short.
@@ -41,7 +41,8 @@ def every_branch(ctx: Context, goal: Goal, seeds: SeedTable, num: int,
 
     The starts are refined (all of them; with ``enough``, until as many distinct ones are
     exact). The exact ones, taken by their goal error, one per posture
-    (``distinct_threshold`` apart), are ranked by :class:`~sik_ros.objectives.JointLimitMargin`,
+    (``distinct_threshold`` apart), are ranked by
+    :class:`~sik_ros.solver.objectives.JointLimitMargin`,
     those free of self-collision first, each checked in that order until ``num`` free ones are
     found (the rest, not checked, are reported free): :func:`~sik_ros.solver.ranking.rank`'s
     order for these candidates.

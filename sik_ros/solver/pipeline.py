@@ -22,11 +22,9 @@ from typing import List, Optional, Sequence, Tuple
 
 import numpy as np
 
-from sik_ros.collision import Obstacle
 from sik_ros.deadline import Deadline
-from sik_ros.objectives import Objective
-from sik_ros.periodic import nearest_turns
-from sik_ros.seed_table import SeedTable
+from sik_ros.kinematics.collision import Obstacle
+from sik_ros.kinematics.periodic import nearest_turns
 from sik_ros.solver.adjust import adjust_index, adjust_raw
 from sik_ros.solver.batch import Candidates
 from sik_ros.solver.candidates import (oriented_postures, own_index, starting_postures,
@@ -38,12 +36,14 @@ from sik_ros.solver.context import Context, Goal, POSE, POSITION
 from sik_ros.solver.explore import (branch_starts, periodic_equivalents, restart, seed_starts,
                                     unindexed, walk)
 from sik_ros.solver.isolated import every_branch
+from sik_ros.solver.objectives import Objective
 from sik_ros.solver.ranking import (assess, best_distinct, by_score, distinct_mask, merge,
                                     pose_score, rank)
 from sik_ros.solver.refine import errors, refine
 from sik_ros.solver.results import IKResult, Solution
 from sik_ros.solver.single import (fill_indices, from_starts, oriented_count,
                                    single_starts, turns_centre)
+from sik_ros.tables.seed_table import SeedTable
 
 
 def initial_postures(ctx: Context, goal: Goal, num: int, q_seed: Optional[np.ndarray],

@@ -12,15 +12,15 @@ from typing import List, Optional, Sequence
 
 import numpy as np
 
-from sik_ros.collision import Obstacle
 from sik_ros.deadline import Deadline, NO_DEADLINE
 from sik_ros.kernels import as_arg
 from sik_ros.kernels.sets import distinct_rows
-from sik_ros.objectives import JointLimitMargin, Objective, SeedDistance
-from sik_ros.periodic import posture_keys
+from sik_ros.kinematics.collision import Obstacle
+from sik_ros.kinematics.periodic import posture_keys
 from sik_ros.solver.batch import Candidates
 from sik_ros.solver.config import INEXACT_COST, ORIENTATION_WEIGHT, SolverConfig
 from sik_ros.solver.context import Context, POSITION
+from sik_ros.solver.objectives import JointLimitMargin, Objective, SeedDistance
 from sik_ros.solver.results import COLLIDING, FREE_EXACT, FREE_INEXACT, Solution
 
 

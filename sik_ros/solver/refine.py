@@ -17,9 +17,9 @@ from typing import Optional, Tuple
 import numpy as np
 
 from sik_ros.deadline import Deadline, NO_DEADLINE
-from sik_ros.goal_error import goal_errors
 from sik_ros.kernels import as_arg, follow_rows, refine_rows
 from sik_ros.kernels.dls import INTS, REALS
+from sik_ros.kinematics.goal_error import goal_errors
 from sik_ros.solver.config import ORIENTATION_WEIGHT, SolverConfig
 from sik_ros.solver.context import Context, Goal
 

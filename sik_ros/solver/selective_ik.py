@@ -13,17 +13,17 @@ from typing import Dict, List, Optional, Sequence, Union
 
 import numpy as np
 
-from sik_ros.bundle import GoalModel, load_bundle
-from sik_ros.collision import CollisionChecker, Obstacle
+from sik_ros.bundles.bundle import GoalModel, load_bundle
 from sik_ros.deadline import Deadline
 from sik_ros.errors import InvalidArgument
-from sik_ros.kinematics import Robot
-from sik_ros.objectives import Objective
+from sik_ros.kinematics.collision import CollisionChecker, Obstacle
+from sik_ros.kinematics.robot import Robot
 from sik_ros.solver import path as _path, pipeline
 from sik_ros.solver.config import PATH_DEFAULTS, SolverConfig
 from sik_ros.solver.context import Context
 from sik_ros.solver.inputs import (check_arrays, check_goal, check_num_solutions,
                                    check_objective, check_obstacles, check_path, check_seed)
+from sik_ros.solver.objectives import Objective
 from sik_ros.solver.path import PathResult, PathSettings
 from sik_ros.solver.results import IKResult
 from sik_ros.validation import flag, positive, seconds, vector

@@ -14,9 +14,9 @@ from typing import List, Optional, Sequence
 
 import numpy as np
 
-from sik_ros.collision import Obstacle
 from sik_ros.deadline import Deadline
-from sik_ros.periodic import nearest_turns
+from sik_ros.kinematics.collision import Obstacle
+from sik_ros.kinematics.periodic import nearest_turns
 from sik_ros.solver.batch import Candidates
 from sik_ros.solver.candidates import oriented_postures
 from sik_ros.solver.codec import encode

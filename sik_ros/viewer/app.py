@@ -13,8 +13,8 @@ from typing import List, Optional
 
 import numpy as np
 
-from sik_ros.collision import Obstacle
 from sik_ros.errors import SikError
+from sik_ros.kinematics.collision import Obstacle
 from sik_ros.solver import IKResult, SelectiveIK
 from sik_ros.viewer.meshes import ArmMeshes
 from sik_ros.viewer.scene import (Goal, grid_offsets, joint_text, reach, solution_colors,

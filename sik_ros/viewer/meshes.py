@@ -14,8 +14,8 @@ import numpy as np
 import pinocchio as pin
 
 from sik_ros.errors import InvalidModel
-from sik_ros.kinematics import Robot
-from sik_ros.model_tree import find_frame
+from sik_ros.kinematics.model_tree import find_frame
+from sik_ros.kinematics.robot import Robot
 
 
 @dataclass(frozen=True)

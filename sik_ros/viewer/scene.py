@@ -9,7 +9,7 @@ from typing import List, Optional, Sequence, Tuple
 
 import numpy as np
 
-from sik_ros.collision import Obstacle
+from sik_ros.kinematics.collision import Obstacle
 from sik_ros.solver import IKResult, SelectiveIK
 from sik_ros.solver.path import PathResult
 

@@ -4,9 +4,9 @@ from typing import Tuple
 
 import numpy as np
 
-from sik_ros.chain import SerialChain
 from sik_ros.deadline import Deadline
-from sik_ros.rotations import rotation_angle
+from sik_ros.kinematics.chain import SerialChain
+from sik_ros.kinematics.rotations import rotation_angle
 from sik_ros.solver.config import EDGE_CHECKS, TRACK_ITERATIONS
 from sik_ros.solver.context import Context, Goal
 from sik_ros.solver.path.settings import PathSettings

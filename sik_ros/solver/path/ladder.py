@@ -5,9 +5,9 @@ from typing import List, Optional, Sequence, Tuple
 
 import numpy as np
 
-from sik_ros.collision import Obstacle
 from sik_ros.deadline import Deadline
-from sik_ros.goal_error import goal_errors
+from sik_ros.kinematics.collision import Obstacle
+from sik_ros.kinematics.goal_error import goal_errors
 from sik_ros.solver.config import SAME_CANDIDATE, SAME_START
 from sik_ros.solver.context import Context, Goal
 from sik_ros.solver.path.edges import continue_tracks, edge_costs, reach_bounds

@@ -5,9 +5,9 @@ from typing import Sequence
 
 import numpy as np
 
-from sik_ros.collision import Obstacle
 from sik_ros.deadline import Deadline
-from sik_ros.rotations import rotation_angle
+from sik_ros.kinematics.collision import Obstacle
+from sik_ros.kinematics.rotations import rotation_angle
 from sik_ros.solver.context import Context, Goal
 from sik_ros.solver.path.settings import PathSettings
 from sik_ros.solver.refine import Evaluation

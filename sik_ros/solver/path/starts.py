@@ -5,7 +5,7 @@ from typing import Optional, Tuple
 import numpy as np
 
 from sik_ros.deadline import Deadline, NO_DEADLINE
-from sik_ros.periodic import nearest_turns
+from sik_ros.kinematics.periodic import nearest_turns
 from sik_ros.solver import pipeline  # noqa: I100 (a sibling module, not the package)
 from sik_ros.solver.config import NEAR_POOL, START_ITERATIONS
 from sik_ros.solver.context import Context, Goal, POSITION

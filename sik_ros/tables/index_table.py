@@ -37,9 +37,9 @@ from sik_ros.errors import ArtifactMismatch, CorruptArtifact, InvalidArgument
 from sik_ros.kernels import as_arg
 from sik_ros.kernels.cells import (best_oriented, cell_rows, CellGrid, MAX_SHELLS,
                                    nearest_cells)
-from sik_ros.point_sets import farthest_point_subset, pairwise_distances  # noqa: F401
-from sik_ros.prior_table import PriorTable  # noqa: F401 (part of this module's API)
-from sik_ros.reach_grid import ReachGrid
+from sik_ros.tables.point_sets import farthest_point_subset, pairwise_distances  # noqa: F401
+from sik_ros.tables.prior_table import PriorTable  # noqa: F401 (part of this module's API)
+from sik_ros.tables.reach_grid import ReachGrid
 
 TABLE_KEYS = ('centers', 'offsets', 'indices', 'manifest')
 
@@ -91,7 +91,7 @@ class IndexTable:
     dataset row each index was kept from. ``postures`` (optional, (M, n) [rad]): each index
     decoded at its cell's centre (see :func:`decode_postures`); the manifest's ``postures``
     entry holds the joint range they are quantised over. ``realised`` (optional, (M,) bool):
-    the rows the look-up by position gives (see :func:`~sik_ros.indexing.mark_realised`).
+    the rows the look-up by position gives (see :func:`~sik_ros.learning.indexing.mark_realised`).
     """
 
     def __init__(self, centers: np.ndarray, offsets: np.ndarray, indices: np.ndarray,

@@ -2,17 +2,17 @@
 
 An objective maps a batch of joint configurations (N, n) [rad] to costs (N,), lower is better.
 Objectives compose with ``+`` and scalar ``*``. Obstacles and collision checks live in
-:mod:`sik_ros.collision`.
+:mod:`sik_ros.kinematics.collision`.
 """
 
 from typing import Callable, List, Optional, Sequence
 
 import numpy as np
 
-from sik_ros.chain import chain_forward
-from sik_ros.collision import CollisionChecker, Obstacle
 from sik_ros.errors import InvalidArgument
-from sik_ros.kinematics import Robot
+from sik_ros.kinematics.chain import chain_forward
+from sik_ros.kinematics.collision import CollisionChecker, Obstacle
+from sik_ros.kinematics.robot import Robot
 
 
 class Objective:

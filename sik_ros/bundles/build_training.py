@@ -3,8 +3,8 @@
 The position model trains for the whole training time on one core. The pose model starts on
 the other core once :data:`POSE_START` of that time has passed, from the position model's
 checkpoint of that moment (its posture index of the whole self-motion; the orientation inputs
-at zero weight, :func:`sik_ros.training_data.widened_state`), and is fine-tuned for the rest of
-the time with the FK term, the orientation weighed up and the cycle term
+at zero weight, :func:`sik_ros.learning.training_data.widened_state`), and is fine-tuned for the
+rest of the time with the FK term, the orientation weighed up and the cycle term
 (:data:`POSE_RECIPE`, the bundled Panda pose model's recipe; docs/training.md). Each run has
 one thread: on a shared machine two threads of one run are slower than one (a step waits for
 the slower thread). Each checkpoints as it goes and resumes from its ``last.pt``.
@@ -18,13 +18,13 @@ import shutil
 import time
 from typing import Callable, Dict, Optional
 
-from sik_ros.dataset import Dataset
 from sik_ros.defaults import BuildConfig
 from sik_ros.errors import InvalidArgument
-from sik_ros.kinematics import Robot
-from sik_ros.models import ModelConfig, PRESETS
-from sik_ros.robots import robot_from_manifest
-from sik_ros.train_config import TrainConfig
+from sik_ros.kinematics.robot import Robot
+from sik_ros.kinematics.robots import robot_from_manifest
+from sik_ros.learning.models import ModelConfig, PRESETS
+from sik_ros.learning.train_config import TrainConfig
+from sik_ros.tables.dataset import Dataset
 
 GOALS = ('position', 'pose')
 #: When the pose model starts, as a share of the training time [0-1): from the position
@@ -83,7 +83,7 @@ def plan_training(robot: Robot, cfg: BuildConfig, work: Path, seconds: float,
         ``seconds``, ``pose_start`` [s after the position model's start] and per goal kind the
         model and training configs and its ``seconds``.
     """
-    from sik_ros.training import Trainer
+    from sik_ros.learning.training import Trainer
     ds = Dataset.load(work / 'dataset', robot)
     rows = len(ds)
     plan = {'seconds': seconds, 'pose_start': POSE_START * seconds, 'configs': {}}
@@ -108,8 +108,8 @@ def train_worker(robot_manifest: Dict, dataset: str, run: str, cfg: Dict,
 
     A new run starts from the weights of ``init`` (a checkpoint or model file) when given.
     """
-    from sik_ros.checkpoints import export_model, load_checkpoint
-    from sik_ros.training import Trainer
+    from sik_ros.learning.checkpoints import export_model, load_checkpoint
+    from sik_ros.learning.training import Trainer
     robot = robot_from_manifest(robot_manifest, 'build')
     ds = Dataset.load(dataset, robot)
     trainer = Trainer(robot, ds, ModelConfig.from_dict(cfg['model']),
@@ -207,7 +207,7 @@ def _start(ctx, robot: Robot, work: Path, goal: str, plan: Dict) -> multiprocess
 
 def history(model_file: Path) -> Dict:
     """Steps, time and the last validation figures of a checkpoint or exported model."""
-    from sik_ros.checkpoints import load_checkpoint
+    from sik_ros.learning.checkpoints import load_checkpoint
     ckpt = load_checkpoint(model_file)
     last = ckpt.get('history', [{}])[-1] if ckpt.get('history') else {}
     return {'step': int(ckpt.get('step', 0)), 'elapsed_s': float(ckpt.get('elapsed_s', 0.0)),

@@ -13,10 +13,10 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 import torch
 
-from sik_ros.dataset import Dataset
 from sik_ros.errors import ArtifactMismatch
-from sik_ros.kinematics import Robot
-from sik_ros.models import make_goal, ModelConfig, Normalizer
+from sik_ros.kinematics.robot import Robot
+from sik_ros.learning.models import make_goal, ModelConfig, Normalizer
+from sik_ros.tables.dataset import Dataset
 
 
 class TrainData:

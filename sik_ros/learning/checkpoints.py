@@ -1,7 +1,7 @@
 """Checkpoints on disk: reading, checking, rebuilding a model from one, exporting one.
 
 Inference (the solver, index tables, bundles, the node) loads models through this module and
-never imports :mod:`sik_ros.training`.
+never imports :mod:`sik_ros.learning.training`.
 """
 
 import hashlib
@@ -13,7 +13,7 @@ import torch
 
 from sik_ros.artifacts import atomic_write, FORMAT_VERSION
 from sik_ros.errors import ArtifactMismatch, CorruptArtifact
-from sik_ros.models import build_model, ModelConfig, Normalizer
+from sik_ros.learning.models import build_model, ModelConfig, Normalizer
 
 
 def normalizer_from_dict(d: Dict) -> Normalizer:

@@ -16,12 +16,12 @@ import numpy as np
 
 from sik_ros.artifacts import (atomic_directory, check_robot_manifest, FORMAT_VERSION,
                                library_versions, read_json, write_json_atomic)
-from sik_ros.chain import chain_forward
 from sik_ros.defaults import MAX_ROWS
 from sik_ros.errors import CorruptArtifact, InvalidArgument
-from sik_ros.kinematics import Robot
-from sik_ros.periodic import TURN
-from sik_ros.rotations import rotation_to_quaternion
+from sik_ros.kinematics.chain import chain_forward
+from sik_ros.kinematics.periodic import TURN
+from sik_ros.kinematics.robot import Robot
+from sik_ros.kinematics.rotations import rotation_to_quaternion
 
 ARRAYS = {'q': None, 'position': 3, 'quaternion': 4}
 #: Edge of the cells used to report positions per cell in ``stats.txt`` [m].

@@ -14,17 +14,18 @@ import numpy as np
 import torch
 from torch.nn.parallel import DistributedDataParallel
 
-from sik_ros import distributed
 from sik_ros.artifacts import (atomic_write, check_robot_manifest, FORMAT_VERSION,
                                library_versions)
-from sik_ros.checkpoints import normalizer_from_dict
-from sik_ros.dataset import Dataset, dataset_summary
 from sik_ros.errors import ArtifactMismatch, InvalidArgument, TrainingDiverged
-from sik_ros.kinematics import Robot
-from sik_ros.models import anfis_forward, build_model, kl_normal, ModelConfig, TorchChain
-from sik_ros.train_config import lr_at, SAMPLERS, TrainConfig, with_overrides  # noqa: F401
-from sik_ros.training_data import (default_normalizer, TrainData, turned_rot6,  # noqa: F401
-                                   widened_state, widens)
+from sik_ros.kinematics.robot import Robot
+from sik_ros.learning import distributed
+from sik_ros.learning.checkpoints import normalizer_from_dict
+from sik_ros.learning.models import anfis_forward, build_model, kl_normal, ModelConfig, TorchChain
+from sik_ros.learning.train_config import (lr_at, SAMPLERS, TrainConfig,  # noqa: F401
+                                           with_overrides)
+from sik_ros.learning.training_data import (default_normalizer, TrainData,  # noqa: F401
+                                            turned_rot6, widened_state, widens)
+from sik_ros.tables.dataset import Dataset, dataset_summary
 
 
 class Trainer:

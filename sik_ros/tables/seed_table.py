@@ -33,16 +33,16 @@ import numpy as np
 
 from sik_ros.artifacts import (atomic_write, check_robot_manifest, FORMAT_VERSION, range_codes,
                                range_values)
-from sik_ros.chain import chain_forward
-from sik_ros.dataset import Dataset
 from sik_ros.defaults import SEED_TABLE_ROWS
 from sik_ros.errors import ArtifactMismatch, CorruptArtifact, InvalidArgument
 from sik_ros.kernels.kdtree import KDTree
 from sik_ros.kernels.seeds import axis_key, table_starts
-from sik_ros.kinematics import Robot
-from sik_ros.periodic import TURN
-from sik_ros.point_sets import SAME_DISTANCE
-from sik_ros.rotations import rotation_to_quaternion, z_to_axis
+from sik_ros.kinematics.chain import chain_forward
+from sik_ros.kinematics.periodic import TURN
+from sik_ros.kinematics.robot import Robot
+from sik_ros.kinematics.rotations import rotation_to_quaternion, z_to_axis
+from sik_ros.tables.dataset import Dataset
+from sik_ros.tables.point_sets import SAME_DISTANCE
 
 #: Configurations a seed table keeps by default (6 MB for 6 joints).
 DEFAULT_ROWS = SEED_TABLE_ROWS

@@ -50,7 +50,7 @@ Log = Callable[[int, str], None]
 
 
 def _default_log(level: int, message: str) -> None:
-    logging.getLogger('sik_ros.solver_pool').log(level, message)
+    logging.getLogger('sik_ros.serving.pool').log(level, message)
 
 
 @dataclass(frozen=True)
@@ -189,7 +189,7 @@ class SolverPool:
             config: the solver settings each process starts with.
             processes: how many processes.
             log: ``log(level, message)`` (``logging`` levels) for lost and restored capacity;
-                default: the ``sik_ros.solver_pool`` logger.
+                default: the ``sik_ros.serving.pool`` logger.
 
         Raises:
             SikError: a process could not load the bundle or did not start in time.

@@ -12,7 +12,7 @@ import pinocchio as pin
 
 from sik_ros.deadline import Deadline, NO_DEADLINE
 from sik_ros.errors import InvalidArgument
-from sik_ros.kinematics import Robot
+from sik_ros.kinematics.robot import Robot
 from sik_ros.validation import MAX_DISTANCE, quaternion, vector
 
 BOX, SPHERE, CYLINDER = 'box', 'sphere', 'cylinder'

@@ -9,7 +9,7 @@ from typing import Optional, Tuple
 
 import numpy as np
 
-from sik_ros.rotations import rotation_angle
+from sik_ros.kinematics.rotations import rotation_angle
 
 
 def goal_errors(p: np.ndarray, r: Optional[np.ndarray], position: np.ndarray,

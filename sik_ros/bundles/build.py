@@ -7,7 +7,7 @@ reboot) continues where it stopped:
    budget) over the arm's joint space;
 2. **train**: the position model on one core for the training time; the pose model on the
    other, started part way from the position model's checkpoint and fine-tuned with the pose
-   recipe (:mod:`sik_ros.build_training`); each checkpoints as it goes and resumes from its
+   recipe (:mod:`sik_ros.bundles.build_training`); each checkpoints as it goes and resumes from its
    ``last.pt``;
 3. **index**: each model's posture-index table over the dataset;
 4. **bundle**: models and tables in a bundle directory, renamed onto ``--out`` only when
@@ -27,13 +27,13 @@ from typing import Dict, Optional
 import numpy as np
 
 from sik_ros.artifacts import atomic_directory, read_json, write_json_atomic
-from sik_ros.build_training import (GOALS, history, latent_dims,  # noqa: F401 (API)
-                                    plan_training, run_training, Say, training_summary)
-from sik_ros.bundle import build_bundle, read_bundle_manifest
-from sik_ros.dataset import collect, Dataset, finest_interval, MAX_ROWS
+from sik_ros.bundles.build_training import (GOALS, history, latent_dims,  # noqa: F401 (API)
+                                            plan_training, run_training, Say, training_summary)
+from sik_ros.bundles.bundle import build_bundle, read_bundle_manifest
 from sik_ros.defaults import BuildConfig  # noqa: F401 (part of this module's API)
 from sik_ros.errors import ArtifactMismatch, InvalidArgument
-from sik_ros.kinematics import Robot
+from sik_ros.kinematics.robot import Robot
+from sik_ros.tables.dataset import collect, Dataset, finest_interval, MAX_ROWS
 
 
 class Builder:
@@ -121,7 +121,7 @@ class Builder:
         return seconds
 
     def train(self, seconds: float) -> Dict:
-        """Stage 2: the position and the pose model (:mod:`sik_ros.build_training`)."""
+        """Stage 2: the position and the pose model (:mod:`sik_ros.bundles.build_training`)."""
         plan_file = self.work / 'train_plan.json'
         if plan_file.exists():  # a resumed build keeps its schedule
             plan = read_json(plan_file, 'training plan')

@@ -2,7 +2,8 @@
 
 ``bundle.json`` names the robot (its manifest: name or URDF, frames, joints) and, per goal kind
 (``position``, ``pose``), the model file and its table; the pose model of an arm with six joints
-or fewer also has a seed table (:mod:`sik_ros.seed_table`). :func:`build_bundle` makes one from
+or fewer also has a seed table (:mod:`sik_ros.tables.seed_table`). :func:`build_bundle` makes one
+from
 trained models and a dataset (``sik-index --bundle`` and the tests use it); :func:`load_bundle`
 reads one back, checking every file against the manifest.
 """
@@ -16,17 +17,17 @@ import torch
 
 from sik_ros.artifacts import (atomic_write, check_robot_manifest, FORMAT_VERSION, read_json,
                                write_json_atomic)
-from sik_ros.checkpoints import load_checkpoint, model_from_checkpoint, model_signature
-from sik_ros.dataset import Dataset
 from sik_ros.errors import ArtifactMismatch, CorruptArtifact
-from sik_ros.index_table import IndexTable, PostureTable, TableConfig
-from sik_ros.indexing import build_table
-from sik_ros.kinematics import Robot
-from sik_ros.robots import robot_from_manifest
-from sik_ros.seed_table import default_rows, SeedTable
+from sik_ros.kinematics.robot import Robot
+from sik_ros.kinematics.robots import robot_from_manifest
+from sik_ros.learning.checkpoints import load_checkpoint, model_from_checkpoint, model_signature
+from sik_ros.learning.indexing import build_table
+from sik_ros.tables.dataset import Dataset
+from sik_ros.tables.index_table import IndexTable, PostureTable, TableConfig
+from sik_ros.tables.seed_table import default_rows, SeedTable
 
 #: The bundles shipped inside the package, one directory per robot name.
-BUNDLES = Path(__file__).resolve().parent / 'bundles'
+BUNDLES = Path(__file__).resolve().parent
 #: Goal kinds a bundle may hold.
 GOALS = ('position', 'pose')
 
@@ -37,8 +38,8 @@ class GoalModel:
 
     Attributes:
         model: the SIK/PSIK module, in eval mode.
-        cfg: its :class:`~sik_ros.models.ModelConfig`.
-        norm: its :class:`~sik_ros.models.Normalizer`.
+        cfg: its :class:`~sik_ros.learning.models.ModelConfig`.
+        norm: its :class:`~sik_ros.learning.models.Normalizer`.
         table: the posture indices to decode (an :class:`IndexTable` or another
             :class:`PostureTable`).
         seeds: dataset configurations by tip pose, where isolated pose solutions start
@@ -176,7 +177,7 @@ def build_bundle(out: Path, robot: Robot, models: Mapping[str, Path], dataset: D
         orientations: keep each index's tip orientation in the tables.
         progress: called with the rows encoded, chunk by chunk.
         seed_rows: configurations of the pose model's seed table, for an arm of six joints or
-            fewer (-1: :func:`~sik_ros.seed_table.default_rows`; None or 0: none).
+            fewer (-1: :func:`~sik_ros.tables.seed_table.default_rows`; None or 0: none).
 
     Returns:
         ``out``.

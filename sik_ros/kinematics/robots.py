@@ -28,12 +28,12 @@ import xml.etree.ElementTree as ElementTree
 import pinocchio as pin
 
 from sik_ros.artifacts import check_robot_manifest
-from sik_ros.description import expand_xacro, is_xacro_text
 from sik_ros.errors import (ArtifactMismatch, CorruptArtifact, FrameNotFound, InvalidArgument,
                             InvalidModel, RobotNotFound)
-from sik_ros.kinematics import Robot, sha256_file
-from sik_ros.model_tree import chain_joint, find_frame, rename_frame
-from sik_ros.periodic import TURN
+from sik_ros.kinematics.description import expand_xacro, is_xacro_text
+from sik_ros.kinematics.model_tree import chain_joint, find_frame, rename_frame
+from sik_ros.kinematics.periodic import TURN
+from sik_ros.kinematics.robot import Robot, sha256_file
 
 #: Default base and tip frames of robots whose own choice differs from the inferred one.
 KNOWN_FRAMES = {
@@ -103,7 +103,7 @@ def unique_frame_names(model: pin.Model) -> pin.Model:
 
     A link and a joint may share a name in a URDF; Pinocchio's model reduction then refuses
     the name. The body keeps it, so a frame asked for by that name is the link (a moving
-    joint keeps its name: :class:`~sik_ros.kinematics.Robot` handles it at the reduction).
+    joint keeps its name: :class:`~sik_ros.kinematics.robot.Robot` handles it at the reduction).
     """
     count = Counter(f.name for f in model.frames)
     for i, frame in enumerate(model.frames):

@@ -1,7 +1,8 @@
 """Pinocchio model trees: frames by name, the joints of a base-to-tip chain, renames.
 
-What :class:`~sik_ros.kinematics.Robot` needs to cut an arm out of a whole model (a robot with
-grippers, other limbs or a floating root) and :mod:`sik_ros.robots` to check a URDF's joints.
+What :class:`~sik_ros.kinematics.robot.Robot` needs to cut an arm out of a whole model (a robot
+with grippers, other limbs or a floating root) and :mod:`sik_ros.kinematics.robots` to check a
+URDF's joints.
 """
 
 from typing import Dict, List, Set
@@ -75,7 +76,8 @@ def chain_joint(model: pin.Model, j: int) -> bool:
     what = {'JointModelPX': 'prismatic', 'JointModelPY': 'prismatic', 'JointModelPZ':
             'prismatic', 'JointModelPrismaticUnaligned': 'prismatic'}.get(kind, kind)
     if kind.startswith('JointModelRUB'):
-        what = 'continuous (load it with sik_ros.robots.load_robot, which makes it periodic)'
+        what = ('continuous (load it with sik_ros.kinematics.robots.load_robot, which makes '
+                'it periodic)')
     raise InvalidModel(f'joint {model.names[j]!r} in the chain is {what}; sik_ros supports '
                        f'chains of revolute joints')
 

@@ -2,7 +2,7 @@
 
 With ``solver_processes: 0`` each executor thread borrows a :meth:`SelectiveIK.clone` (its own
 Pinocchio and coal data) from a pool of clones, so parallel requests never share mutable state.
-With solver processes, requests and paths go to a :class:`~sik_ros.solver_pool.SolverPool`;
+With solver processes, requests and paths go to a :class:`~sik_ros.serving.pool.SolverPool`;
 while the pool is short of a process (one is being restarted) and none is idle, a request is
 solved by the node's own solver instead of waiting for a process that may be slow to come back;
 so is a request whose process died while serving it and whose retry found none.
@@ -37,7 +37,7 @@ class NodeSolvers:
         Raises:
             SikError: a solver process could not start.
         """
-        from sik_ros.solver_pool import SolverPool  # only with processes: multiprocessing
+        from sik_ros.serving.pool import SolverPool  # only with processes: multiprocessing
         self._ik = ik
         self._log = log
         self._clones: 'queue.LifoQueue[SelectiveIK]' = queue.LifoQueue()
@@ -56,11 +56,11 @@ class NodeSolvers:
 
     @property
     def pool(self):
-        """The :class:`~sik_ros.solver_pool.SolverPool`, or None without solver processes."""
+        """The :class:`~sik_ros.serving.pool.SolverPool`, or None without solver processes."""
         return self._pool
 
     def health(self) -> Optional[Any]:
-        """The solver processes' :class:`~sik_ros.solver_pool.PoolHealth` (None without)."""
+        """The solver processes' :class:`~sik_ros.serving.pool.PoolHealth` (None without)."""
         return None if self._pool is None else self._pool.health()
 
     def solve(self, settings: Dict[str, Any], *args, **kwargs) -> IKResult:

@@ -13,10 +13,10 @@ import numpy as np
 import torch
 from torch import nn
 
-from sik_ros.chain import chain_forward, SerialChain
 from sik_ros.defaults import (DEFAULT_LATENT, GOAL_KINDS, MODEL_KINDS,  # noqa: F401 (API)
                               PRESETS)
 from sik_ros.errors import InvalidArgument
+from sik_ros.kinematics.chain import chain_forward, SerialChain
 
 
 @dataclass(frozen=True)

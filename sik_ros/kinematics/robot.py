@@ -2,7 +2,8 @@
 
 A :class:`Robot` is a serial chain of revolute joints from a fixed base frame to a tip frame,
 extracted from a Pinocchio model (example-robot-data or a URDF). Joints off the base-to-tip path
-(a gripper's fingers) are locked. Its constant geometry is a :class:`~sik_ros.chain.SerialChain`;
+(a gripper's fingers) are locked. Its constant geometry is a
+:class:`~sik_ros.kinematics.chain.SerialChain`;
 tip poses and Jacobians come from the compiled kernels on it (:mod:`sik_ros.kernels.chain`),
 tested against Pinocchio's own frame placements and Jacobians.
 """
@@ -14,13 +15,13 @@ from typing import Optional, Sequence, Tuple
 import numpy as np
 import pinocchio as pin
 
-from sik_ros.chain import SerialChain
 from sik_ros.errors import InvalidArgument, InvalidModel
 from sik_ros.kernels import as_arg, chain_frames, fk_many, jac_many
-from sik_ros.model_tree import (chain_path, find_frame, pinocchio_reason, rename_frame,
-                                rename_link_joints, REVOLUTE_AXES)
-from sik_ros.periodic import periodic_joints
-from sik_ros.rotations import rotation_to_quaternion, z_to_axis
+from sik_ros.kinematics.chain import SerialChain
+from sik_ros.kinematics.model_tree import (chain_path, find_frame, pinocchio_reason, rename_frame,
+                                           rename_link_joints, REVOLUTE_AXES)
+from sik_ros.kinematics.periodic import periodic_joints
+from sik_ros.kinematics.rotations import rotation_to_quaternion, z_to_axis
 
 
 def sha256_file(path: Path) -> str:
