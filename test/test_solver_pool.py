@@ -29,12 +29,11 @@ def test_a_request_whose_process_dies_is_retried_on_another(panda, tiny_bundle):
         rng = np.random.default_rng(0)
         balls = [Obstacle('sphere', (0.01,), position=tuple(rng.uniform(-0.8, 0.8, 3)))
                  for _ in range(6000)]
-        settings = {'max_obstacles': 8000}
+        pool.configure(max_obstacles=8000)
         out = {}
 
         def call():
-            out['result'] = pool.solve(settings, pos, obstacles=balls, num_solutions=4,
-                                       timeout=20.0)
+            out['result'] = pool.solve(pos, obstacles=balls, num_solutions=4, timeout=20.0)
         thread = threading.Thread(target=call)
         thread.start()
         busy = []

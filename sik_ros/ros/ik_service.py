@@ -8,7 +8,7 @@ into its code.
 """
 
 from dataclasses import dataclass
-from typing import Callable, Optional, Sequence, Tuple
+from typing import Callable, Optional, Sequence
 
 import numpy as np
 from std_msgs.msg import Header
@@ -17,7 +17,7 @@ from sik_interfaces.srv import SolveIK
 from sik_ros.errors import InvalidFrame
 from sik_ros.ros import conversions as conv
 from sik_ros.ros.params import NodeParams
-from sik_ros.serving.solvers import NodeSolvers
+from sik_ros.serving.solvers import Solver
 from sik_ros.solver import IKResult
 
 R = SolveIK.Response
@@ -51,10 +51,28 @@ def solver_settings(p: NodeParams) -> dict:
             'max_waypoints': p.max_waypoints}
 
 
-def solve_request(solvers: NodeSolvers, arm: Arm, request: SolveIK.Request, p: NodeParams,
-                  state_seed: Callable[[], Optional[np.ndarray]]
-                  ) -> Tuple[int, str, IKResult]:
-    """Code, message and library result of a ``SolveIK`` request.
+@dataclass(frozen=True)
+class Answer:
+    """What a ``SolveIK`` request got.
+
+    Attributes:
+        code: the response's error code.
+        message: the response's message.
+        result: the library's result.
+        position: the goal position [m].
+        orientation: the goal quaternion x y z w, or None for a position goal.
+    """
+
+    code: int
+    message: str
+    result: IKResult
+    position: np.ndarray
+    orientation: Optional[np.ndarray]
+
+
+def solve_request(solvers: Solver, arm: Arm, request: SolveIK.Request, p: NodeParams,
+                  state_seed: Callable[[], Optional[np.ndarray]]) -> Answer:
+    """Solve a ``SolveIK`` request: its code, message, library result and goal.
 
     Args:
         solvers: where to solve.
@@ -77,10 +95,10 @@ def solve_request(solvers: NodeSolvers, arm: Arm, request: SolveIK.Request, p: N
     obstacles = conv.obstacles_from_msgs(request.obstacles, request.obstacle_poses,
                                          p.max_obstacles)
     timeout = conv.seconds_from_duration(request.timeout) or p.timeout
-    result = solvers.solve(solver_settings(p), position, orientation, num, seed=seed,
-                           obstacles=obstacles, refine=p.refine, timeout=timeout)
+    result = solvers.solve(position, orientation, num, seed=seed, obstacles=obstacles,
+                           refine=p.refine, timeout=timeout)
     code, text = conv.result_code(result, bool(obstacles), timeout)
-    return code, '; '.join(t for t in (text, note) if t), result
+    return Answer(code, '; '.join(t for t in (text, note) if t), result, position, orientation)
 
 
 def solution_msgs(result: IKResult, arm: Arm, header: Header) -> list:

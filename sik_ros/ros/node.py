@@ -6,7 +6,7 @@ Service ``~/solve_ik`` (``sik_interfaces/srv/SolveIK``), service ``~/solve_path`
 command): ``sik_node --ros-args --params-file config/panda.yaml``. See docs/interfaces.md.
 
 The node is wiring: its constructor declares the parameters, loads the bundle, starts the
-solvers (:class:`~sik_ros.serving.solvers.NodeSolvers`) and creates the ROS interfaces; each
+solvers (:func:`~sik_ros.serving.solvers.make_solvers`) and creates the ROS interfaces; each
 callback hands its request to :class:`~sik_ros.ros.guard.RequestGuard` with a handler from
 :mod:`~sik_ros.ros.ik_service` or :mod:`~sik_ros.ros.path_service`. A
 :class:`MultiThreadedExecutor` runs the callbacks in a reentrant callback group.
@@ -40,7 +40,7 @@ from sik_ros.ros.ik_service import Arm, solution_msgs, solve_request, solver_set
 from sik_ros.ros.params import declarations, NodeParams, validate
 from sik_ros.ros.path_service import path_markers, solve_path_request
 from sik_ros.serving.pool import single_threaded
-from sik_ros.serving.solvers import NodeSolvers
+from sik_ros.serving.solvers import make_solvers, Solver
 from sik_ros.solver import SelectiveIK
 
 NODE_NAME = 'sik_node'
@@ -89,7 +89,7 @@ class SikNode(Node):
         self.shutdown_grace = self._params.shutdown_grace
         self._ik: Optional[SelectiveIK] = None
         self.arm: Optional[Arm] = None
-        self.solvers: Optional[NodeSolvers] = None
+        self.solvers: Optional[Solver] = None
         #: why requests are refused: the robot_description topic's chain differs from the bundle's
         self._mismatch: Optional[str] = None
         self._description: Optional[str] = None
@@ -116,7 +116,7 @@ class SikNode(Node):
             raise StartupError(f'bad parameters: {reason}')
         ik = self._load(self._params)
         try:
-            solvers = NodeSolvers(ik, self._params.solver_processes, self.workers, self._log)
+            solvers = make_solvers(ik, self._params.solver_processes, self.workers, self._log)
         except SikError as exc:
             raise StartupError(f'cannot start the solver processes: {exc}') from exc
         self.get_logger().info(f'solvers warmed up in {solvers.warm_up_seconds:.2f} s')
@@ -197,6 +197,8 @@ class SikNode(Node):
     def _after_set_parameters(self, changes: List[Parameter]) -> None:
         """Make accepted values take effect: solvers pick them up at their next request."""
         self._params = self._read_parameters()
+        if self.solvers is not None:
+            self.solvers.configure(**solver_settings(self._params))
         self._update_joint_state_subscription()
         self.get_logger().info('parameters set: ' + ', '.join(
             f'{c.name}={c.value!r}' for c in changes))
@@ -321,16 +323,13 @@ class SikNode(Node):
 
     def _fill_ik(self, request: SolveIK.Request, response, header: Header):
         """Solve a SolveIK request into ``response`` (its solutions); the code and message."""
-        p = self._params
-        code, message, result = solve_request(self.solvers, self.arm, request, p,
-                                              self._state_seed)
-        response.solutions = solution_msgs(result, self.arm, header)
+        answer = solve_request(self.solvers, self.arm, request, self._params, self._state_seed)
+        response.solutions = solution_msgs(answer.result, self.arm, header)
         if self._want_markers():
-            position, orientation = conv.goal_from_pose(request.target.pose,
-                                                        request.use_orientation)
             self._markers_pub.publish(conv.posture_markers(
-                self._ik.robot.chain, result.solutions, header, position, orientation))
-        return code, message
+                self._ik.robot.chain, answer.result.solutions, header, answer.position,
+                answer.orientation))
+        return answer.code, answer.message
 
     def _on_solve_ik(self, request: SolveIK.Request, response: SolveIK.Response
                      ) -> SolveIK.Response:

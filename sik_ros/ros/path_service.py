@@ -10,10 +10,10 @@ from sik_interfaces.srv import SolvePath
 from sik_ros.errors import InvalidGoal
 from sik_ros.kinematics.chain import chain_forward
 from sik_ros.ros import conversions as conv
-from sik_ros.ros.ik_service import Arm, solver_settings
+from sik_ros.ros.ik_service import Arm
 from sik_ros.ros.params import NodeParams
 from sik_ros.ros.trajectories import trajectory_msg, waypoints_from_msgs
-from sik_ros.serving.solvers import NodeSolvers
+from sik_ros.serving.solvers import Solver
 from sik_ros.solver import PathResult, Solution
 from sik_ros.solver.config import PATH_DEFAULTS
 
@@ -39,7 +39,7 @@ def path_markers(chain, result: PathResult, header: Header) -> MarkerArray:
     return markers
 
 
-def solve_path_request(solvers: NodeSolvers, arm: Arm, request: SolvePath.Request,
+def solve_path_request(solvers: Solver, arm: Arm, request: SolvePath.Request,
                        p: NodeParams, velocity: np.ndarray, header: Header
                        ) -> Tuple[int, str, PathResult, list, list]:
     """Code, message, result, trajectories and metrics of a ``SolvePath`` request.
@@ -73,7 +73,7 @@ def solve_path_request(solvers: NodeSolvers, arm: Arm, request: SolvePath.Reques
     obstacles = conv.obstacles_from_msgs(request.obstacles, request.obstacle_poses,
                                          p.max_obstacles)
     step = request.max_joint_step if request.max_joint_step != 0 else PATH_DEFAULTS.max_joint_step
-    result = solvers.solve_path(solver_settings(p), positions, quats, seed=seed,
+    result = solvers.solve_path(positions, quats, seed=seed,
                                 num_paths=request.max_paths or PATH_DEFAULTS.num_paths,
                                 max_joint_step=step, obstacles=obstacles, timeout=timeout)
     timed = [trajectory_msg(path, arm.joint_names, velocity, scaling, header)

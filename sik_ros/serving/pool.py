@@ -42,8 +42,6 @@ START_TIMEOUT = 120.0
 WATCHDOG_MARGIN = 0.5
 #: Waits before the next try to start a replacement that failed [s]: doubling, capped.
 RESTART_BACKOFF, RESTART_BACKOFF_MAX = 0.25, 8.0
-#: The :class:`SelectiveIK` methods a solver process serves.
-METHODS = ('solve', 'solve_path')
 
 #: ``log(level, message)``: where the pool reports lost and restored capacity.
 Log = Callable[[int, str], None]
@@ -70,11 +68,6 @@ class PoolHealth:
     restarts: int
     failed_starts: int
     idle: int = 0
-
-    @property
-    def degraded(self) -> bool:
-        """Whether some processes are missing (being restarted)."""
-        return self.ready < self.processes
 
 
 def rebuild_error(name: str, message: str) -> SikError:
@@ -103,7 +96,8 @@ def single_threaded() -> None:
 def _serve(conn: Connection, bundle: str, config: Dict[str, Any]) -> None:
     """Body of a solver process: load the bundle, then answer ``(method, settings, ...)``.
 
-    Each message is ``(method, settings, args, kwargs)``; None or a closed pipe ends it.
+    Each message is ``(method, settings, args, kwargs)``: ``settings`` is None, or the config
+    fields changed since the last message; None or a closed pipe ends it.
     """
     # the parent owns SIGINT/SIGTERM and closes the pipe to stop us
     signal.signal(signal.SIGINT, signal.SIG_IGN)
@@ -114,6 +108,7 @@ def _serve(conn: Connection, bundle: str, config: Dict[str, Any]) -> None:
     except Exception as exc:  # reported to the parent, which refuses to start
         conn.send(('error', type(exc).__name__, str(exc)))
         return
+    methods = {'solve': base.solve, 'solve_path': base.solve_path}
     conn.send(('ready', None, None))
     while True:
         try:
@@ -124,12 +119,13 @@ def _serve(conn: Connection, bundle: str, config: Dict[str, Any]) -> None:
             return
         method, settings, args, kwargs = message
         try:
-            # one instance follows the settings (in place: no memory grows with their churn)
-            if any(getattr(base.config, k) != v for k, v in settings.items()):
-                base.configure(**settings)
-            if method not in METHODS:
-                raise errors.InvalidArgument(f'solver processes serve {METHODS}; got {method!r}')
-            reply = ('ok', getattr(base, method)(*args, **kwargs), None)
+            if settings:
+                base.configure(**settings)  # in place: no memory grows with their churn
+            call = methods.get(method)
+            if call is None:
+                raise errors.InvalidArgument(f'solver processes serve {sorted(methods)}; got '
+                                             f'{method!r}')
+            reply = ('ok', call(*args, **kwargs), None)
         except SikError as exc:
             reply = ('error', type(exc).__name__, str(exc))
         except Exception as exc:  # any other failure is the request's, not the process's
@@ -149,6 +145,8 @@ class _Worker:
                                    name=f'sik_solver_{index}', daemon=True)
         self.process.start()
         child.close()
+        #: the pool's settings version this process has (it starts with the pool's config)
+        self.version = 0
 
     def wait_ready(self, timeout: float) -> None:
         """Block until the process has loaded the bundle (raises SikError if it cannot)."""
@@ -205,6 +203,9 @@ class SolverPool:
         self._closed = False
         self._missing = 0
         self._restarts = self._failed_starts = 0
+        #: config fields changed since the start, and how many times they changed
+        self._settings: Dict[str, Any] = {}
+        self._version = 0
         try:
             for i in range(processes):
                 self._all.append(_Worker(self._ctx, self._bundle, self._config, i))
@@ -235,22 +236,27 @@ class SolverPool:
             idle = {id(w) for w in list(self._idle.queue)}
             return [w.process.pid for w in self._all if id(w) not in idle]
 
-    def solve(self, settings: Dict[str, Any], *args, **kwargs) -> IKResult:
-        """:meth:`SelectiveIK.solve` with the config fields ``settings`` changed, in a process.
+    def configure(self, **settings: Any) -> None:
+        """Change some config fields: each process takes them with its next request.
 
-        See :meth:`call`.
+        Processes started later (replacements) start with them.
         """
-        return self.call('solve', settings, *args, **kwargs)
+        with self._lock:
+            merged = dict(self._settings, **settings)
+            if merged != self._settings:
+                self._settings, self._version = merged, self._version + 1
+                self._config = dict(self._config, **settings)
 
-    def solve_path(self, settings: Dict[str, Any], *args, **kwargs) -> PathResult:
-        """:meth:`SelectiveIK.solve_path` with the config fields ``settings`` changed.
+    def solve(self, *args, **kwargs) -> IKResult:
+        """:meth:`SelectiveIK.solve` in a process, with the settings in force (:meth:`call`)."""
+        return self.call('solve', *args, **kwargs)
 
-        See :meth:`call`.
-        """
-        return self.call('solve_path', settings, *args, **kwargs)
+    def solve_path(self, *args, **kwargs) -> PathResult:
+        """:meth:`SelectiveIK.solve_path` in a process, with the settings in force."""
+        return self.call('solve_path', *args, **kwargs)
 
-    def call(self, method: str, settings: Dict[str, Any], *args, **kwargs):
-        """``SelectiveIK.<method>(*args, **kwargs)`` in a solver process.
+    def call(self, method: str, *args, **kwargs):
+        """``SelectiveIK.<method>(*args, **kwargs)`` in a solver process (solve, solve_path).
 
         The request's ``timeout`` bounds the whole call (plus :data:`WATCHDOG_MARGIN`): waiting
         for a free process, the solve, and a retry. A process found dead while idle is
@@ -267,6 +273,9 @@ class SolverPool:
         for attempt in range(2):
             worker = self._take(deadline)
             try:
+                settings, version = None, self._version
+                if worker.version != version:
+                    settings, worker.version = self._settings, version
                 worker.conn.send((method, settings, args, kwargs))
                 left = max(0.0, deadline.remaining()) if deadline.bounded else None
                 if not worker.conn.poll(left):
@@ -341,6 +350,7 @@ class SolverPool:
                     if self._closed:
                         return
                     fresh = _Worker(self._ctx, self._bundle, self._config, index)
+                    fresh.version = self._version  # started with the settings in force
                     self._all[index] = fresh
                     self._restarts += 1
                 tries += 1
