@@ -3,6 +3,8 @@
 import filecmp
 from glob import glob
 import os
+import subprocess
+import sys
 
 from setuptools import find_namespace_packages, setup
 from setuptools.command.develop import develop
@@ -71,12 +73,29 @@ def check_interfaces(command):
         'source scripts/env.sh).')
 
 
+def compile_kernels(path):
+    """Compile the numba kernels of the sik_ros under ``path`` into their disk cache.
+
+    numba keys its cache on each source file's path, so this runs against the installed copy.
+    A failure leaves the kernels to be compiled at first use (a warning, not an error).
+    """
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join(
+        p for p in (path, os.environ.get('PYTHONPATH', '')) if p))
+    done = subprocess.run([sys.executable, '-m', 'sik_ros.kernels'], cwd=path, env=env,
+                          check=False)
+    if done.returncode != 0:
+        print('sik_ros: warning: the kernels were not compiled ahead of use; the first solve '
+              'compiles them', file=sys.stderr)
+
+
 class ColconInstall(install):
     """``install`` that checks for sik_interfaces first when colcon runs it."""
 
     def run(self):
         check_interfaces(self)
         super().run()
+        if os.environ.get('COLCON') == '1':
+            compile_kernels(os.path.abspath(self.install_lib))
 
 
 class ColconDevelop(develop):
@@ -85,6 +104,8 @@ class ColconDevelop(develop):
     def run(self):
         check_interfaces(self)
         super().run()
+        if os.environ.get('COLCON') == '1':
+            compile_kernels(HERE)
 
 
 setup(

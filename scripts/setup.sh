@@ -4,7 +4,8 @@
 #      colcon among them (after `source scripts/env.sh`, `colcon build` works in a workspace),
 #   2. the sik_interfaces messages, built with CMake against the ROS 2 wheels and installed into
 #      the venv,
-#   3. sik_ros itself, installed in editable mode.
+#   3. sik_ros itself, installed in editable mode,
+#   4. its numba kernels, compiled into their disk cache (python -m sik_ros.kernels).
 # Each step is skipped when a stamp file in the venv says it was done for the same inputs, so a
 # second run takes seconds. Variables: VENV (default: <repo>/.venv), PYTHON (default: python3.11),
 # JOBS (parallel build jobs, default: 2), SIK_SETUP_FORCE=1 (redo every step).
@@ -159,6 +160,18 @@ else
   rm -f "$VENV"/share/sik_ros/config/*.yaml
   if compgen -G 'config/*.yaml' >/dev/null; then cp config/*.yaml "$VENV/share/sik_ros/config/"; fi
   mark_done sik_ros "$PKG_HASH"
+fi
+
+# --- 4. the compiled kernels -------------------------------------------------------------------
+# numba checks its cache against the sources at every import; the stamp only spares the ~1 s
+# this step takes when nothing changed.
+KERNEL_HASH="$(hash_of sik_ros/kernels/*.py -- "$REQ_HASH" "$REPO")"
+if is_done kernels "$KERNEL_HASH" && compgen -G 'sik_ros/kernels/__pycache__/*.nbi' >/dev/null; then
+  log "kernels: compiled"
+else
+  log "compiling the kernels (about 30 s)"
+  (cd / && "$PY" -m sik_ros.kernels) | sed 's/^/[setup] /' || die "the kernels did not compile"
+  mark_done kernels "$KERNEL_HASH"
 fi
 
 log "done: $VENV"

@@ -84,7 +84,7 @@ def built(tmp_path_factory):
 
 
 def test_layout(built):
-    """The install space has what ``ros2 run`` and ament look for, and the bundled Panda model."""
+    """The install space has what ``ros2 run`` and ament look for, the Panda model, the kernels."""
     ws, _ = built
     share = ws / 'install' / 'sik_ros' / 'share'
     node = ws / 'install' / 'sik_ros' / 'lib' / 'sik_ros' / 'sik_node'
@@ -98,6 +98,8 @@ def test_layout(built):
                  / 'bundles' / 'panda')
     for path in bundle.iterdir():
         assert (installed / path.name).read_bytes() == path.read_bytes(), path.name
+    # the build compiled the installed copy's kernels into their cache
+    assert list((installed.parent.parent / 'kernels' / '__pycache__').glob('*.nbi'))
     for tool in ('sik-build', 'sik-solve', 'sik-view'):
         assert (ws / 'install' / 'sik_ros' / 'lib' / 'sik_ros' / tool).is_file(), tool
     iface = ws / 'install' / 'sik_interfaces' / 'share'

@@ -231,3 +231,23 @@ def test_exact_rows_by_margin_are_the_general_rankings_order():
         order = np.argsort(ref_cost, kind='stable')
         np.testing.assert_array_equal(q[keep], ref.q[order])
         np.testing.assert_array_equal(cost, ref_cost[order])
+
+
+def test_the_cache_fallback_is_a_folder_private_to_the_user(tmp_path):
+    """A new folder is made 0700; a folder others can write, or a link to one, is refused."""
+    import os
+    import stat
+    from sik_ros.kernels._cache import private_folder
+    fresh = tmp_path / 'fresh'
+    assert private_folder(fresh)
+    assert stat.S_IMODE(os.lstat(fresh).st_mode) == 0o700
+    assert private_folder(fresh)  # again: it is ours and private
+    shared = tmp_path / 'shared'
+    shared.mkdir()
+    os.chmod(shared, 0o777)
+    assert not private_folder(shared)
+    link = tmp_path / 'link'
+    link.symlink_to(fresh)
+    assert not private_folder(link)
+    (tmp_path / 'file').write_text('')
+    assert not private_folder(tmp_path / 'file')

@@ -3,44 +3,14 @@
 The kernels take arrays and scalars, allocate nothing per joint or per step, write into arrays
 the caller owns and release the GIL. Their argument types are declared, so they are compiled
 (or loaded from numba's disk cache) when this package is imported, never inside a request; a
-call with other types is refused instead of compiled. The cache lives in ``__pycache__`` beside
-the sources; when the package's folder is read-only, in numba's user cache directory
-(``~/.cache/numba``); when that is not writable either, in the system's temporary directory;
-``NUMBA_CACHE_DIR`` chooses another.
+call with other types is refused instead of compiled. Where they are cached:
+:mod:`sik_ros.kernels._cache`; ``python -m sik_ros.kernels`` compiles them all ahead of use
+(``make setup`` and the colcon build do).
 """
 
-import os
-from pathlib import Path
-import tempfile
-
-from numba.core import config
-from numba.misc.appdirs import AppDirs
 import numpy as np
 
-
-def _writable(folder: Path) -> bool:
-    """Whether ``folder`` (or the nearest existing folder above it) can be written."""
-    while not folder.exists():
-        folder = folder.parent
-    return os.access(folder, os.W_OK)
-
-
-def _cache_folder() -> None:
-    """A writable cache folder for numba when neither its usual two are writable.
-
-    numba caches beside the sources, else in the user cache directory; with both read-only
-    (an installed package, a user without a home) it would refuse to compile. Then the
-    system's temporary directory is used, one folder per user.
-    """
-    if config.CACHE_DIR:
-        return
-    user = Path(AppDirs(appname='numba', appauthor=False).user_cache_dir)
-    if _writable(Path(__file__).parent / '__pycache__') or _writable(user):
-        return
-    config.CACHE_DIR = os.path.join(tempfile.gettempdir(), f'sik_ros-numba-{os.getuid()}')
-
-
-_cache_folder()
+from sik_ros.kernels._cache import CACHE  # noqa: F401 (first: it sets numba's cache folder)
 
 
 def as_arg(a, dtype=np.float64) -> np.ndarray:

@@ -14,6 +14,8 @@ from typing import Optional
 from numba import njit
 import numpy as np
 
+from sik_ros.kernels._cache import CACHE
+
 #: Shells of boxes searched around a point before the KD-tree takes over, and the most boxes
 #: a grid may have (a larger workspace at a finer cell keeps the KD-tree alone).
 MAX_SHELLS = 6
@@ -52,7 +54,7 @@ class CellGrid:
 
 
 @njit('int64[::1](float64[::1], float64[:, ::1], float64, int64[::1], int64[::1], int64[::1], '
-      'int64[::1], int64, int64)', cache=True, nogil=True)
+      'int64[::1], int64, int64)', cache=CACHE, nogil=True)
 def nearest_cells(point, centers, cell, origin, dims, starts, order, k,
                   max_shells):  # pragma: no cover (compiled)
     """The ``k`` cells whose centres are nearest ``point``, nearest first.
@@ -106,7 +108,7 @@ def nearest_cells(point, centers, cell, origin, dims, starts, order, k,
     return np.empty(0, dtype=np.int64)
 
 
-@njit('int64[::1](int64[::1], int64[::1])', cache=True, nogil=True)
+@njit('int64[::1](int64[::1], int64[::1])', cache=CACHE, nogil=True)
 def cell_rows(cells, offsets):  # pragma: no cover (compiled)
     """The table rows of ``cells``, end to end in their order."""
     total = 0
@@ -121,7 +123,7 @@ def cell_rows(cells, offsets):  # pragma: no cover (compiled)
     return rows
 
 
-@njit('int64[::1](int64[::1], float32[:, ::1], float32[::1], int64)', cache=True, nogil=True)
+@njit('int64[::1](int64[::1], float32[:, ::1], float32[::1], int64)', cache=CACHE, nogil=True)
 def best_oriented(rows, orientations, quaternion, count):  # pragma: no cover (compiled)
     """The ``count`` of ``rows`` whose orientations are nearest ``quaternion``, nearest first.
 

@@ -14,6 +14,7 @@ import math
 from numba import njit
 import numpy as np
 
+from sik_ros.kernels._cache import CACHE
 from sik_ros.kinematics.chain import SerialChain
 
 
@@ -28,7 +29,7 @@ def chain_frames(chain: SerialChain) -> np.ndarray:
     return np.ascontiguousarray(frames)
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=CACHE, nogil=True)
 def place(frames, q, p, r, jac, with_jac):  # pragma: no cover (compiled)
     """Tip position ``p`` (3,) [m], rotation ``r`` (3, 3) and, ``with_jac``, the Jacobian.
 
@@ -85,7 +86,7 @@ def place(frames, q, p, r, jac, with_jac):  # pragma: no cover (compiled)
 F1, F2, F3 = 'float64[::1]', 'float64[:, ::1]', 'float64[:, :, ::1]'
 
 
-@njit(f'void({F3}, {F2}, {F2}, {F3})', cache=True, nogil=True)
+@njit(f'void({F3}, {F2}, {F2}, {F3})', cache=CACHE, nogil=True)
 def fk_many(frames, q, p, r):  # pragma: no cover (compiled)
     """Tip positions ``p`` (M, 3) [m] and rotations ``r`` (M, 3, 3) of ``q`` (M, n) [rad]."""
     dummy = np.empty((6, 0))
@@ -93,14 +94,14 @@ def fk_many(frames, q, p, r):  # pragma: no cover (compiled)
         place(frames, q[k], p[k], r[k], dummy, False)
 
 
-@njit(f'void({F3}, {F2}, {F2}, {F3}, {F3})', cache=True, nogil=True)
+@njit(f'void({F3}, {F2}, {F2}, {F3}, {F3})', cache=CACHE, nogil=True)
 def jac_many(frames, q, p, r, jac):  # pragma: no cover (compiled)
     """:func:`fk_many` and the Jacobians ``jac`` (M, 6, n) (see :func:`place`)."""
     for k in range(q.shape[0]):
         place(frames, q[k], p[k], r[k], jac[k], True)
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=CACHE, nogil=True)
 def rotation_error(goal, r, out):  # pragma: no cover (compiled)
     """``out`` (3,): the rotation vector log(goal r^T) [rad]; returns its norm [rad]."""
     g = goal
@@ -138,7 +139,7 @@ def rotation_error(goal, r, out):  # pragma: no cover (compiled)
     return sin * scale
 
 
-@njit(f'void({F3}, {F2}, {F2}, float64, float64)', cache=True, nogil=True)
+@njit(f'void({F3}, {F2}, {F2}, float64, float64)', cache=CACHE, nogil=True)
 def align_last_many(frames, q, goal, lower, upper):  # pragma: no cover (compiled)
     """Turn the last joint of each row of ``q`` (M, n) towards the tip rotation ``goal``.
 
@@ -170,7 +171,7 @@ def align_last_many(frames, q, goal, lower, upper):  # pragma: no cover (compile
         q[k, n - 1] = min(max(theta, lower), upper)
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=CACHE, nogil=True)
 def _det6(a):  # pragma: no cover (compiled)
     """Determinant of a 6 x 6 matrix ``a`` (overwritten), by elimination with partial pivoting."""
     det = 1.0
@@ -194,7 +195,7 @@ def _det6(a):  # pragma: no cover (compiled)
     return det
 
 
-@njit(f'boolean[::1]({F3}, {F2})', cache=True, nogil=True)
+@njit(f'boolean[::1]({F3}, {F2})', cache=CACHE, nogil=True)
 def null_directions(jac, out):  # pragma: no cover (compiled)
     """Unit vectors spanning the null spaces of 6 x 7 Jacobians ``jac`` (M, 6, 7) into ``out``.
 

@@ -15,6 +15,7 @@ import math
 from numba import njit
 import numpy as np
 
+from sik_ros.kernels._cache import CACHE
 from sik_ros.kernels.chain import F1, F2, F3, place, rotation_error
 from sik_ros.kernels.clock import monotonic
 from sik_ros.kinematics.periodic import TURN
@@ -28,7 +29,7 @@ INTS = ('iterations', 'stall_window', 'stall_after', 'give_up_after', 'enough', 
         'roll_free')
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=CACHE, nogil=True)
 def goal_error(pos, rot, pose, p, r, err):  # pragma: no cover (compiled)
     """``err`` (6,): the position error (and rotation vector) to the goal; their norms."""
     err[0], err[1], err[2] = pos[0] - p[0], pos[1] - p[1], pos[2] - p[2]
@@ -37,7 +38,7 @@ def goal_error(pos, rot, pose, p, r, err):  # pragma: no cover (compiled)
     return perr, oerr
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=CACHE, nogil=True)
 def damped_solve(jm, err, dims, n, lam2, a, x):  # pragma: no cover (compiled)
     """``x`` (dims,) = (J J^T + lambda^2 I)^-1 ``err`` for ``J`` = ``jm[:dims, :n]``, in place.
 
@@ -73,7 +74,7 @@ def damped_solve(jm, err, dims, n, lam2, a, x):  # pragma: no cover (compiled)
         x[i] = s / a[i, i]
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=CACHE, nogil=True)
 def limited_step(q, jac, err, dims, lower, upper, periodic, turn, lam2, max_step,
                  jm, a, x):  # pragma: no cover (compiled)
     """``q`` (n,) after one damped least squares step on ``err``, within the limits (in place).
@@ -111,7 +112,7 @@ def limited_step(q, jac, err, dims, lower, upper, periodic, turn, lam2, max_step
         q[j] = min(max(v, lower[j]), upper[j])
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=CACHE, nogil=True)
 def _near_better(q, row, score, status, radius, cols):  # pragma: no cover (compiled)
     """Whether an earlier row (not given up) with a lower score lies within ``radius``."""
     for k in range(row):
@@ -126,7 +127,7 @@ def _near_better(q, row, score, status, radius, cols):  # pragma: no cover (comp
     return False
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=CACHE, nogil=True)
 def _refine_row(frames, lower, upper, periodic, q, row, pos, rot, pose, reals, ints, prune_at,
                 perr, oerr, status, score, stale, history, p, r, jac, jm, a, err,
                 x):  # pragma: no cover (compiled)
@@ -171,7 +172,7 @@ def _refine_row(frames, lower, upper, periodic, q, row, pos, rot, pose, reals, i
     return False
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=CACHE, nogil=True)
 def _prune_now(prune_at, it):  # pragma: no cover (compiled)
     """Whether iteration ``it`` is one of ``prune_at``."""
     hit = False
@@ -180,7 +181,7 @@ def _prune_now(prune_at, it):  # pragma: no cover (compiled)
     return hit
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=CACHE, nogil=True)
 def _verdict(it, s, done, stuck, history, window, stall_after, stall_ratio,
              give_up_after):  # pragma: no cover (compiled)
     """A row's outcome after iteration ``it`` at score ``s``: go on (ITERATIONS) or stop.
@@ -203,7 +204,7 @@ def _verdict(it, s, done, stuck, history, window, stall_after, stall_ratio,
     return ITERATIONS
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=CACHE, nogil=True)
 def _is_new(q, row, found, nfound, distinct, cols):  # pragma: no cover (compiled)
     """Whether row ``row`` is at least ``distinct`` from every row of ``found[:nfound]``."""
     qi = q[row]
@@ -218,7 +219,7 @@ def _is_new(q, row, found, nfound, distinct, cols):  # pragma: no cover (compile
 
 
 @njit(f'boolean({F3}, {F1}, {F1}, boolean[::1], {F2}, {F1}, {F2}, boolean, {F1}, int64[::1], '
-      f'int64[::1], {F1}, {F1}, int8[::1])', cache=True, nogil=True)
+      f'int64[::1], {F1}, {F1}, int8[::1])', cache=CACHE, nogil=True)
 def refine_rows(frames, lower, upper, periodic, q, pos, rot, pose, reals, ints, prune_at,
                 perr, oerr, status):  # pragma: no cover (compiled)
     """Damped least squares from each row of ``q`` (M, n) towards a goal, in place.
@@ -274,7 +275,7 @@ def refine_rows(frames, lower, upper, periodic, q, pos, rot, pose, reals, ints, 
 
 @njit(f'void({F3}, {F1}, {F1}, {F2}, {F2}, {F3}, {F3}, {F3}, {F2}, {F3}, boolean, boolean, '
       f'float64, float64, float64, float64, int64, float64, boolean[::1], int64[::1])',
-      cache=True, nogil=True)
+      cache=CACHE, nogil=True)
 def follow_rows(frames, lower, upper, q, p, r, jac, djac, pos, rot, pose, per_row, tol2,
                 otol2, lam2, max_step, iterations, deadline, ok,
                 steps):  # pragma: no cover (compiled)
@@ -329,7 +330,7 @@ def follow_rows(frames, lower, upper, q, p, r, jac, djac, pos, rot, pose, per_ro
             steps[row] += 1
 
 
-@njit(f'void({F2}, {F3}, {F3}, {F3}, int64, float64, {F1}, {F1}, {F3})', cache=True,
+@njit(f'void({F2}, {F3}, {F3}, {F3}, int64, float64, {F1}, {F1}, {F3})', cache=CACHE,
       nogil=True)
 def predict_rows(q, jac, djac, move, dims, lam2, lower, upper,
                  out):  # pragma: no cover (compiled)

@@ -15,9 +15,11 @@ from typing import Tuple
 from numba import njit
 import numpy as np
 
+from sik_ros.kernels._cache import CACHE
+
 
 @njit('Tuple((int64[::1], int64[::1], int64[::1], float64[::1], int64[::1], int64[::1], '
-      'float64[:, ::1], float64[:, ::1], int64))(float64[:, ::1], int64)', cache=True,
+      'float64[:, ::1], float64[:, ::1], int64))(float64[:, ::1], int64)', cache=CACHE,
       nogil=True)
 def tree_build(points, leaf_size):  # pragma: no cover (compiled)
     """The tree of ``points`` (N, d): (order, start, end, split, dim, child, low, high, depth).
@@ -98,7 +100,7 @@ def tree_build(points, leaf_size):  # pragma: no cover (compiled)
             deepest)
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=CACHE, nogil=True)
 def _sift_down(heap_d, heap_r, size, i):  # pragma: no cover (compiled)
     """Restore the max-heap after its entry ``i`` became smaller."""
     while True:
@@ -115,7 +117,7 @@ def _sift_down(heap_d, heap_r, size, i):  # pragma: no cover (compiled)
         i = big
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=CACHE, nogil=True)
 def _walk(points, nodes, split, low, high, depth, key, eps, heap_d, heap_r, size, k,
           unique):  # pragma: no cover (compiled)
     """Push the rows near ``key`` into the max-heap (``size`` filled of ``k``); the new size.
@@ -193,7 +195,7 @@ def _walk(points, nodes, split, low, high, depth, key, eps, heap_d, heap_r, size
     return size
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=CACHE, nogil=True)
 def nearest_rows(points, nodes, split, low, high, depth, columns, key, other, k,
                  eps):  # pragma: no cover (compiled)
     """The ``k`` rows of ``points`` nearest ``key``, nearest first, and their squared distances.
@@ -232,7 +234,7 @@ TREE_TYPES = 'float32[:, ::1], int32[:, ::1], float64[::1], float64[::1], float6
 
 
 @njit('Tuple((int64[::1], float64[::1]))(' + TREE_TYPES + ', float64[::1], float64[::1], '
-      'int64, float64)', cache=True, nogil=True)
+      'int64, float64)', cache=CACHE, nogil=True)
 def tree_nearest(points, nodes, split, low, high, depth, columns, key, other, k,
                  eps):  # pragma: no cover (compiled)
     """:func:`nearest_rows`, compiled for these types (a call from Python)."""

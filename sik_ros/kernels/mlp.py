@@ -11,6 +11,8 @@ from typing import List, Tuple
 from numba import njit
 import numpy as np
 
+from sik_ros.kernels._cache import CACHE
+
 
 def pack_layers(layers: List[Tuple[np.ndarray, np.ndarray]]) -> Tuple[np.ndarray, np.ndarray]:
     """Weights (in, out) and biases (out,) of each layer, packed for :func:`mlp_rows`.
@@ -26,7 +28,7 @@ def pack_layers(layers: List[Tuple[np.ndarray, np.ndarray]]) -> Tuple[np.ndarray
     return np.concatenate(parts), np.array(shapes, dtype=np.int64)
 
 
-@njit('float32[:, ::1](float32[:, ::1], float32[::1], int64[:, ::1])', cache=True, nogil=True,
+@njit('float32[:, ::1](float32[:, ::1], float32[::1], int64[:, ::1])', cache=CACHE, nogil=True,
       fastmath=True)
 def mlp_rows(x, params, shapes):  # pragma: no cover (compiled)
     """The network's outputs (M, out) for inputs ``x`` (M, in): ELU (alpha 1) between layers."""

@@ -9,13 +9,14 @@ import math
 from numba import njit
 import numpy as np
 
+from sik_ros.kernels._cache import CACHE
 from sik_ros.kernels.kdtree import nearest_rows, TREE_TYPES
 from sik_ros.kernels.sets import farthest_rows
 from sik_ros.kinematics.periodic import LIMIT_SLACK, TURN
 
 
 @njit('Tuple((float64[::1], float64))(float64[::1], float64[:, ::1], float64[::1], '
-      'float64[::1], float64[::1], float64)', cache=True, nogil=True)
+      'float64[::1], float64[::1], float64)', cache=CACHE, nogil=True)
 def axis_key(origin, rot, inverse, position, quaternion, scale):  # pragma: no cover
     """A goal pose's key in the first joint's frame turned to azimuth 0, and its azimuth [rad].
 
@@ -48,7 +49,7 @@ def axis_key(origin, rot, inverse, position, quaternion, scale):  # pragma: no c
 
 @njit('float64[:, ::1](' + TREE_TYPES + ', float64[:, ::1], float64[::1], float64[::1], '
       'float64, boolean, float64, float64, int64, int64, float64, int64, float64, int64, '
-      'float64)', cache=True, nogil=True)
+      'float64)', cache=CACHE, nogil=True)
 def table_starts(points, nodes, split, low, high, depth, columns, base_q, key, other, azimuth,
                  turn_first, lower, upper, k, wanted, eps, count, spacing, at_least,
                  same):  # pragma: no cover (compiled)

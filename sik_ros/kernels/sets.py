@@ -9,10 +9,11 @@ import math
 from numba import njit
 import numpy as np
 
+from sik_ros.kernels._cache import CACHE
 from sik_ros.kinematics.periodic import PER_TURN, TURN
 
 
-@njit('int64[::1](float64[:, ::1], int64, int64, float64, int64, float64)', cache=True,
+@njit('int64[::1](float64[:, ::1], int64, int64, float64, int64, float64)', cache=CACHE,
       nogil=True)
 def farthest_rows(points, k, first, spacing, at_least, same):  # pragma: no cover (compiled)
     """Indices of up to ``k`` rows chosen greedily far apart, ``first`` first.
@@ -51,7 +52,7 @@ def farthest_rows(points, k, first, spacing, at_least, same):  # pragma: no cove
     return chosen[:count].copy()
 
 
-@njit('boolean[::1](float64[:, ::1], float64, int64, boolean[::1])', cache=True, nogil=True)
+@njit('boolean[::1](float64[:, ::1], float64, int64, boolean[::1])', cache=CACHE, nogil=True)
 def distinct_rows(q, threshold, cols, periodic):  # pragma: no cover (compiled)
     """Keep-mask of rows (in order) at least ``threshold`` from every earlier kept one [rad].
 
@@ -79,7 +80,7 @@ def distinct_rows(q, threshold, cols, periodic):  # pragma: no cover (compiled)
     return keep
 
 
-@njit('void(int64[::1], float64[::1], int64, int64, float64)', cache=True, nogil=True)
+@njit('void(int64[::1], float64[::1], int64, int64, float64)', cache=CACHE, nogil=True)
 def _insert(rows, keys, count, row, key):  # pragma: no cover (compiled)
     """Put ``row`` with ``key`` into the first ``count`` rows sorted by key, after equal keys.
 
@@ -93,7 +94,7 @@ def _insert(rows, keys, count, row, key):  # pragma: no cover (compiled)
 
 
 @njit('Tuple((int64[::1], float64[::1]))(float64[:, ::1], float64[::1], float64[::1], '
-      'float64, float64, float64, float64, float64[::1], float64[::1])', cache=True, nogil=True)
+      'float64, float64, float64, float64, float64[::1], float64[::1])', cache=CACHE, nogil=True)
 def exact_by_margin(q, perr, oerr, position_tolerance, orientation_tolerance, weight,
                     threshold, lower, upper):  # pragma: no cover (compiled)
     """The exact rows, one per posture, ordered by closeness to the joint limits.
