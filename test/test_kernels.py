@@ -108,17 +108,25 @@ def test_small_network_calls_match_numpy(bundled):
             np.testing.assert_allclose(net(x), plain, rtol=1e-4, atol=1e-5)
 
 
-def test_cache_folder_falls_back_to_a_temporary_one(monkeypatch):
-    """With the package's folder and the user cache read-only, numba caches in the temp dir."""
+def test_cache_folder_falls_back_to_a_private_temporary_one(monkeypatch, tmp_path):
+    """With the package's folder and the user cache read-only, numba caches in the temp dir.
+
+    In a folder private to the user; when that name is taken by a folder others can write,
+    the kernels are not cached on disk at all.
+    """
+    import os
     import tempfile
     from numba.core import config
-    import sik_ros.kernels as kernels
+    from sik_ros.kernels import _cache
     monkeypatch.setattr(config, 'CACHE_DIR', '')
-    kernels._cache_folder()
-    assert config.CACHE_DIR == ''  # writable here: numba's own choice is kept
-    monkeypatch.setattr(kernels, '_writable', lambda folder: False)
-    kernels._cache_folder()
-    assert config.CACHE_DIR.startswith(tempfile.gettempdir())
+    assert _cache._configure() and config.CACHE_DIR == ''  # writable here: numba's own choice
+    monkeypatch.setattr(_cache, '_writable', lambda folder: False)
+    monkeypatch.setattr(tempfile, 'gettempdir', lambda: str(tmp_path))
+    assert _cache._configure()
+    assert config.CACHE_DIR == str(tmp_path / f'sik_ros-numba-{os.getuid()}')
+    monkeypatch.setattr(config, 'CACHE_DIR', '')
+    os.chmod(tmp_path / f'sik_ros-numba-{os.getuid()}', 0o777)  # another could write it
+    assert not _cache._configure() and config.CACHE_DIR == ''
 
 
 def test_last_joint_alignment_is_the_best_turn(bundled):
