@@ -11,42 +11,17 @@ from sik_ros.tables.dataset import collect
 
 os.environ.setdefault('OMP_NUM_THREADS', '1')
 
-#: Modules whose tests start a process or a server (marker ``e2e``): a sik_node talked to over
-#: ROS 2, colcon, a command-line tool, flake8, solver processes, the viewer's web server.
-E2E_MODULES = {'test_cli_collect', 'test_colcon', 'test_hostile', 'test_lint', 'test_node',
-               'test_node_arms', 'test_node_faults', 'test_node_lifecycle', 'test_node_path',
-               'test_solver_pool', 'test_viewer'}
-#: Tests of other modules that run a command-line tool (or a bench script) as a process.
-E2E_TESTS = {
-    'test_arms::test_sik_build_refuses_missing_meshes_before_collecting',
-    'test_arms::test_sik_collect_refuses_a_grid_over_its_budget_before_writing',
-    'test_docs::test_benchmark_tables_match_their_json',
-    'test_index_table::test_sik_index_cli_builds_a_bundle',
-    'test_inputs::test_malformed_dataset_manifests_are_one_line_errors',
-    'test_inputs::test_sik_solve_exits_non_zero_when_it_prints_failed',
-    'test_solver::test_sik_solve_cli_bad_input',
-    'test_solver::test_sik_solve_cli_json',
-    'test_training::test_two_gloo_processes_train_in_sync_and_the_checkpoint_serves',
-    'test_xacro::test_sik_build_from_xacro',
-}
 #: Fixtures that start a process (``ur5_bundle`` runs sik-build; ``graph`` is for tests that
-#: start a sik_node): every test that uses one is ``e2e`` too.
+#: start a sik_node): every test that uses one is ``e2e``. Other tests carry their markers
+#: themselves (``pytestmark`` or a decorator).
 E2E_FIXTURES = {'graph', 'ur5_bundle'}
-#: Modules whose tests take more than a few seconds alone (marker ``slow``).
-SLOW_MODULES = {'test_arms', 'test_colcon', 'test_eval', 'test_training'}
-#: Tests of other modules that take more than a few seconds alone.
-SLOW_TESTS = {'test_seed_table::test_a_seed_table_keeps_dataset_rows_and_round_trips'}
 
 
 def pytest_collection_modifyitems(config, items):
-    """Mark the end-to-end and slow tests (``make test-fast`` leaves them out)."""
+    """Mark the tests that use a fixture starting a process as ``e2e``."""
     for item in items:
-        module = item.module.__name__.split('.')[-1]
-        if (module in E2E_MODULES or f'{module}::{item.originalname}' in E2E_TESTS
-                or E2E_FIXTURES & set(getattr(item, 'fixturenames', ()))):
+        if E2E_FIXTURES & set(getattr(item, 'fixturenames', ())):
             item.add_marker(pytest.mark.e2e)
-        if module in SLOW_MODULES or f'{module}::{item.originalname}' in SLOW_TESTS:
-            item.add_marker(pytest.mark.slow)
 
 
 @pytest.fixture(scope='session')

@@ -21,6 +21,8 @@ from sik_ros.solver.ranking import posture_mask
 from sik_ros.solver.refine import refine
 from sik_ros.tables.dataset import grid_count
 
+pytestmark = pytest.mark.slow
+
 CLI = [sys.executable, '-m']
 
 
@@ -133,6 +135,7 @@ def test_meshes_of_a_urdf_in_a_package_folder_are_found(tmp_path, ur5):
     assert load_robot('x', str(urdf)).collision_model.ngeoms == ur5.collision_model.ngeoms
 
 
+@pytest.mark.e2e
 def test_sik_build_refuses_missing_meshes_before_collecting(tmp_path, ur5):
     """Collision meshes that cannot be found: exit 2, one line naming the mesh, nothing made."""
     urdf = tmp_path / 'arm.urdf'
@@ -148,6 +151,7 @@ def test_sik_build_refuses_missing_meshes_before_collecting(tmp_path, ur5):
     assert sorted(p.name for p in tmp_path.iterdir()) == ['arm.urdf']
 
 
+@pytest.mark.e2e
 def test_sik_collect_refuses_a_grid_over_its_budget_before_writing(tmp_path):
     """Over --max-rows: exit 2, one line naming what would fit, nothing written."""
     out = tmp_path / 'ds'

@@ -7,6 +7,8 @@ import time
 
 import pytest
 
+pytestmark = pytest.mark.e2e
+
 
 def run(*args):
     """Run sik-collect as a subprocess."""

@@ -19,7 +19,7 @@ import pytest
 from sik_interfaces.srv import SolveIK
 from sik_ros.ros import launch
 
-pytestmark = pytest.mark.timeout(600)
+pytestmark = [pytest.mark.e2e, pytest.mark.slow, pytest.mark.timeout(600)]
 
 REPO = Path(__file__).resolve().parents[1]
 #: What the two packages are made of (everything else in the repository is not installed).

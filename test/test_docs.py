@@ -1,6 +1,7 @@
 """The docs speak of the product, and their benchmark tables are the JSON results' own."""
 
 from pathlib import Path
+import pytest
 import re
 import subprocess
 import sys
@@ -22,6 +23,7 @@ def test_docs_name_no_rounds_issues_or_machine_paths():
     assert not found, 'notebook words in the docs:\n' + '\n'.join(found)
 
 
+@pytest.mark.e2e
 def test_benchmark_tables_match_their_json():
     """Every rendered table equals what bench/render.py makes of docs/results/*.json."""
     run = subprocess.run([sys.executable, str(REPO / 'bench' / 'render.py'), '--check'],

@@ -15,6 +15,8 @@ from sik_ros.learning.training import TrainConfig, Trainer
 from sik_ros.solver import SelectiveIK
 from sik_ros.tables.index_table import PriorTable
 
+pytestmark = pytest.mark.slow
+
 PNG_MAGIC = b'\x89PNG\r\n\x1a\n'
 
 

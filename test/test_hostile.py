@@ -26,7 +26,7 @@ from sik_interfaces.srv import SolveIK, SolvePath
 from sik_ros.kinematics.robots import load_robot
 from sik_ros.ros.conversions import ERROR_NAMES
 
-pytestmark = pytest.mark.timeout(600)
+pytestmark = [pytest.mark.e2e, pytest.mark.timeout(600)]
 NUMBERS = (math.nan, math.inf, -math.inf, 0.0, -1.0, -1e308, 1e308, 1e-300)
 #: Slack beyond a request's own timeout before an unanswered request counts as a hang [s].
 SLACK = 1.0

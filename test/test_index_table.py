@@ -167,6 +167,7 @@ def test_mismatched_or_corrupt_table_is_refused(tmp_path):
         IndexTable.load(path)
 
 
+@pytest.mark.e2e
 def test_sik_index_cli_builds_a_bundle(tiny_bundle, uniform_small, tmp_path, run_main):
     """sik-index encodes a dataset with a trained model and adds model and table to a bundle.
 

@@ -132,6 +132,7 @@ def test_sik_solve_usage_and_input_errors_are_one_line_and_exit_2(args, run_main
     assert len(err.strip().splitlines()) == 1 and 'Traceback' not in err
 
 
+@pytest.mark.e2e
 def test_sik_solve_exits_non_zero_when_it_prints_failed():
     """An unreachable target prints FAILED and exits 1."""
     run = _cli('sik_ros.cli.solve', '3', '0', '0.4', '-n', '2')
@@ -167,6 +168,7 @@ def _dataset(tmp_path, panda, **manifest_changes):
     ({'count': 0}, 'row count'),
     ({'robot': ['panda']}, 'robot manifest'),
 ])
+@pytest.mark.e2e
 def test_malformed_dataset_manifests_are_one_line_errors(tmp_path, panda, run_main, change,
                                                          words):
     """sik-train on a dataset whose manifest lacks or garbles its count or robot: one line.

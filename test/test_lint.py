@@ -1,8 +1,11 @@
 """Lint like ROS does: flake8 at 99 columns with Google import order, and pep257 docstrings."""
 
 from pathlib import Path
+import pytest
 import subprocess
 import sys
+
+pytestmark = pytest.mark.e2e
 
 REPO = Path(__file__).resolve().parents[1]
 LINTED = [name for name in ('sik_ros', 'test', 'bench', 'setup.py') if (REPO / name).exists()]

@@ -29,7 +29,7 @@ import harness
 from sik_interfaces.msg import IKSolutionArray
 from sik_interfaces.srv import SolveIK
 
-pytestmark = pytest.mark.timeout(120)
+pytestmark = [pytest.mark.e2e, pytest.mark.timeout(120)]
 
 R = SolveIK.Response
 POS_TOL, ROT_TOL = 1e-4, 1e-3        # config/panda.yaml

@@ -17,7 +17,7 @@ from std_msgs.msg import String
 import harness
 from sik_interfaces.srv import SolveIK
 
-pytestmark = pytest.mark.timeout(180)
+pytestmark = [pytest.mark.e2e, pytest.mark.timeout(180)]
 R = SolveIK.Response
 
 

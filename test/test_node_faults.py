@@ -13,7 +13,7 @@ from shape_msgs.msg import SolidPrimitive
 import harness
 from sik_interfaces.srv import SolveIK
 
-pytestmark = pytest.mark.timeout(240)
+pytestmark = [pytest.mark.e2e, pytest.mark.timeout(240)]
 R = SolveIK.Response
 
 

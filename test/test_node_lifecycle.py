@@ -19,7 +19,7 @@ from rclpy.signals import SignalHandlerOptions
 import harness
 from sik_interfaces.srv import SolveIK, SolvePath
 
-pytestmark = pytest.mark.timeout(240)
+pytestmark = [pytest.mark.e2e, pytest.mark.timeout(240)]
 
 R = SolveIK.Response
 ANSWERED = (R.SUCCESS, R.NO_SOLUTION, R.TIMEOUT)

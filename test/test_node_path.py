@@ -12,7 +12,7 @@ import harness
 from sik_interfaces.srv import SolvePath
 from sik_ros.kinematics.robots import load_robot
 
-pytestmark = pytest.mark.timeout(180)
+pytestmark = [pytest.mark.e2e, pytest.mark.timeout(180)]
 R = SolvePath.Response
 Q0 = np.array([0.0, -0.3, 0.0, -2.2, 0.0, 2.0, 0.8])
 

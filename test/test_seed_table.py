@@ -28,6 +28,7 @@ def table(ur5, ur5_data):
     return SeedTable.build(ur5, ur5_data, rows=3000, seed=1)
 
 
+@pytest.mark.slow
 def test_a_seed_table_keeps_dataset_rows_and_round_trips(ur5, ur5_data, table, tmp_path):
     """Its rows are dataset configurations (to 16-bit precision), the same after save and load."""
     assert len(table) == 3000

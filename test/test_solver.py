@@ -299,6 +299,7 @@ def test_table_of_another_model_is_refused(tiny_bundle, tmp_path):
         SelectiveIK.load(bad)
 
 
+@pytest.mark.e2e
 def test_sik_solve_cli_json(tiny_bundle, targets):
     """sik-solve --json prints solutions whose errors match the library's."""
     _, pos, _ = targets
@@ -311,6 +312,7 @@ def test_sik_solve_cli_json(tiny_bundle, targets):
     assert out['joint_names'][0] == 'panda_joint1'
 
 
+@pytest.mark.e2e
 def test_sik_solve_cli_bad_input(tiny_bundle):
     """sik-solve with a bad seed exits 2 with a one-line reason (as a process, no traceback)."""
     r = subprocess.run([sys.executable, '-m', 'sik_ros.cli.solve', '0.4', '0', '0.4',

@@ -4,6 +4,7 @@ The request is answered by another process within its deadline.
 """
 
 import os
+import pytest
 import signal
 import threading
 import time
@@ -13,6 +14,8 @@ import numpy as np
 from sik_ros.kinematics.collision import Obstacle
 from sik_ros.serving.pool import SolverPool
 from sik_ros.solver import SolverConfig
+
+pytestmark = pytest.mark.e2e
 
 
 def test_a_request_whose_process_dies_is_retried_on_another(panda, tiny_bundle):

@@ -14,6 +14,8 @@ from sik_ros.learning.checkpoints import export_model, load_checkpoint, model_fr
 from sik_ros.learning.models import ModelConfig, PRESETS
 from sik_ros.learning.training import TrainConfig, Trainer
 
+pytestmark = pytest.mark.slow
+
 TINY = ModelConfig(encoder=PRESETS['tiny'][0], decoder=PRESETS['tiny'][1])
 
 
@@ -152,6 +154,7 @@ def test_pso_trains_an_anfis_through_the_same_loop(panda, uniform_small, tmp_pat
     assert torch.equal(rest.model.params_flat, whole.model.params_flat)
 
 
+@pytest.mark.e2e
 def test_two_gloo_processes_train_in_sync_and_the_checkpoint_serves(
         panda, uniform_small, tmp_path):
     """Two CPU processes under torchrun: same weights on both ranks; rank 0's model solves."""

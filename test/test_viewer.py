@@ -23,7 +23,7 @@ from sik_ros.viewer.app import Viewer
 from sik_ros.viewer.meshes import ArmMeshes
 from sik_ros.viewer.scene import grid_offsets, table
 
-pytestmark = pytest.mark.timeout(180)
+pytestmark = [pytest.mark.e2e, pytest.mark.timeout(180)]
 
 #: A Panda configuration whose tip is the target the client sends [rad].
 Q_TARGET = np.array([0.3, -0.4, 0.2, -2.1, 0.1, 1.9, 0.5])

@@ -148,6 +148,7 @@ def test_package_uris_resolved(tmp_path):
     assert 'filename="package://other/m.stl"' in out
 
 
+@pytest.mark.e2e
 def test_sik_build_from_xacro(description, tmp_path):
     """sik-build --urdf arm.urdf.xacro --xacro-arg ...: a bundle of the expanded arm that loads."""
     from sik_ros import SelectiveIK
