@@ -1,10 +1,11 @@
 """The docs speak of the product, and their benchmark tables are the JSON results' own."""
 
 from pathlib import Path
-import pytest
 import re
 import subprocess
 import sys
+
+import pytest
 
 REPO = Path(__file__).resolve().parents[1]
 DOCS = [REPO / 'README.md', REPO / 'CHANGELOG.md', *sorted((REPO / 'docs').glob('*.md'))]

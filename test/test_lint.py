@@ -1,9 +1,10 @@
 """Lint like ROS does: flake8 at 99 columns with Google import order, and pep257 docstrings."""
 
 from pathlib import Path
-import pytest
 import subprocess
 import sys
+
+import pytest
 
 pytestmark = pytest.mark.e2e
 

@@ -4,12 +4,12 @@ The request is answered by another process within its deadline.
 """
 
 import os
-import pytest
 import signal
 import threading
 import time
 
 import numpy as np
+import pytest
 
 from sik_ros.kinematics.collision import Obstacle
 from sik_ros.serving.pool import SolverPool
