@@ -40,8 +40,8 @@ def vector(value, size: int, what: str, error: Type[InvalidArgument] = InvalidAr
     arr = real_array(value, what, error, f'{size} numbers')
     if arr.shape != (size,):
         raise error(f'{what} must have {size} elements; got shape {arr.shape}')
-    # a few numbers: checked as Python floats (NumPy's checks cost 10 us each when its code
-    # is out of the caches, as at a node's requests)
+    # a few numbers: checked as Python floats (NumPy's checks are dear when its code is out
+    # of the caches, as at a node's requests)
     values = arr.tolist()
     if not all(math.isfinite(v) for v in values):
         raise error(f'{what} must be finite; got {values}')

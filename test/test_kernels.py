@@ -84,7 +84,8 @@ def test_a_row_heading_for_an_earlier_solution_is_pruned(bundled):
     q[1] += np.where(np.arange(robot.dof) == 0, 0.08, 0.0)
     settings = dict(position_tolerance=1e-12, orientation_tolerance=1e-12, damping2=1e-6,
                     max_step=1e-3, stall_ratio=0.7, prune_radius=1.0, distinct_threshold=0.5,
-                    deadline=np.inf, orientation_weight=0.1, iterations=12, stall_window=0,
+                    deadline=np.inf, orientation_weight=0.1, converge_factor=0.5,
+                    give_up_factor=10.0, iterations=12, stall_window=0,
                     stall_after=0, give_up_after=100, enough=0, prune=1, roll_free=0)
     perr, oerr, status = np.empty(2), np.empty(2), np.empty(2, dtype=np.int8)
     q_in = q.copy()

@@ -93,24 +93,7 @@ def draw_box(ax, box: Obstacle, color: str = 'tab:red', alpha: float = 0.25) -> 
                                          edgecolor='0.3', linewidth=0.5))
 
 
-def postures_figure(robot: Robot, qs: np.ndarray, target: Sequence[float], path: Path,
-                    title: str = '', labels: Optional[Sequence[str]] = None) -> Path:
-    """Several postures reaching one target, in one picture."""
-    fig = new_figure(5, 5)
-    ax = fig.add_subplot(projection='3d')
-    center, half = fit_view(np.concatenate([arm_points(robot, qs).reshape(-1, 3),
-                                            np.atleast_2d(target)]))
-    _setup_3d(ax, center, half)
-    for i, q in enumerate(qs):
-        draw_arm(ax, robot, q, COLORS[i % len(COLORS)],
-                 label=None if labels is None else labels[i])
-    draw_target(ax, target)
-    if labels is not None:
-        ax.legend(fontsize=6, loc='upper left')
-    ax.set_title(title, fontsize=9)
-    return save_figure(fig, path)
-
-
+#: One row of :func:`posture_grid`: its label, postures (k, n), target and captions.
 Row = Tuple[str, np.ndarray, Sequence[float], Sequence[str]]
 
 

@@ -22,11 +22,18 @@ from sik_ros.kinematics.periodic import TURN
 
 #: Row outcomes of :func:`refine_rows` (``status``).
 UNTOUCHED, CONVERGED, GIVEN_UP, ITERATIONS, PRUNED, DEADLINE = range(6)
-#: The positions of :func:`refine_rows`'s ``reals`` and ``ints`` arguments.
+#: The fields of :func:`refine_rows`'s ``reals`` and ``ints`` arguments, in order (a settings
+#: record: :func:`sik_ros.solver.refine.kernel_settings` fills it by name, the kernels read it
+#: through the positions below).
 REALS = ('position_tolerance', 'orientation_tolerance', 'damping2', 'max_step', 'stall_ratio',
-         'prune_radius', 'distinct_threshold', 'deadline', 'orientation_weight')
+         'prune_radius', 'distinct_threshold', 'deadline', 'orientation_weight',
+         'converge_factor', 'give_up_factor')
 INTS = ('iterations', 'stall_window', 'stall_after', 'give_up_after', 'enough', 'prune',
         'roll_free')
+(R_TOL_P, R_TOL_O, R_DAMPING2, R_MAX_STEP, R_STALL_RATIO, R_PRUNE_RADIUS, R_DISTINCT,
+ R_DEADLINE, R_WEIGHT, R_CONVERGE, R_GIVE_UP) = range(len(REALS))
+(I_ITERATIONS, I_STALL_WINDOW, I_STALL_AFTER, I_GIVE_UP_AFTER, I_ENOUGH, I_PRUNE,
+ I_ROLL_FREE) = range(len(INTS))
 
 
 @njit(cache=CACHE, nogil=True)
@@ -136,12 +143,14 @@ def _refine_row(frames, lower, upper, periodic, q, row, pos, rot, pose, reals, i
     ``score``, ``stale``: the rows' scores and whether their errors are out of date;
     ``history`` (window,): the row's recent scores; the rest: work arrays.
     """
-    tol_p, tol_o, lam2, max_step = reals[0], reals[1], reals[2], reals[3]
-    radius, deadline, weight = reals[5], reals[7], reals[8]
-    iterations, prune = ints[0], ints[5] != 0
+    tol_p, tol_o = reals[R_TOL_P], reals[R_TOL_O]
+    lam2, max_step = reals[R_DAMPING2], reals[R_MAX_STEP]
+    radius, deadline, weight = reals[R_PRUNE_RADIUS], reals[R_DEADLINE], reals[R_WEIGHT]
+    converge, give_up = reals[R_CONVERGE], reals[R_GIVE_UP]
+    iterations, prune = ints[I_ITERATIONS], ints[I_PRUNE] != 0
     n = q.shape[1]
     dims = 6 if pose else 3
-    cols = n - 1 if ints[6] != 0 else n
+    cols = n - 1 if ints[I_ROLL_FREE] != 0 else n
     timed = deadline < np.inf
     qi = q[row]
     status[row] = ITERATIONS
@@ -160,9 +169,10 @@ def _refine_row(frames, lower, upper, periodic, q, row, pos, rot, pose, reals, i
         stale[row] = False
         s = pe + weight * oe
         score[row] = s
-        done = pe < tol_p * 0.5 and (not pose or oe < tol_o * 0.5)
-        stuck = pe > 10.0 * tol_p or (pose and oe > 10.0 * tol_o)
-        verdict = _verdict(it, s, done, stuck, history, ints[1], ints[2], reals[4], ints[3])
+        done = pe < tol_p * converge and (not pose or oe < tol_o * converge)
+        stuck = pe > give_up * tol_p or (pose and oe > give_up * tol_o)
+        verdict = _verdict(it, s, done, stuck, history, ints[I_STALL_WINDOW],
+                           ints[I_STALL_AFTER], reals[R_STALL_RATIO], ints[I_GIVE_UP_AFTER])
         if verdict != ITERATIONS:
             status[row] = verdict
             break
@@ -241,13 +251,13 @@ def refine_rows(frames, lower, upper, periodic, q, pos, rot, pose, reals, ints, 
     Returns:
         whether the deadline stopped refinement before every row had finished.
     """
-    enough, distinct = ints[4], reals[6]
+    enough, distinct = ints[I_ENOUGH], reals[R_DISTINCT]
     m, n = q.shape
-    cols = n - 1 if ints[6] != 0 else n
+    cols = n - 1 if ints[I_ROLL_FREE] != 0 else n
     p, r = np.empty(3), np.empty((3, 3))
     jac, jm, a = np.empty((6, n)), np.empty((6, n)), np.empty((6, 6))
     err, x = np.empty(6), np.empty(6)
-    history = np.empty(max(ints[1], 1))
+    history = np.empty(max(ints[I_STALL_WINDOW], 1))
     score = np.full(m, np.inf)
     found = np.empty(m, dtype=np.int64)
     stale = np.ones(m, dtype=np.bool_)

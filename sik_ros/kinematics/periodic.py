@@ -34,16 +34,6 @@ def within(q: np.ndarray, lower, upper) -> np.ndarray:
     return (q >= lower - LIMIT_SLACK) & (q <= upper + LIMIT_SLACK)
 
 
-def into_limits(v: np.ndarray, lower: float, upper: float) -> np.ndarray:
-    """``v`` (M,) [rad] with a turn added or taken off where that brings it within the limits.
-
-    In place; values a turn does not bring within stay as they are.
-    """
-    v[v < lower - LIMIT_SLACK] += TURN
-    v[v > upper + LIMIT_SLACK] -= TURN
-    return v
-
-
 def nearest_turns(robot, q: np.ndarray, target: np.ndarray) -> np.ndarray:
     """``q`` (M, n) with periodic joints turned by whole turns to their values nearest ``target``.
 

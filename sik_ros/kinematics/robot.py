@@ -198,11 +198,6 @@ class Robot:
         """Same as :meth:`jacobian_batch` (``data`` is not needed: kept for callers)."""
         return self.jacobian_batch(q)
 
-    def fk_loop(self, q: np.ndarray, data: Optional[pin.Data] = None
-                ) -> Tuple[np.ndarray, np.ndarray]:
-        """Same as :meth:`fk_rot` (``data`` is not needed: kept for callers)."""
-        return self.fk_rot(q)
-
     def tip_poses(self, q: np.ndarray, data: Optional[pin.Data] = None
                   ) -> Tuple[np.ndarray, np.ndarray]:
         """Tip positions (N, 3) [m] and rotations (N, 3, 3): :meth:`fk_rot`."""

@@ -35,8 +35,8 @@ def quaternion_matrix(quat) -> np.ndarray:
 def matrix_quaternion(rot) -> np.ndarray:
     """The unit quaternion (4,), x y z w with w >= 0, of one rotation matrix (3, 3).
 
-    Shepperd's method in Python floats: for one goal a hundredth of scipy's
-    ``Rotation.from_matrix`` call (about 100 us).
+    Shepperd's method in Python floats: for one goal far cheaper than scipy's
+    ``Rotation.from_matrix`` call.
     """
     (r00, r01, r02), (r10, r11, r12), (r20, r21, r22) = (
         (float(v) for v in row) for row in np.asarray(rot))
@@ -70,9 +70,9 @@ _SKEW = (np.array([2, 0, 1]), np.array([1, 2, 0]))
 def rotation_log(rot: np.ndarray) -> np.ndarray:
     """Rotation vectors (N, 3) [rad] of rotation matrices (N, 3, 3) (the SO(3) logarithm)."""
     v = 0.5 * (rot[:, _SKEW[0], _SKEW[1]] - rot[:, _SKEW[1], _SKEW[0]])
-    # sums by hand, not np.einsum: a call's first einsum costs ~0.1 ms when the caches are cold
+    # sums by hand, not np.einsum (whose first call is dear when the caches are cold)
     sin = np.sqrt(v[:, 0] * v[:, 0] + v[:, 1] * v[:, 1] + v[:, 2] * v[:, 2])
-    # np.minimum(np.maximum()) as np.clip, without its wrapper's 5 us
+    # np.minimum(np.maximum()) as np.clip, without its wrapper
     cos = np.minimum(np.maximum((rot[:, 0, 0] + rot[:, 1, 1] + rot[:, 2, 2] - 1) / 2, -1.0),
                      1.0)
     angle = np.arctan2(sin, cos)

@@ -5,7 +5,7 @@ scale. A ``pose`` goal is the position plus the first two columns of the tip rot
 continuous 6-d orientation representation).
 """
 
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field
 import math
 from typing import Dict, Optional, Tuple
 
@@ -333,8 +333,3 @@ def build_model(cfg: ModelConfig) -> nn.Module:
     if cfg.kind == 'fcn':
         return FCN(cfg)
     return ANFIS(cfg)
-
-
-def config_dict(cfg) -> Dict:
-    """A frozen config dataclass as a plain dict (for checkpoints and manifests)."""
-    return asdict(cfg)

@@ -1,9 +1,9 @@
 """A blocking Python client of ``~/solve_ik`` that keeps latency low.
 
-``rclpy.spin_until_future_complete`` rebuilds the executor's wait set on every call and costs
-several milliseconds per request in rclpy (Jazzy) on a small machine; spinning one executor in a
-background thread and waiting on each future with a :class:`threading.Event` costs well under a
-millisecond (measured in docs/benchmarks.md). This module does the latter::
+``rclpy.spin_until_future_complete`` rebuilds the executor's wait set on every call; spinning
+one executor in a background thread and waiting on each future with a
+:class:`threading.Event` costs a fraction of that (docs/benchmarks.md, the client loops). This
+module does the latter::
 
     with SolveIKClient() as client:          # after rclpy.init()
         client.wait_for_service(10.0)

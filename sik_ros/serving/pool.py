@@ -85,8 +85,8 @@ def single_threaded() -> None:
 
     A solve multiplies matrices of a few rows (the networks' layers, batched Jacobians);
     OpenBLAS splits even those over every core, which with the node's other solver threads or
-    processes on the same cores costs more than it gains (measured: a path's start solve 28
-    against 14 ms with a training job on the other core).
+    processes on the same cores costs more than it gains (docs/design.md, "Measured
+    choices").
     """
     import torch
     torch.set_num_threads(1)

@@ -142,7 +142,6 @@ class PooledSolvers:
         self._own_lock = threading.Lock()
         self._log = log
         self.pool = SolverPool(ik.bundle, ik.config, processes, log=log)
-        self.fallbacks = 0
         self.warm_up_seconds = ik.warm_up()
 
     def solve(self, *args: Any, **kwargs: Any) -> IKResult:
@@ -189,7 +188,6 @@ class PooledSolvers:
         Raises:
             SolverTimeout: nothing is left.
         """
-        self.fallbacks += 1
         if kwargs.get('timeout') is None:
             return kwargs
         left = kwargs['timeout'] - (time.monotonic() - start)

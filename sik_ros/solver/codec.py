@@ -48,7 +48,7 @@ class NumpyMLP:
             x += b
             if i < last:
                 # ELU: expm1(x) >= x, so max(x, expm1(min(x, 0))) is x above 0 and expm1(x)
-                # below, in place (0.4x the time of np.where on the two)
+                # below, in place (cheaper than np.where on the two)
                 m = np.minimum(x, 0)
                 np.expm1(m, out=m)
                 x = np.maximum(x, m, out=m)

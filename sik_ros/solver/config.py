@@ -38,6 +38,12 @@ PATH_DEFAULTS = PathDefaults()
 #: score [m/rad] (ranking, pruning and the refinement kernel alike): 1 mrad weighs as 0.1 mm,
 #: the ratio of the default tolerances.
 ORIENTATION_WEIGHT = 0.1
+#: A refined row converges once its errors are under this share of the tolerances (a margin
+#: that keeps an answer exact after rounding and the last step's change).
+CONVERGE_FACTOR = 0.5
+#: A row whose errors stay above this many times the tolerances may be given up (with
+#: ``give_up_after`` steps taken; :func:`sik_ros.kernels.dls.refine_rows`).
+GIVE_UP_FACTOR = 10.0
 #: Ranking cost of an inexact solution per metre of score [1/m]: below any exact solution's
 #: objective of its tier only by the tier order, so the scale only orders inexact ones.
 INEXACT_COST = 100.0
@@ -76,9 +82,8 @@ RAW_DAMPING = 0.01
 #: Rounds of starts at most: a further round, of the next best candidates, only when the
 #: adjusted ones came together on fewer distinct postures than the solutions asked for.
 RAW_ROUNDS = 3
-#: Up to this many rows a network runs as one compiled call (measured on the Panda's networks,
-#: 256 and 512 wide: 0.4-0.7x NumPy's time for 1-3 rows, slower from 4, where BLAS's blocking
-#: pays).
+#: Up to this many rows a network runs as one compiled call; from more, NumPy's BLAS, whose
+#: blocking pays (docs/design.md, "Measured choices").
 KERNEL_ROWS = 3
 
 # -- paths ----------------------------------------------------------------------------------------

@@ -107,7 +107,7 @@ def distinct_postures(ctx: Context, c: Candidates, goal: Goal,
     c = c.take(distinct_mask(c.q, cfg.distinct_threshold, ignore_last, periodic))
     # postures apart however turned: so are their equivalents (a whole turn from each other
     # on some joint the distance counts: a last joint it leaves out is not turned), so they
-    # need only their order (a pairwise check of a 7-joint arm's ~300 took 0.4 ms)
+    # need only their order (no pairwise check)
     return by_score(periodic_equivalents(ctx, c, ignore_last=ignore_last))
 
 
@@ -264,8 +264,7 @@ def refine_all(ctx: Context, call: Call, c: Candidates) -> Tuple[Candidates, boo
         c = Candidates.concat(c, branch_starts(ctx, goal, cfg.branch_restarts, c.z.shape[1]))
         enough = enough if num == 1 else None
     # starts from the seed table are far apart already: merging the few heading for one
-    # solution saves less than it costs (UR5 0.95x, Kinova 0.96x the time without, the
-    # same branches; 300 pose goals each)
+    # solution saves less than it costs (docs/design.md, "Measured choices")
     r = refine(ctx, c.q, goal, deadline, FAR_ITERATIONS if call.far else None,
                prune=call.seeds is None, enough=enough)
     c = assess(r.q, c.z, r.perr, r.oerr, goal.kind, cfg)
@@ -314,11 +313,9 @@ def free_rounds(ctx: Context, call: Call, c: Candidates,
 
     Perturbed copies and random configurations are refined for a free one, in a few rounds
     of fresh draws (goals close to the base; obstacles are Algorithm 2's). For position goals
-    only, whose self-motion leaves room for a free solution: at pose goals they found none (on
-    300 random Panda targets, none either way) and took +18 % of the time on the UR5's, +6 %
-    on the Panda's. None at all where the seed table's starts gave the branches: a round found
-    no free solution in 26, 11 and 23 calls of 300 pose goals each on the UR5, Kinova and
-    SO-100 (2-3 ms each).
+    only, whose self-motion leaves room for a free solution (at pose goals they found none and
+    cost time; none at all where the seed table's starts gave the branches: docs/design.md,
+    "Measured choices").
 
     Returns:
         the solutions, and whether the deadline cut a round's refinement short.

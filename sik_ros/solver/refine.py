@@ -20,7 +20,8 @@ from sik_ros.deadline import Deadline, NO_DEADLINE
 from sik_ros.kernels import as_arg, follow_rows, refine_rows
 from sik_ros.kernels.dls import INTS, REALS
 from sik_ros.kinematics.goal_error import goal_errors
-from sik_ros.solver.config import ORIENTATION_WEIGHT, SolverConfig
+from sik_ros.solver.config import (CONVERGE_FACTOR, GIVE_UP_FACTOR, ORIENTATION_WEIGHT,
+                                   SolverConfig)
 from sik_ros.solver.context import Context, Goal
 
 #: The rotation handed to the kernels with a position goal (not read).
@@ -144,6 +145,7 @@ def kernel_settings(cfg: SolverConfig, iterations: int, enough: int, prune: bool
                 'stall_ratio': cfg.stall_ratio, 'prune_radius': cfg.prune_radius,
                 'distinct_threshold': cfg.distinct_threshold,
                 'deadline': math.inf, 'orientation_weight': ORIENTATION_WEIGHT,
+                'converge_factor': CONVERGE_FACTOR, 'give_up_factor': GIVE_UP_FACTOR,
                 'iterations': iterations, 'stall_window': cfg.stall_window,
                 'stall_after': cfg.stall_after, 'give_up_after': cfg.give_up_after,
                 'enough': enough, 'prune': int(prune), 'roll_free': int(roll_free)}

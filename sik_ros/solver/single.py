@@ -40,7 +40,7 @@ def fill_indices(ctx: Context, goal: Goal, sols: List[Solution]) -> None:
     """
     if not sols:
         return
-    # one check over all of them (one per solution took 2 us each)
+    # one check over all of them, not one per solution
     todo = [sols[i] for i in np.flatnonzero(
         np.isnan(np.array([s.posture_index for s in sols])).any(axis=1))]
     if todo:

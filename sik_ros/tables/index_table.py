@@ -182,7 +182,7 @@ class IndexTable:
         cells = np.empty(0, dtype=np.int64)
         if self.grid is not None and np.isfinite(point).all():
             # the grid's boxes around the point: the KD-tree's cells without its Python call
-            # (which cost 35 us warm, most of a table look-up)
+            # (most of a table look-up's time; docs/design.md, "Measured choices")
             g = self.grid
             cells = nearest_cells(point, self.centers, self.cell, g.origin, g.dims, g.starts,
                                   g.order, k, MAX_SHELLS)
@@ -211,7 +211,7 @@ class IndexTable:
 
     @functools.cached_property
     def index_bounds(self):
-        """Element-wise (min, max) of the stored indices, computed once (0.3 ms a pose table)."""
+        """Element-wise (min, max) of the stored indices, computed once."""
         return self.indices.min(axis=0), self.indices.max(axis=0)
 
     # -- building and files -----------------------------------------------------------------

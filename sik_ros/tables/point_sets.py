@@ -19,11 +19,11 @@ SAME_DISTANCE = 1e-6
 def pairwise_distances(a: np.ndarray, b: Optional[np.ndarray] = None) -> np.ndarray:
     """Euclidean distances (N, M) between the rows of ``a`` (N, d) and ``b`` (M, d; ``a``).
 
-    Up to :data:`GRAM_ROWS` rows each, by ``|a|^2 + |b|^2 - 2 a.b`` (one matrix product):
-    scipy's ``cdist``, as fast there, costs ~0.1 ms more in a solve's first call of it when
-    the caches are cold. Rounding leaves about 1.5e-8 times the rows' norm between equal rows
-    (4e-8 for the cosines and sines of 6 joints, 3e-7 for 7 angles within 2 pi; below
-    :data:`SAME_DISTANCE`). More rows: ``cdist`` (the product's temporaries cost more there).
+    Up to :data:`GRAM_ROWS` rows each, by ``|a|^2 + |b|^2 - 2 a.b`` (one matrix product;
+    scipy's ``cdist`` costs more in a solve's first call when the caches are cold). Rounding
+    leaves about 1.5e-8 times the rows' norm between equal rows (4e-8 for the cosines and sines
+    of 6 joints, 3e-7 for 7 angles within 2 pi; below :data:`SAME_DISTANCE`). More rows:
+    ``cdist`` (the product's temporaries cost more there).
     """
     a = np.asarray(a, dtype=np.float64)
     b = a if b is None else np.asarray(b, dtype=np.float64)
