@@ -1,4 +1,10 @@
-"""``sik-train``: train a SIK, PSIK, FCN or ANFIS model on a dataset, resumably."""
+"""``sik-train``: train a SIK, PSIK, FCN or ANFIS model on a dataset, resumably.
+
+With ``--chain`` (a chain file, ``sik-chain``) instead of ``--dataset`` it needs torch and NumPy
+alone: the rows are generated on the training device (the Algorithm 1 grid or uniform samples)
+and nothing loads Pinocchio, so it runs on a GPU machine that has neither the URDF nor
+Pinocchio.
+"""
 
 import argparse
 from dataclasses import replace
@@ -15,8 +21,18 @@ from sik_ros.errors import ArtifactExists, InvalidArgument
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of sik-train."""
     p = Parser(prog='sik-train', description='Train an IK model on a dataset '
-               'written by sik-collect; checkpoints go to --out/last.pt.')
-    p.add_argument('--dataset', required=True, help='dataset directory (sik-collect --out)')
+               'written by sik-collect, or on rows generated on the training device from a '
+               'chain file (sik-chain); checkpoints go to --out/last.pt.')
+    src = p.add_mutually_exclusive_group(required=True)
+    src.add_argument('--dataset', help='dataset directory (sik-collect --out)')
+    src.add_argument('--chain', help='chain file (sik-chain --out): generate the rows on '
+                     '--device instead (torch and NumPy only, no Pinocchio)')
+    p.add_argument('--data', choices=('grid', 'uniform'), default='grid',
+                   help='with --chain: the Algorithm 1 grid (default) or uniform samples')
+    p.add_argument('--interval', type=float, default=30.0,
+                   help='with --chain --data grid: the grid step [deg] (default: 30)')
+    p.add_argument('--samples', type=int, default=1_000_000,
+                   help='with --chain --data uniform: rows (default: 1,000,000)')
     p.add_argument('--out', required=True, help='run directory for checkpoints and history')
     p.add_argument('--model', choices=('sik', 'psik', 'fcn', 'anfis'), default='sik')
     p.add_argument('--goal', choices=('position', 'pose'), default='position')
@@ -82,12 +98,11 @@ def train(args: argparse.Namespace) -> int:
     from sik_ros.learning import distributed
     from sik_ros.learning.checkpoints import export_model, load_checkpoint, model_signature
     from sik_ros.learning.training import Trainer
-    from sik_ros.tables.dataset import Dataset
     rank, size = distributed.init(args.device or 'cpu')
     out = Path(args.out)
     ckpt, model_cfg, train_cfg = run_configs(args, out)
     robot, model_cfg = for_robot(args, model_cfg)
-    ds = Dataset.load(args.dataset, robot)
+    ds = training_rows(args, robot, ckpt, train_cfg)
     trainer = Trainer(robot, ds, model_cfg, train_cfg, out)
     if ckpt is not None:
         trainer.restore(ckpt)
@@ -160,13 +175,40 @@ def run_configs(args: argparse.Namespace, out: Path):
     return None, model_cfg, train_cfg
 
 
+def training_rows(args: argparse.Namespace, robot, ckpt, train_cfg):
+    """The rows to train on: the dataset, or rows generated on the device from the chain.
+
+    A resumed run on generated rows makes those it started with (its checkpoint's sampler and
+    parameters; ``--data``, ``--interval`` and ``--samples`` are then not read).
+    """
+    if args.dataset:
+        from sik_ros.tables.dataset import Dataset
+        return Dataset.load(args.dataset, robot)
+    from sik_ros.learning.generated_data import GeneratedData
+    spec = {'sampler': args.data, 'interval_deg': args.interval, 'samples': args.samples,
+            'seed': train_cfg.seed}
+    if ckpt is not None:
+        before = ckpt.get('dataset', {})
+        if before.get('kind') != 'generated':
+            raise InvalidArgument('--resume --chain: the run trained on a dataset '
+                                  '(give --dataset)')
+        spec = {'sampler': before['sampler'], 'interval_deg': 30.0, 'samples': 0, 'seed': 0,
+                **before['params']}
+    return GeneratedData(robot, spec['sampler'], float(spec['interval_deg']),
+                         int(spec['samples']), int(spec['seed']), train_cfg.device)
+
+
 def for_robot(args: argparse.Namespace, model_cfg):
-    """The dataset's robot and the model config fitted to it (its joints, branch bits)."""
-    from sik_ros.kinematics.robots import robot_from_manifest
+    """The robot (the dataset's, or the chain file's arm) and the model config fitted to it."""
     from sik_ros.learning.models import branch_bits, ModelConfig
-    from sik_ros.tables.dataset import Dataset
-    robot = robot_from_manifest(Dataset.load(args.dataset).manifest['robot'],
-                                f'dataset {args.dataset}')
+    if args.chain:
+        from sik_ros.kinematics.chain_file import load_chain_file
+        robot = load_chain_file(Path(args.chain))
+    else:
+        from sik_ros.kinematics.robots import robot_from_manifest
+        from sik_ros.tables.dataset import Dataset
+        robot = robot_from_manifest(Dataset.load(args.dataset).manifest['robot'],
+                                    f'dataset {args.dataset}')
     if model_cfg.dof != robot.dof:
         model_cfg = ModelConfig(**{**model_cfg.__dict__, 'dof': robot.dof})
     if args.branches and not args.resume:
