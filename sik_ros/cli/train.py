@@ -11,6 +11,7 @@ from dataclasses import replace
 import json
 from pathlib import Path
 import sys
+import time
 from typing import List, Optional
 
 from sik_ros.cli import argv_or_default, Parser, run_cli
@@ -75,6 +76,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help='bfloat16 autocast for forward and backward (faster on CPUs with '
                    'bfloat16 units; weights stay float32)')
     p.add_argument('--max-time', type=float, help='stop cleanly after this many seconds')
+    p.add_argument('--fit-schedule', action='store_true',
+                   help='a new run: size the schedule (--steps, the warm-up, validations and '
+                   'checkpoints) to --max-time from a step timed here first')
     p.add_argument('--resume', action='store_true', help='continue from --out/last.pt')
     p.add_argument('--export', help='also write the inference model (no optimiser) here')
     p.add_argument('--quiet', action='store_true', help='no progress bar')
@@ -102,7 +106,13 @@ def train(args: argparse.Namespace) -> int:
     out = Path(args.out)
     ckpt, model_cfg, train_cfg = run_configs(args, out)
     robot, model_cfg = for_robot(args, model_cfg)
+    t0 = time.perf_counter()
     ds = training_rows(args, robot, ckpt, train_cfg)
+    if args.chain and rank == 0:
+        print(f'sik-train: {len(ds):,} rows ({ds.manifest["sampler"]}) generated on '
+              f'{train_cfg.device} in {time.perf_counter() - t0:.1f} s', file=sys.stderr)
+    if args.fit_schedule and ckpt is None:
+        train_cfg = fitted_schedule(robot, ds, model_cfg, train_cfg, args, out)
     trainer = Trainer(robot, ds, model_cfg, train_cfg, out)
     if ckpt is not None:
         trainer.restore(ckpt)
@@ -133,6 +143,28 @@ def train(args: argparse.Namespace) -> int:
     return 0
 
 
+def fitted_schedule(robot, ds, model_cfg, train_cfg, args: argparse.Namespace, out: Path):
+    """The training config with its schedule sized to ``--max-time``.
+
+    One step (a swarm step for ANFIS) is timed on a throw-away trainer of the same model and
+    rows; the schedule is 92 % of the steps that fit (validations and checkpoints take the
+    rest), its warm-up at most a tenth of it, and unless given, 40 validations and 10
+    checkpoints along it.
+    """
+    from sik_ros.learning.training import Trainer, with_overrides
+    probe = Trainer(robot, ds, model_cfg, with_overrides(train_cfg, steps=100),
+                    out / 'probe')
+    per_step = probe.seconds_per_step()
+    del probe
+    steps = max(1, int(0.92 * args.max_time / per_step))
+    print(f'sik-train: a step takes {1e3 * per_step:.1f} ms here: {steps:,} steps in '
+          f'{args.max_time:g} s', file=sys.stderr)
+    return with_overrides(
+        train_cfg, steps=steps, warmup=min(train_cfg.warmup, max(1, steps // 10)),
+        eval_every=args.eval_every or max(1, steps // 40),
+        checkpoint_every=args.checkpoint_every or max(1, steps // 10))
+
+
 def run_configs(args: argparse.Namespace, out: Path):
     """The checkpoint resumed (or None), the model config and the training config of a run.
 
@@ -145,6 +177,8 @@ def run_configs(args: argparse.Namespace, out: Path):
     from sik_ros.learning.training import TrainConfig, with_overrides
     if args.max_time is not None and args.max_time <= 0:
         raise InvalidArgument(f'--max-time must be positive; got {args.max_time}')
+    if args.fit_schedule and args.max_time is None:
+        raise InvalidArgument('--fit-schedule sizes the schedule to --max-time: give it')
     if args.resume and args.init:
         raise InvalidArgument('--init starts a new run; --resume continues one: give one')
     if args.resume:

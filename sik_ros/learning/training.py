@@ -261,13 +261,15 @@ class Trainer:
     def seconds_per_step(self, steps: int = 8) -> float:
         """Wall time of one gradient step here [s], timed over ``steps`` after one warm-up.
 
-        It trains the model as it times it: use a throw-away trainer.
+        It trains the model as it times it: use a throw-away trainer. An ANFIS's step is a
+        swarm step.
         """
-        self._gradient_step()
+        step = self._pso_step if self.model_cfg.kind == 'anfis' else self._gradient_step
+        step()
         self._synchronize()
         t0 = time.perf_counter()
         for _ in range(steps):
-            self._gradient_step()
+            step()
         self._synchronize()
         return (time.perf_counter() - t0) / steps
 
