@@ -19,6 +19,8 @@ E2E_MODULES = {'test_cli_collect', 'test_colcon', 'test_hostile', 'test_lint', '
 #: Tests of other modules that run a command-line tool (or a bench script) as a process.
 E2E_TESTS = {
     'test_arms::test_sik_build_refuses_missing_meshes_before_collecting',
+    'test_device_training::test_the_device_path_imports_no_pinocchio',
+    'test_device_training::test_the_device_recipe_runs_end_to_end_without_pinocchio',
     'test_arms::test_sik_collect_refuses_a_grid_over_its_budget_before_writing',
     'test_docs::test_benchmark_tables_match_their_json',
     'test_index_table::test_sik_index_cli_builds_a_bundle',
@@ -35,7 +37,9 @@ E2E_FIXTURES = {'graph', 'ur5_bundle'}
 #: Modules whose tests take more than a few seconds alone (marker ``slow``).
 SLOW_MODULES = {'test_arms', 'test_colcon', 'test_eval', 'test_training'}
 #: Tests of other modules that take more than a few seconds alone.
-SLOW_TESTS = {'test_seed_table::test_a_seed_table_keeps_dataset_rows_and_round_trips'}
+SLOW_TESTS = {
+    'test_device_training::test_the_device_recipe_runs_end_to_end_without_pinocchio',
+    'test_seed_table::test_a_seed_table_keeps_dataset_rows_and_round_trips'}
 
 
 def pytest_collection_modifyitems(config, items):
