@@ -210,3 +210,15 @@ def test_sik_chain_and_sik_train_refuse_bad_input(run_main, tmp_path):
             (['--chain', str(bad), '--dataset', str(tmp_path)], 'not allowed with')]:
         code, err = run_main(train_main, argv + ['--out', str(tmp_path / 'run'), '--quiet'])
         assert code == 2 and message in err, (argv, err)
+
+
+def test_sik_build_on_a_gpu_refuses_at_once_where_there_is_none(run_main, tmp_path):
+    """sik-build --device cuda without a CUDA device is one line, exit 2, nothing written."""
+    if torch.cuda.is_available():
+        pytest.skip('this machine has a CUDA device')
+    from sik_ros.cli.build import main
+    out = tmp_path / 'ur5'
+    code, err = run_main(main, ['--robot', 'ur5', '--out', str(out), '--device', 'cuda',
+                                '--quiet'])
+    assert code == 2 and 'no CUDA device' in err and len(err.strip().splitlines()) == 1
+    assert not out.exists() and not (tmp_path / 'ur5.build').exists()
