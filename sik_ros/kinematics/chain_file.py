@@ -67,7 +67,7 @@ class ChainArm:
         return periodic_joints(self.lower, self.upper)
 
     def manifest(self) -> dict:
-        """The robot manifest (a copy), as :meth:`Robot.manifest` gives it."""
+        """A copy of the robot's manifest, as a Robot gives it."""
         return json.loads(json.dumps(dict(self.robot_manifest)))
 
 
