@@ -222,3 +222,17 @@ def test_sik_build_on_a_gpu_refuses_at_once_where_there_is_none(run_main, tmp_pa
                                 '--quiet'])
     assert code == 2 and 'no CUDA device' in err and len(err.strip().splitlines()) == 1
     assert not out.exists() and not (tmp_path / 'ur5.build').exists()
+
+
+def test_a_bundle_records_where_and_on_how_many_samples_its_models_trained(tiny_bundle):
+    """bundle.json keeps each model's training summary, and sik-eval's model line shows it."""
+    from sik_ros.eval.histories import bundle_histories
+    from sik_ros.eval.report import model_line
+    from sik_ros.solver import SelectiveIK
+    manifest = json.loads((Path(tiny_bundle) / 'bundle.json').read_text())
+    for goal in ('position', 'pose'):
+        rec = manifest['trained'][goal]
+        assert rec['recorded'] and rec['samples'] == rec['steps'] * 512 > 0
+        assert rec['devices'][0].startswith('cpu: ')
+    h = bundle_histories(SelectiveIK.load(tiny_bundle))['position']
+    assert f'{h.trained["samples"]:,} samples' in model_line('position', h, {})
