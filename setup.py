@@ -158,6 +158,7 @@ setup(
             'sik-solve = sik_ros.cli.solve:main',
             'sik-eval = sik_ros.cli.eval:main',
             'sik-build = sik_ros.cli.build:main',
+            'sik-chain = sik_ros.cli.chain:main',
             'sik-view = sik_ros.cli.view:main',
             'sik_node = sik_ros.ros.run:main',
         ],

@@ -7,10 +7,11 @@ cd "$(dirname "$0")/.."
 PY=${PY:-.venv/bin/python}
 DATA=${DATA:-data/panda30}
 OUT=${OUT:-sik_ros/bundles/panda}
+RUNS=${RUNS:-runs}  # the runs' folder: <RUNS>/sik_<goal>/last.pt
 for goal in position pose; do
-  run=runs/sik_$goal
+  run=$RUNS/sik_$goal
   [ -f "$run/model.pt" ] || $PY -c "
-from sik_ros.learning.training import export_model, load_checkpoint
+from sik_ros.learning.checkpoints import export_model, load_checkpoint
 export_model(load_checkpoint('$run/last.pt'), '$run/model.pt')"
   # both tables keep each index's orientation (pose goals choose indices by it); the position
   # table also keeps its decoded posture at the cell centre (sik-index's default for position

@@ -25,10 +25,14 @@ ROBOT_KEYS = ('robot', 'urdf_sha256', 'base_frame', 'tip_frame', 'joint_names')
 
 
 def library_versions() -> dict:
-    """Versions of the libraries that shape an artifact's content."""
+    """Versions of the libraries that shape an artifact's content (those installed)."""
     import numpy
-    import pinocchio
-    versions = {'numpy': numpy.__version__, 'pinocchio': pinocchio.__version__}
+    versions = {'numpy': numpy.__version__}
+    try:  # a chain file's model trains where there is no Pinocchio (a GPU machine)
+        import pinocchio
+        versions['pinocchio'] = pinocchio.__version__
+    except ImportError:
+        pass
     try:
         import torch
         versions['torch'] = str(torch.__version__)

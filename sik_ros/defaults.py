@@ -25,6 +25,8 @@ PRESETS = {
     'tiny': ((32, 32), (64, 64)),
 }
 
+#: Samples per training step of ``sik-build`` on a CPU and on a GPU (the paper's batch).
+BUILD_BATCH = {'cpu': 2048, 'cuda': 65536}
 #: Default row budget of a collection (``sik-collect --max-rows``).
 MAX_ROWS = 20_000_000
 #: Configurations a seed table keeps by default (6 MB for 6 joints).
@@ -66,7 +68,7 @@ class BuildConfig:
         rows: uniform samples, or the grid's row budget.
         preset: layer widths (:data:`sik_ros.learning.models.PRESETS`).
         device: ``cpu`` or ``cuda``.
-        batch_size: samples per training step.
+        batch_size: samples per training step (:data:`BUILD_BATCH` by device).
         check_targets: targets per goal kind of the self-check.
         seed: seed of the sampler, the training and the self-check.
     """

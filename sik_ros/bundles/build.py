@@ -73,6 +73,10 @@ class Builder:
         """Every stage not yet done; the self-check's figures."""
         t0 = time.perf_counter()
         state = self._state()
+        if self.cfg.device == 'cuda':
+            import torch
+            if not torch.cuda.is_available():
+                raise InvalidArgument('--device cuda: torch sees no CUDA device here')
         # the self-check and the solver rank by collision geometry: a missing mesh fails here,
         # not after the training
         self.robot.collision_model

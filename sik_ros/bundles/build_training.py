@@ -59,10 +59,17 @@ def model_configs(robot: Robot, preset: str) -> Dict[str, ModelConfig]:
 
 
 def train_config(cfg: BuildConfig, goal: str, steps: int, rows: int) -> TrainConfig:
-    """One model's training config, its schedule ``steps`` long, for a dataset of ``rows``."""
+    """One model's training config, its schedule ``steps`` long, for a dataset of ``rows``.
+
+    On a GPU (``cfg.device`` ``cuda``) every batch is drawn afresh on the device (``uniform``:
+    joint values uniform within the limits, their tips by the torch FK), as ``sik-train
+    --chain`` trains there; the dataset gives the normaliser and the validation rows.
+    """
     recipe = POSE_RECIPE if goal == 'pose' else {'fk_weight': 0.005,
                                                  'fk_start': int(0.55 * steps)}
+    sampler = 'uniform' if cfg.device == 'cuda' else 'dataset'
     return TrainConfig(steps=steps, batch_size=cfg.batch_size, warmup=min(500, steps // 10),
+                       sampler=sampler,
                        val_rows=min(20_000, rows // 10), eval_every=max(10, steps // 20),
                        checkpoint_every=max(10, steps // 20), seed=cfg.seed, device=cfg.device,
                        init=POSE_INIT if goal == 'pose' else '', **recipe)

@@ -2,8 +2,8 @@
 
 ``bundle.json`` names the robot (its manifest: name or URDF, frames, joints) and, per goal kind
 (``position``, ``pose``), the model file and its table; the pose model of an arm with six joints
-or fewer also has a seed table (:mod:`sik_ros.tables.seed_table`). :func:`build_bundle` makes one
-from
+or fewer also has a seed table (:mod:`sik_ros.tables.seed_table`); ``trained`` says where, how
+long and on how many samples each model was trained. :func:`build_bundle` makes one from
 trained models and a dataset (``sik-index --bundle`` and the tests use it); :func:`load_bundle`
 reads one back, checking every file against the manifest.
 """
@@ -22,6 +22,7 @@ from sik_ros.kinematics.robot import Robot
 from sik_ros.kinematics.robots import robot_from_manifest
 from sik_ros.learning.checkpoints import load_checkpoint, model_from_checkpoint, model_signature
 from sik_ros.learning.indexing import build_table
+from sik_ros.learning.provenance import trained_summary
 from sik_ros.tables.dataset import Dataset
 from sik_ros.tables.index_table import IndexTable, PostureTable, TableConfig
 from sik_ros.tables.seed_table import default_rows, SeedTable
@@ -132,7 +133,9 @@ def add_to_bundle(bundle: Path, robot_manifest: Dict, goal: str, model_file: Pat
     """Copy a model and its table (and seed table) into a bundle, listed in ``bundle.json``.
 
     A seed table the goal already had stays listed when none is given: it depends on the robot
-    and the data only, not on the model.
+    and the data only, not on the model. ``trained`` records, per goal kind, where, how long
+    and on how many samples its model was trained
+    (:func:`~sik_ros.learning.provenance.trained_summary`).
 
     Files are copied under temporary names and renamed; the manifest is rewritten atomically
     last, so a reader never sees a manifest naming a half-written file.
@@ -158,6 +161,8 @@ def add_to_bundle(bundle: Path, robot_manifest: Dict, goal: str, model_file: Pat
             with atomic_write(dst) as tmp:
                 shutil.copyfile(src, tmp)
     manifest['models'][goal] = {key: names[key] for key in files}
+    # where, how long and on how many samples the model was trained (sik-eval shows it)
+    manifest.setdefault('trained', {})[goal] = trained_summary(load_checkpoint(model_file))
     write_json_atomic(bundle / 'bundle.json', manifest)
     return bundle
 

@@ -6,7 +6,7 @@ from pathlib import Path
 from typing import List, Optional
 
 from sik_ros.cli import argv_or_default, Parser, run_cli
-from sik_ros.defaults import BuildConfig
+from sik_ros.defaults import BUILD_BATCH, BuildConfig
 from sik_ros.kinematics.description import is_xacro_file, parse_xacro_args, write_xacro_urdf
 
 
@@ -31,7 +31,8 @@ def build_parser() -> argparse.ArgumentParser:
                    '<out>.build)')
     p.add_argument('--time', type=float, default=d.time,
                    help=f'total time budget [s] (default: {d.time:g})')
-    p.add_argument('--device', choices=('cpu', 'cuda'), default=d.device)
+    p.add_argument('--device', choices=('cpu', 'cuda'), default=d.device,
+                   help='where the models train (cuda: a GPU, every batch drawn afresh there)')
     p.add_argument('--sampler', choices=('uniform', 'grid'), default=d.sampler,
                    help='uniform samples, or the Algorithm 1 grid at the finest interval '
                    'under --rows')
@@ -39,7 +40,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help=f'dataset rows (uniform) or row budget (grid) (default: {d.rows:,})')
     p.add_argument('--preset', default=d.preset, help='layer widths: tiny, small, default, '
                    'paper')
-    p.add_argument('--batch-size', type=int, default=d.batch_size)
+    p.add_argument('--batch-size', type=int,
+                   help='samples per training step (default: '
+                   f'{BUILD_BATCH["cpu"]:,} on the CPU, {BUILD_BATCH["cuda"]:,} on a GPU)')
     p.add_argument('--check-targets', type=int, default=d.check_targets,
                    help='targets per goal kind of the final self-check')
     p.add_argument('--seed', type=int, default=d.seed)
@@ -68,7 +71,8 @@ def main(argv: Optional[List[str]] = None) -> int:
         print(f'robot {robot.name}: {robot.dof} joints {robot.joint_names}, base '
               f'{robot.base_frame}, tip {robot.tip_frame}; periodic: {periodic or "none"}')
         cfg = BuildConfig(args.time, args.sampler, args.rows, args.preset, args.device,
-                          args.batch_size, args.check_targets, args.seed)
+                          args.batch_size or BUILD_BATCH[args.device], args.check_targets,
+                          args.seed)
         report = Builder(robot, args.out, cfg, args.work, bars=not args.quiet).run()
         print(json.dumps({'bundle': args.out, 'self_check': report}))
         return 0

@@ -1,10 +1,17 @@
-"""``sik-train``: train a SIK, PSIK, FCN or ANFIS model on a dataset, resumably."""
+"""``sik-train``: train a SIK, PSIK, FCN or ANFIS model on a dataset, resumably.
+
+With ``--chain`` (a chain file, ``sik-chain``) instead of ``--dataset`` it needs torch and NumPy
+alone: the rows are generated on the training device (the Algorithm 1 grid or uniform samples)
+and nothing loads Pinocchio, so it runs on a GPU machine that has neither the URDF nor
+Pinocchio.
+"""
 
 import argparse
 from dataclasses import replace
 import json
 from pathlib import Path
 import sys
+import time
 from typing import List, Optional
 
 from sik_ros.cli import argv_or_default, Parser, run_cli
@@ -15,8 +22,18 @@ from sik_ros.errors import ArtifactExists, InvalidArgument
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of sik-train."""
     p = Parser(prog='sik-train', description='Train an IK model on a dataset '
-               'written by sik-collect; checkpoints go to --out/last.pt.')
-    p.add_argument('--dataset', required=True, help='dataset directory (sik-collect --out)')
+               'written by sik-collect, or on rows generated on the training device from a '
+               'chain file (sik-chain); checkpoints go to --out/last.pt.')
+    src = p.add_mutually_exclusive_group(required=True)
+    src.add_argument('--dataset', help='dataset directory (sik-collect --out)')
+    src.add_argument('--chain', help='chain file (sik-chain --out): generate the rows on '
+                     '--device instead (torch and NumPy only, no Pinocchio)')
+    p.add_argument('--data', choices=('grid', 'uniform'), default='grid',
+                   help='with --chain: the Algorithm 1 grid (default) or uniform samples')
+    p.add_argument('--interval', type=float, default=30.0,
+                   help='with --chain --data grid: the grid step [deg] (default: 30)')
+    p.add_argument('--samples', type=int, default=1_000_000,
+                   help='with --chain --data uniform: rows (default: 1,000,000)')
     p.add_argument('--out', required=True, help='run directory for checkpoints and history')
     p.add_argument('--model', choices=('sik', 'psik', 'fcn', 'anfis'), default='sik')
     p.add_argument('--goal', choices=('position', 'pose'), default='position')
@@ -59,6 +76,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help='bfloat16 autocast for forward and backward (faster on CPUs with '
                    'bfloat16 units; weights stay float32)')
     p.add_argument('--max-time', type=float, help='stop cleanly after this many seconds')
+    p.add_argument('--fit-schedule', action='store_true',
+                   help='a new run: size the schedule (--steps, the warm-up, validations and '
+                   'checkpoints) to --max-time from a step timed here first')
     p.add_argument('--resume', action='store_true', help='continue from --out/last.pt')
     p.add_argument('--export', help='also write the inference model (no optimiser) here')
     p.add_argument('--quiet', action='store_true', help='no progress bar')
@@ -82,12 +102,17 @@ def train(args: argparse.Namespace) -> int:
     from sik_ros.learning import distributed
     from sik_ros.learning.checkpoints import export_model, load_checkpoint, model_signature
     from sik_ros.learning.training import Trainer
-    from sik_ros.tables.dataset import Dataset
     rank, size = distributed.init(args.device or 'cpu')
     out = Path(args.out)
     ckpt, model_cfg, train_cfg = run_configs(args, out)
     robot, model_cfg = for_robot(args, model_cfg)
-    ds = Dataset.load(args.dataset, robot)
+    t0 = time.perf_counter()
+    ds = training_rows(args, robot, ckpt, train_cfg)
+    if args.chain and rank == 0:
+        print(f'sik-train: {len(ds):,} rows ({ds.manifest["sampler"]}) generated on '
+              f'{train_cfg.device} in {time.perf_counter() - t0:.1f} s', file=sys.stderr)
+    if args.fit_schedule and ckpt is None:
+        train_cfg = fitted_schedule(robot, ds, model_cfg, train_cfg, args, out)
     trainer = Trainer(robot, ds, model_cfg, train_cfg, out)
     if ckpt is not None:
         trainer.restore(ckpt)
@@ -118,6 +143,28 @@ def train(args: argparse.Namespace) -> int:
     return 0
 
 
+def fitted_schedule(robot, ds, model_cfg, train_cfg, args: argparse.Namespace, out: Path):
+    """The training config with its schedule sized to ``--max-time``.
+
+    One step (a swarm step for ANFIS) is timed on a throw-away trainer of the same model and
+    rows; the schedule is 92 % of the steps that fit (validations and checkpoints take the
+    rest), its warm-up at most a tenth of it, and unless given, 40 validations and 10
+    checkpoints along it.
+    """
+    from sik_ros.learning.training import Trainer, with_overrides
+    probe = Trainer(robot, ds, model_cfg, with_overrides(train_cfg, steps=100),
+                    out / 'probe')
+    per_step = probe.seconds_per_step()
+    del probe
+    steps = max(1, int(0.92 * args.max_time / per_step))
+    print(f'sik-train: a step takes {1e3 * per_step:.1f} ms here: {steps:,} steps in '
+          f'{args.max_time:g} s', file=sys.stderr)
+    return with_overrides(
+        train_cfg, steps=steps, warmup=min(train_cfg.warmup, max(1, steps // 10)),
+        eval_every=args.eval_every or max(1, steps // 40),
+        checkpoint_every=args.checkpoint_every or max(1, steps // 10))
+
+
 def run_configs(args: argparse.Namespace, out: Path):
     """The checkpoint resumed (or None), the model config and the training config of a run.
 
@@ -130,6 +177,8 @@ def run_configs(args: argparse.Namespace, out: Path):
     from sik_ros.learning.training import TrainConfig, with_overrides
     if args.max_time is not None and args.max_time <= 0:
         raise InvalidArgument(f'--max-time must be positive; got {args.max_time}')
+    if args.fit_schedule and args.max_time is None:
+        raise InvalidArgument('--fit-schedule sizes the schedule to --max-time: give it')
     if args.resume and args.init:
         raise InvalidArgument('--init starts a new run; --resume continues one: give one')
     if args.resume:
@@ -160,13 +209,40 @@ def run_configs(args: argparse.Namespace, out: Path):
     return None, model_cfg, train_cfg
 
 
+def training_rows(args: argparse.Namespace, robot, ckpt, train_cfg):
+    """The rows to train on: the dataset, or rows generated on the device from the chain.
+
+    A resumed run on generated rows makes those it started with (its checkpoint's sampler and
+    parameters; ``--data``, ``--interval`` and ``--samples`` are then not read).
+    """
+    if args.dataset:
+        from sik_ros.tables.dataset import Dataset
+        return Dataset.load(args.dataset, robot)
+    from sik_ros.learning.generated_data import GeneratedData
+    spec = {'sampler': args.data, 'interval_deg': args.interval, 'samples': args.samples,
+            'seed': train_cfg.seed}
+    if ckpt is not None:
+        before = ckpt.get('dataset', {})
+        if before.get('kind') != 'generated':
+            raise InvalidArgument('--resume --chain: the run trained on a dataset '
+                                  '(give --dataset)')
+        spec = {'sampler': before['sampler'], 'interval_deg': 30.0, 'samples': 0, 'seed': 0,
+                **before['params']}
+    return GeneratedData(robot, spec['sampler'], float(spec['interval_deg']),
+                         int(spec['samples']), int(spec['seed']), train_cfg.device)
+
+
 def for_robot(args: argparse.Namespace, model_cfg):
-    """The dataset's robot and the model config fitted to it (its joints, branch bits)."""
-    from sik_ros.kinematics.robots import robot_from_manifest
+    """The robot (the dataset's, or the chain file's arm) and the model config fitted to it."""
     from sik_ros.learning.models import branch_bits, ModelConfig
-    from sik_ros.tables.dataset import Dataset
-    robot = robot_from_manifest(Dataset.load(args.dataset).manifest['robot'],
-                                f'dataset {args.dataset}')
+    if args.chain:
+        from sik_ros.kinematics.chain_file import load_chain_file
+        robot = load_chain_file(Path(args.chain))
+    else:
+        from sik_ros.kinematics.robots import robot_from_manifest
+        from sik_ros.tables.dataset import Dataset
+        robot = robot_from_manifest(Dataset.load(args.dataset).manifest['robot'],
+                                    f'dataset {args.dataset}')
     if model_cfg.dof != robot.dof:
         model_cfg = ModelConfig(**{**model_cfg.__dict__, 'dof': robot.dof})
     if args.branches and not args.resume:

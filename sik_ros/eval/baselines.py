@@ -17,6 +17,7 @@ from sik_ros.errors import ArtifactMismatch, CorruptArtifact
 from sik_ros.kinematics.robot import Robot
 from sik_ros.learning.checkpoints import load_checkpoint, model_from_checkpoint
 from sik_ros.learning.models import make_goal, ModelConfig, Normalizer
+from sik_ros.learning.provenance import trained_summary
 from sik_ros.solver import GoalModel, SelectiveIK
 from sik_ros.tables.index_table import PriorTable
 
@@ -40,6 +41,8 @@ class Baseline:
         train_config: the training settings stored in the checkpoint.
         history: the training records stored in the checkpoint.
         step: training steps taken.
+        trained: where, how long and on how many samples it was trained
+            (:func:`~sik_ros.learning.provenance.trained_summary`).
     """
 
     def __init__(self, name: str, path: Path, robot: Robot):
@@ -61,6 +64,7 @@ class Baseline:
         self.train_config: Dict = ckpt.get('train_config', {})
         self.history: List[Dict] = ckpt.get('history', [])
         self.step = int(ckpt.get('step', 0))
+        self.trained: Dict = trained_summary(ckpt)
 
     @torch.no_grad()
     def predict(self, positions: np.ndarray) -> np.ndarray:

@@ -12,6 +12,7 @@ from typing import Dict, List, Optional, Union
 
 from sik_ros.artifacts import read_json
 from sik_ros.learning.checkpoints import load_checkpoint
+from sik_ros.learning.provenance import trained_summary
 from sik_ros.solver import SelectiveIK
 
 
@@ -25,6 +26,8 @@ class TrainedModel:
         elapsed_s: training time [s].
         config: the model configuration (``latent_dim``, ``encoder``, ``decoder``, ...).
         train_config: the training settings (``batch_size``, ``sampler``, ``init``, ...).
+        trained: where, how long and on how many samples it was trained
+            (:func:`~sik_ros.learning.provenance.trained_summary`).
     """
 
     history: List[Dict]
@@ -32,6 +35,7 @@ class TrainedModel:
     elapsed_s: float
     config: Dict
     train_config: Dict = field(default_factory=dict)
+    trained: Dict = field(default_factory=dict)
 
 
 @dataclass
@@ -65,7 +69,7 @@ def bundle_histories(ik: SelectiveIK) -> Dict[str, TrainedModel]:
         ckpt = load_checkpoint(Path(ik.bundle) / files['model'])
         out[goal] = TrainedModel(ckpt.get('history', []), int(ckpt.get('step', 0)),
                                  float(ckpt.get('elapsed_s', 0.0)), ckpt['model_config'],
-                                 dict(ckpt.get('train_config', {})))
+                                 dict(ckpt.get('train_config', {})), trained_summary(ckpt))
     return out
 
 

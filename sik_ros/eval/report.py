@@ -19,6 +19,7 @@ from sik_ros.eval.paper import NAMES, PAPER, RADII, VARIANTS
 from sik_ros.eval.report_postures import (diversity_section, indices_section,
                                           obstacle_section, orientation_section)
 from sik_ros.eval.run import Results
+from sik_ros.learning.provenance import describe
 from sik_ros.solver import SelectiveIK
 
 
@@ -85,7 +86,8 @@ def models_section(ik: SelectiveIK, baselines: Dict[str, Method], missing: Dict[
                     f'{PRIOR_DRAWS} fixed draws from its N(0, I) prior)'
             if isinstance(b, Baseline):
                 uni = bool(b.train_config.get('uni_position', False))
-                extra = f' ({b.step} steps, uni-position: {"yes" if uni else "no"})'
+                extra = (f' ({b.step} steps, uni-position: {"yes" if uni else "no"}; '
+                         f'{describe(b.trained)})')
                 if (name in ('fcn_uni', 'anfis')) != uni:
                     extra += ' **— its dataset does not match its role**'
             lines.append(f'- {NAMES[name]}: `{path}`{extra}')
@@ -108,6 +110,8 @@ def model_line(goal: str, h: TrainedModel, manifest: Dict) -> str:
             f'{h.step} steps{batch}{samples}{start} ({h.elapsed_s / 60:.0f} min); last '
             f'validation (decoded from the true posture index): distance error '
             f'{fmt(100 * last.get("val_dist_mean_m", np.nan))} cm{orient}.')
+    if h.trained:
+        line += f' Trained: {describe(h.trained)}.'
     if 'cells' in manifest:
         line += f' Its table: {manifest["entries"]:,} indices in {manifest["cells"]:,} cells'
         real = manifest.get('realised')

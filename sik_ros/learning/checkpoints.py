@@ -61,7 +61,7 @@ def model_from_checkpoint(ckpt: Dict):
 def export_model(ckpt: Dict, path: Path) -> Path:
     """Write the inference part of a checkpoint (no optimiser) atomically to ``path``."""
     keep = ('model_config', 'train_config', 'normalizer', 'robot', 'dataset', 'model_state',
-            'step', 'elapsed_s', 'history', 'versions')
+            'step', 'elapsed_s', 'history', 'versions', 'trained')
     out = {k: ckpt[k] for k in keep if k in ckpt}
     out.update(kind='sik_model', format_version=FORMAT_VERSION)
     with atomic_write(path) as tmp:

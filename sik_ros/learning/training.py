@@ -8,7 +8,7 @@ else and a resumed run continues exactly where it stopped.
 from dataclasses import asdict
 from pathlib import Path
 import time
-from typing import Callable, Dict, Optional
+from typing import Callable, Dict, Optional, TYPE_CHECKING, Union
 
 import numpy as np
 import torch
@@ -17,22 +17,38 @@ from torch.nn.parallel import DistributedDataParallel
 from sik_ros.artifacts import (atomic_write, check_robot_manifest, FORMAT_VERSION,
                                library_versions)
 from sik_ros.errors import ArtifactMismatch, InvalidArgument, TrainingDiverged
-from sik_ros.kinematics.robot import Robot
 from sik_ros.learning import distributed
 from sik_ros.learning.checkpoints import normalizer_from_dict
+from sik_ros.learning.generated_data import GeneratedData
 from sik_ros.learning.models import anfis_forward, build_model, kl_normal, ModelConfig, TorchChain
+from sik_ros.learning.provenance import device_name, Provenance
 from sik_ros.learning.train_config import (lr_at, SAMPLERS, TrainConfig,  # noqa: F401
                                            with_overrides)
-from sik_ros.learning.training_data import (default_normalizer, TrainData,  # noqa: F401
-                                            turned_rot6, widened_state, widens)
-from sik_ros.tables.dataset import Dataset, dataset_summary
+from sik_ros.learning.training_data import (data_summary, default_normalizer,  # noqa: F401
+                                            TrainData, turned_rot6, widened_state, widens)
+from sik_ros.tables.dataset import Dataset
+
+if TYPE_CHECKING:  # Pinocchio: a chain file's arm trains without it
+    from sik_ros.kinematics.robot import Robot
 
 
 class Trainer:
     """Trains one model on one dataset, with validation, checkpoints and resume."""
 
-    def __init__(self, robot: Robot, dataset: Dataset, model_cfg: ModelConfig,
-                 train_cfg: TrainConfig, out_dir: Path):
+    def __init__(self, robot: 'Robot', dataset: Union[Dataset, GeneratedData],
+                 model_cfg: ModelConfig, train_cfg: TrainConfig, out_dir: Path):
+        """A trainer of one model.
+
+        Args:
+            robot: the arm: a :class:`~sik_ros.kinematics.robot.Robot`, or a
+                :class:`~sik_ros.kinematics.chain_file.ChainArm` (no Pinocchio needed).
+            dataset: a dataset on disk, or rows generated on the training device
+                (:class:`~sik_ros.learning.generated_data.GeneratedData`); the rows move to
+                the training device once.
+            model_cfg: the model.
+            train_cfg: the training settings.
+            out_dir: where ``last.pt`` is written.
+        """
         if model_cfg.dof != robot.dof:
             raise InvalidArgument(f'model dof {model_cfg.dof} != robot dof {robot.dof}')
         self.robot, self.dataset = robot, dataset
@@ -42,12 +58,13 @@ class Trainer:
         torch.manual_seed(train_cfg.seed)
         self.device = torch.device(train_cfg.device)
         self.norm = default_normalizer(robot, dataset)
-        self.data = TrainData(dataset, model_cfg.goal, train_cfg.uni_position)
+        self.generated = isinstance(dataset, GeneratedData)
+        self.data = TrainData(dataset, model_cfg.goal, train_cfg.uni_position).to(self.device)
         gen = torch.Generator().manual_seed(train_cfg.seed)
         perm = torch.randperm(len(self.data), generator=gen)
         n_val = min(train_cfg.val_rows, max(1, len(self.data) // 10))
-        self.val_idx = perm[:n_val]
-        self.train_idx = perm[n_val:]
+        self.val_idx = perm[:n_val].to(self.device)
+        self.train_idx = perm[n_val:].to(self.device)
         self.model = build_model(model_cfg).to(self.device)
         self.rank, self.world_size = distributed.world()
         # several processes (torchrun): gradients averaged by DDP, batches drawn per rank
@@ -57,15 +74,19 @@ class Trainer:
         self.fk = TorchChain(robot.chain).to(self.device)
         self.opt = torch.optim.Adam(self.model.parameters(), lr=train_cfg.lr)
         self.gen = torch.Generator().manual_seed(train_cfg.seed + 1 + 7919 * self.rank)
+        # the batches' random numbers are drawn where the batches are (the CPU's: self.gen)
+        self.sample_gen = self.gen if self.device.type == 'cpu' else torch.Generator(
+            device=self.device).manual_seed(train_cfg.seed + 2 + 7919 * self.rank)
         self.step = 0
         self.elapsed = 0.0
         self.history = []
+        self.provenance = Provenance()
 
     # -- losses ----------------------------------------------------------------------------------
 
     def _batch(self, idx: torch.Tensor):
         d = self.data
-        return tuple(t[idx].to(self.device) for t in (d.q, d.goal, d.position, d.rot6))
+        return tuple(t[idx] for t in (d.q, d.goal, d.position, d.rot6))
 
     def fresh_batch(self, n: int):
         """``n`` joint configurations uniform within the limits and their goals (torch FK).
@@ -77,9 +98,10 @@ class Trainer:
             position, or the position and rot6), tip positions (n, 3) [m] and the first two
             columns of the tip rotations (n, 6).
         """
-        lo = torch.as_tensor(self.robot.lower, dtype=torch.float32)
-        hi = torch.as_tensor(self.robot.upper, dtype=torch.float32)
-        q = (lo + (hi - lo) * torch.rand(n, len(lo), generator=self.gen)).to(self.device)
+        lo = torch.as_tensor(self.robot.lower, dtype=torch.float32, device=self.device)
+        hi = torch.as_tensor(self.robot.upper, dtype=torch.float32, device=self.device)
+        q = lo + (hi - lo) * torch.rand(n, len(lo), generator=self.sample_gen,
+                                        device=self.device)
         with torch.no_grad(), torch.autocast(self.device.type, enabled=False):
             pos, rot = self.fk(q)
         rot6 = torch.cat([rot[:, :, 0], rot[:, :, 1]], 1)
@@ -117,11 +139,11 @@ class Trainer:
             # goal. Each index is decoded at its goal moved by about cycle_shift; the posture
             # must re-encode to the same index there (so the decoder cannot ignore the index)
             # and reach the moved goal (FK term)
-            shift = torch.randn(len(pos), 3, generator=self.gen).to(self.device)
+            shift = torch.randn(len(pos), 3, generator=self.sample_gen, device=self.device)
             pos_other = pos + self.cfg.cycle_shift * shift
             rot6_other = rot6
             if self.model_cfg.goal == 'pose' and self.cfg.cycle_turn > 0:
-                rot6_other = turned_rot6(rot6, self.cfg.cycle_turn, self.gen)
+                rot6_other = turned_rot6(rot6, self.cfg.cycle_turn, self.sample_gen)
             goal_other = torch.cat([pos_other, rot6_other], 1) \
                 if self.model_cfg.goal == 'pose' else pos_other
             g_other = self.norm.goal_to_net(goal_other)
@@ -208,10 +230,13 @@ class Trainer:
         start_elapsed = self.elapsed
         self.model.train()
         last = {}
+        per_step = (self.cfg.pso_batch if pso else self.cfg.batch_size) * self.world_size
+        self.provenance.start(device_name(self.device), self.world_size, self.step)
         while self.step < self.cfg.steps:
             last = step()
             self.step += 1
             self.elapsed = start_elapsed + time.perf_counter() - t0
+            self.provenance.stepped(self.step, per_step, time.perf_counter() - t0)
             if self.step % self.cfg.eval_every == 0 or self.step == self.cfg.steps:
                 lr = {} if pso else {'lr': lr_at(self.cfg, self.step - 1)}
                 rec = {'step': self.step, 'elapsed_s': round(self.elapsed, 1), **lr, **last,
@@ -236,13 +261,22 @@ class Trainer:
     def seconds_per_step(self, steps: int = 8) -> float:
         """Wall time of one gradient step here [s], timed over ``steps`` after one warm-up.
 
-        It trains the model as it times it: use a throw-away trainer.
+        It trains the model as it times it: use a throw-away trainer. An ANFIS's step is a
+        swarm step.
         """
-        self._gradient_step()
+        step = self._pso_step if self.model_cfg.kind == 'anfis' else self._gradient_step
+        step()
+        self._synchronize()
         t0 = time.perf_counter()
         for _ in range(steps):
-            self._gradient_step()
+            step()
+        self._synchronize()
         return (time.perf_counter() - t0) / steps
+
+    def _synchronize(self) -> None:
+        """Wait for the device's queued work (a GPU's), so that a timer sees it done."""
+        if self.device.type == 'cuda':
+            torch.cuda.synchronize(self.device)
 
     def _stop(self, mine: bool) -> bool:
         """Whether to stop now: with several processes, as soon as any of them would."""
@@ -260,7 +294,7 @@ class Trainer:
             args = {'batch': self.fresh_batch(self.cfg.batch_size)}
         else:
             pick = torch.randint(len(self.train_idx), (self.cfg.batch_size,),
-                                 generator=self.gen)
+                                 generator=self.sample_gen, device=self.device)
             args = {'idx': self.train_idx[pick]}
         with torch.autocast(self.device.type, dtype=torch.bfloat16, enabled=self.cfg.bf16):
             out = self.losses(**args)
@@ -296,10 +330,13 @@ class Trainer:
         """One particle swarm step of an ANFIS; the best loss so far."""
         state, gen = self._pso_state(), self.gen
         pick = torch.randint(len(self.train_idx), (self.cfg.pso_batch,), generator=gen)
-        q, goal, _, _ = self._batch(self.train_idx[pick])
+        q, goal, _, _ = self._batch(self.train_idx[pick.to(self.device)])
         x = self.norm.q_to_net(q)
         g = self.norm.goal_to_net(goal)
-        f = ((anfis_forward(self.model_cfg, state['pos'], g) - x[None]) ** 2).mean((1, 2))
+        # the swarm stays on the CPU (a few hundred numbers a particle); its losses are
+        # computed where the rows are
+        outputs = anfis_forward(self.model_cfg, state['pos'].to(self.device), g)
+        f = ((outputs - x[None]) ** 2).mean((1, 2)).cpu()
         f = torch.nan_to_num(f, nan=float('inf'))
         better = f < state['best_f']
         state['best'][better] = state['pos'][better]
@@ -323,12 +360,15 @@ class Trainer:
             'kind': 'sik_checkpoint', 'format_version': FORMAT_VERSION,
             'model_config': asdict(self.model_cfg), 'train_config': asdict(self.cfg),
             'normalizer': asdict(self.norm), 'robot': self.robot.manifest(),
-            'dataset': dataset_summary(self.dataset),
-            'model_state': self.model.state_dict(), 'optimizer_state': self.opt.state_dict(),
+            'dataset': data_summary(self.dataset),
+            'model_state': {k: v.detach().cpu() for k, v in self.model.state_dict().items()},
+            'optimizer_state': self.opt.state_dict(),
             'step': self.step, 'elapsed_s': self.elapsed, 'history': list(self.history),
             'rng': {'torch': torch.get_rng_state(), 'batches': self.gen.get_state()},
-            'versions': library_versions(),
+            'versions': library_versions(), 'trained': self.provenance.record(self.step),
         }
+        if self.sample_gen is not self.gen:
+            ckpt['rng']['device_batches'] = self.sample_gen.get_state()
         if getattr(self, '_pso', None) is not None:
             ckpt['pso'] = {k: v.clone() for k, v in self._pso.items()}
         return ckpt
@@ -362,11 +402,14 @@ class Trainer:
             state = widened_state(self.model.state_dict(), state, found, self.model_cfg)
         check_robot_manifest(f'--init {source}', self.robot.manifest(), ckpt['robot'])
         norm = normalizer_from_dict(ckpt['normalizer'])
+        self.provenance.started_from(source, ckpt)
         mine = np.concatenate([self.norm.lower, self.norm.upper, self.norm.position_center,
                                [self.norm.position_scale]])
         theirs = np.concatenate([norm.lower, norm.upper, norm.position_center,
                                  [norm.position_scale]])
-        if not np.allclose(mine, theirs, rtol=1e-6, atol=1e-9):
+        # generated rows are made afresh where the model trains: they take the normaliser of
+        # the weights (the networks' units); a dataset must be the one the weights knew
+        if not self.generated and not np.allclose(mine, theirs, rtol=1e-6, atol=1e-9):
             raise ArtifactMismatch(f'--init {source} normaliser (another dataset)',
                                    asdict(self.norm), ckpt['normalizer'])
         self.norm = norm  # bit for bit the one the weights were trained with
@@ -379,9 +422,10 @@ class Trainer:
             raise ArtifactMismatch('checkpoint model config', asdict(self.model_cfg),
                                    ckpt['model_config'])
         check_robot_manifest('checkpoint', self.robot.manifest(), ckpt['robot'])
-        if ckpt['dataset'] != dataset_summary(self.dataset):
-            raise ArtifactMismatch('checkpoint dataset', dataset_summary(self.dataset),
+        if ckpt['dataset'] != data_summary(self.dataset):
+            raise ArtifactMismatch('checkpoint dataset', data_summary(self.dataset),
                                    ckpt['dataset'])
+        self.norm = normalizer_from_dict(ckpt['normalizer'])  # a warm start's, if it had one
         self.model.load_state_dict(ckpt['model_state'])
         self.opt.load_state_dict(ckpt['optimizer_state'])
         self.step = int(ckpt['step'])
@@ -389,7 +433,15 @@ class Trainer:
         self.history = list(ckpt['history'])
         torch.set_rng_state(ckpt['rng']['torch'])
         self.gen.set_state(ckpt['rng']['batches'])
+        if self.sample_gen is not self.gen:
+            if 'device_batches' in ckpt['rng']:
+                self.sample_gen.set_state(ckpt['rng']['device_batches'])
+            else:  # a run resumed on a GPU: a stream of its own from here
+                self.sample_gen.manual_seed(self.cfg.seed + 2 + self.step)
         if self.rank > 0:  # the checkpoint holds rank 0's stream: the others draw their own
             self.gen.manual_seed(self.cfg.seed + 1 + 7919 * self.rank + self.step)
+            if self.sample_gen is not self.gen:
+                self.sample_gen.manual_seed(self.cfg.seed + 2 + 7919 * self.rank + self.step)
+        self.provenance = Provenance.from_checkpoint(ckpt)
         if 'pso' in ckpt:
             self._pso = {k: v.clone() for k, v in ckpt['pso'].items()}

@@ -10,7 +10,7 @@ import math
 from pathlib import Path
 import shutil
 import time
-from typing import Callable, Dict, Iterator, List, Optional, Tuple
+from typing import Callable, Dict, Iterator, List, Optional, Tuple, TYPE_CHECKING
 
 import numpy as np
 
@@ -20,8 +20,10 @@ from sik_ros.defaults import MAX_ROWS
 from sik_ros.errors import CorruptArtifact, InvalidArgument
 from sik_ros.kinematics.chain import chain_forward
 from sik_ros.kinematics.periodic import TURN
-from sik_ros.kinematics.robot import Robot
 from sik_ros.kinematics.rotations import rotation_to_quaternion
+
+if TYPE_CHECKING:  # Pinocchio: a chain file's arm trains without it
+    from sik_ros.kinematics.robot import Robot
 
 ARRAYS = {'q': None, 'position': 3, 'quaternion': 4}
 #: Edge of the cells used to report positions per cell in ``stats.txt`` [m].
@@ -77,7 +79,7 @@ def grid_count(lower: np.ndarray, upper: np.ndarray, interval_deg: float,
 AUTO_INTERVALS = (5, 6, 8, 9, 10, 12, 15, 18, 20, 24, 30, 36, 40, 45, 60, 72, 90, 120, 180)
 
 
-def finest_interval(robot: Robot, max_rows: int) -> Optional[float]:
+def finest_interval(robot: 'Robot', max_rows: int) -> Optional[float]:
     """The finest of :data:`AUTO_INTERVALS` whose grid has at most ``max_rows`` rows."""
     for interval in AUTO_INTERVALS:
         try:
@@ -88,12 +90,12 @@ def finest_interval(robot: Robot, max_rows: int) -> Optional[float]:
     return None
 
 
-def row_bytes(robot: Robot) -> int:
+def row_bytes(robot: 'Robot') -> int:
     """Bytes one dataset row takes on disk (float64 joints, position, quaternion)."""
     return 8 * (robot.dof + sum(c for c in ARRAYS.values() if c))
 
 
-def check_budget(robot: Robot, rows: int, max_rows: int, disk_free: Optional[int] = None,
+def check_budget(robot: 'Robot', rows: int, max_rows: int, disk_free: Optional[int] = None,
                  sampler: str = 'grid') -> None:
     """Refuse a collection above the row budget or the free disk space, with what would fit.
 
@@ -113,7 +115,7 @@ def check_budget(robot: Robot, rows: int, max_rows: int, disk_free: Optional[int
                               f'{disk_free / 1e9:.2f} GB are free there')
 
 
-def estimate_seconds(robot: Robot, rows: int, probe: int = 1 << 14) -> float:
+def estimate_seconds(robot: 'Robot', rows: int, probe: int = 1 << 14) -> float:
     """Seconds a collection of ``rows`` rows takes here, from timing FK of ``probe`` rows."""
     q = np.random.default_rng(0).uniform(robot.lower, robot.upper, (probe, robot.dof))
     t0 = time.perf_counter()
@@ -140,7 +142,7 @@ def _cartesian(values: List[np.ndarray]) -> np.ndarray:
 Chunk = Tuple[np.ndarray, np.ndarray, np.ndarray]
 
 
-def iter_grid(robot: Robot, interval_deg: float, chunk: int = 1 << 18) -> Iterator[Chunk]:
+def iter_grid(robot: 'Robot', interval_deg: float, chunk: int = 1 << 18) -> Iterator[Chunk]:
     """Yield ``(q, position, quaternion)`` chunks of the grid, in row order.
 
     The transforms of the leading joints are shared by many rows, so they are computed once per
@@ -168,7 +170,8 @@ def iter_grid(robot: Robot, interval_deg: float, chunk: int = 1 << 18) -> Iterat
         yield q, p, rotation_to_quaternion(r)
 
 
-def iter_uniform(robot: Robot, samples: int, seed: int, chunk: int = 1 << 18) -> Iterator[Chunk]:
+def iter_uniform(robot: 'Robot', samples: int, seed: int,
+                 chunk: int = 1 << 18) -> Iterator[Chunk]:
     """Yield chunks of configurations drawn uniformly within the joint limits."""
     if samples < 1:
         raise InvalidArgument(f'samples must be at least 1; got {samples}')
@@ -194,7 +197,7 @@ class Dataset:
         return len(self.q)
 
     @classmethod
-    def load(cls, path: Path, robot: Optional[Robot] = None, mmap: bool = True) -> 'Dataset':
+    def load(cls, path: Path, robot: Optional['Robot'] = None, mmap: bool = True) -> 'Dataset':
         """Open a dataset directory, checking its manifest and arrays.
 
         Args:
@@ -240,7 +243,7 @@ class Dataset:
         return cls(path, manifest, **arrays)
 
 
-def sampled(robot: Robot, sampler: str, interval_deg: float, samples: int, seed: int,
+def sampled(robot: 'Robot', sampler: str, interval_deg: float, samples: int, seed: int,
             chunk: int):
     """A collection's row count, its chunks ``(q, p, quat)`` and its sampler parameters.
 
@@ -258,7 +261,7 @@ def sampled(robot: Robot, sampler: str, interval_deg: float, samples: int, seed:
     raise InvalidArgument(f'unknown sampler {sampler!r}; use grid or uniform')
 
 
-def collect(robot: Robot, out: Path, sampler: str = 'grid', interval_deg: float = 30.0,
+def collect(robot: 'Robot', out: Path, sampler: str = 'grid', interval_deg: float = 30.0,
             samples: int = 0, seed: int = 0, force: bool = False,
             progress: Optional[Callable[[int], None]] = None, chunk: int = 1 << 18,
             max_rows: int = MAX_ROWS) -> Dataset:
@@ -313,7 +316,7 @@ def collect(robot: Robot, out: Path, sampler: str = 'grid', interval_deg: float 
     return Dataset.load(out, robot)
 
 
-def _sanity_check(robot: Robot, q: np.ndarray, block: int = 1 << 20) -> None:
+def _sanity_check(robot: 'Robot', q: np.ndarray, block: int = 1 << 20) -> None:
     """Refuse data outside the joint limits or with a joint that never moves."""
     lo = np.full(robot.dof, np.inf)
     hi = np.full(robot.dof, -np.inf)
@@ -328,7 +331,7 @@ def _sanity_check(robot: Robot, q: np.ndarray, block: int = 1 << 20) -> None:
         raise CorruptArtifact(f'degenerate dataset: joints {stuck} never move')
 
 
-def dataset_stats(robot: Robot, q: np.ndarray, position: np.ndarray) -> dict:
+def dataset_stats(robot: 'Robot', q: np.ndarray, position: np.ndarray) -> dict:
     """Ranges, reach, distinct positions and positions per cell of a dataset."""
     pos = np.asarray(position)
     reach = np.linalg.norm(pos, axis=1)
@@ -354,7 +357,7 @@ def dataset_stats(robot: Robot, q: np.ndarray, position: np.ndarray) -> dict:
     }
 
 
-def format_stats(robot: Robot, manifest: dict) -> str:
+def format_stats(robot: 'Robot', manifest: dict) -> str:
     """The human-readable ``stats.txt`` of a dataset."""
     st = manifest['stats']
     lines = [f"sik_ros dataset: {manifest['robot']['robot']} "
