@@ -1,23 +1,42 @@
-"""The marker lists of conftest.py name modules and tests that exist."""
+"""Tests that start a process say so: they carry the ``e2e`` marker themselves."""
 
 import ast
 from pathlib import Path
 
-import conftest
-
 TESTS = Path(__file__).resolve().parent
+#: Calls that start a process: a node, a command-line tool, a build.
+STARTS = ('subprocess.run', 'subprocess.Popen', 'subprocess.check_output', 'launch_node')
 
 
-def _test_names(module: str) -> set:
-    tree = ast.parse((TESTS / f'{module}.py').read_text())
-    return {n.name for n in tree.body if isinstance(n, ast.FunctionDef)
-            and n.name.startswith('test_')}
+def _marks(decorators) -> set:
+    """Names of the pytest marks among decorators or a ``pytestmark`` value."""
+    names = set()
+    for node in decorators:
+        for sub in ast.walk(node):
+            if isinstance(sub, ast.Attribute) and isinstance(sub.value, ast.Attribute) \
+                    and sub.value.attr == 'mark':
+                names.add(sub.attr)
+    return names
 
 
-def test_marker_lists_name_existing_tests():
-    """Every module and ``module::test`` in the e2e and slow lists exists (no stale name)."""
-    for module in conftest.E2E_MODULES | conftest.SLOW_MODULES:
-        assert (TESTS / f'{module}.py').is_file(), module
-    for entry in conftest.E2E_TESTS | conftest.SLOW_TESTS:
-        module, name = entry.split('::')
-        assert name in _test_names(module), entry
+def _starts_a_process(func: ast.FunctionDef) -> bool:
+    return any(ast.unparse(n.func).endswith(STARTS) for n in ast.walk(func)
+               if isinstance(n, ast.Call))
+
+
+def test_every_test_that_starts_a_process_is_marked_e2e():
+    """A test function calling subprocess or launching a node is ``e2e`` (module or decorator)."""
+    unmarked = []
+    for path in sorted(TESTS.glob('test_*.py')):
+        tree = ast.parse(path.read_text())
+        module_marks = set()
+        for node in tree.body:
+            if isinstance(node, ast.Assign) and any(
+                    isinstance(t, ast.Name) and t.id == 'pytestmark' for t in node.targets):
+                module_marks |= _marks([node.value])
+        for node in tree.body:
+            if isinstance(node, ast.FunctionDef) and node.name.startswith('test_') \
+                    and _starts_a_process(node) \
+                    and 'e2e' not in module_marks | _marks(node.decorator_list):
+                unmarked.append(f'{path.stem}::{node.name}')
+    assert not unmarked, unmarked

@@ -101,6 +101,7 @@ def test_build_marks_the_indices_the_decoder_realises(tiny_bundle, uniform_small
                     TableConfig(max_tip_error=0.01))
 
 
+@pytest.mark.e2e
 def test_sik_index_records_the_threshold_and_the_bundle_serves(
         tiny_bundle, uniform_small, tmp_path, panda):
     """sik-index --max-tip-error writes the threshold into the table; the bundle answers."""
