@@ -174,11 +174,11 @@ def panda(args) -> Dict:
         'all_families': float(np.mean([x['ours'] == x['known'] for x in with_ref])),
         'beyond_mean': float(np.mean([x['beyond'] for x in rows])),
         'peer_coverage': sum(x['peer'] for x in with_ref) / max(known, 1),
-        'label_agreement': sum(x['agree'] for x in rows) / max(sum(x['pairs'] for x in rows),
-                                                              1),
+        'label_agreement': sum(x['agree'] for x in rows) / max(
+            sum(x['pairs'] for x in rows), 1),
         'label_split': sum(x['split'] for x in rows) / max(sum(x['pairs'] for x in rows), 1),
-        'label_merged': sum(x['merged'] for x in rows) / max(sum(x['pairs'] for x in rows),
-                                                             1),
+        'label_merged': sum(x['merged'] for x in rows) / max(
+            sum(x['pairs'] for x in rows), 1),
         'first_k': float(np.mean([x['first_k'] for x in with_ref])),
         'num_families_mean': float(np.mean([x['num_families'] for x in rows])),
         'time_median_ms': float(np.median([x['time_s'] for x in rows]) * 1e3),
@@ -201,6 +201,8 @@ def branches(q: List[np.ndarray], periodic: np.ndarray) -> np.ndarray:
 def arm(args) -> Dict:
     """An arm of six joints: our branches against the union with TRAC-IK's restarts."""
     ik = SelectiveIK.load(args.arm_bundle)
+    if args.distinct is not None:
+        ik.configure(distinct_threshold=args.distinct)
     robot = ik.robot
     ik.solve(*ik.fk((robot.lower + robot.upper) / 2), num_solutions=16)  # warm
     tracik = TracIK(robot)
@@ -221,6 +223,11 @@ def arm(args) -> Dict:
         labels = branches(ours + theirs, robot.periodic)
         known = len(set(labels.tolist()))
         found = len(set(labels[:len(ours)].tolist()))
+        # the branches free of self-collision (the seed table's data holds no others)
+        every = ours + theirs
+        free = {int(b) for b in set(labels.tolist()) if not ik.context.checker.self_collision(
+            every[int(np.flatnonzero(labels == b)[0])][None])[0]}
+        free_found = len(free & set(labels[:len(ours)].tolist()))
         # our labels: one family per branch
         fam = [s.family for s in res.solutions if exact(ik, s.q, p, r)]
         consistent = all((labels[i] == labels[j]) == (fam[i] == fam[j])
@@ -228,9 +235,11 @@ def arm(args) -> Dict:
         k = found
         first_k = len(set(labels[:min(k, len(ours))].tolist())) == k
         rows.append({'known': known, 'ours': found, 'consistent': consistent,
+                     'known_free': len(free), 'ours_free': free_found,
                      'first_k': first_k, 'num_families': res.num_families,
                      'time_s': res.elapsed})
-        print(f'{robot.name} {t:3d}: known {known} branches, ours {found}, '
+        print(f'{robot.name} {t:3d}: known {known} branches, ours {found}; free of '
+              f'self-collision {len(free)}, ours {free_found}; '
               f'num_families {res.num_families}, labels consistent {consistent}, '
               f'{res.elapsed * 1e3:.1f} ms', flush=True)
     known = sum(x['known'] for x in rows)
@@ -238,6 +247,12 @@ def arm(args) -> Dict:
            'restarts': args.restarts, 'known_mean': known / max(len(rows), 1),
            'coverage': sum(x['ours'] for x in rows) / max(known, 1),
            'all_branches': float(np.mean([x['ours'] == x['known'] for x in rows])),
+           'known_free_mean': sum(x['known_free'] for x in rows) / max(len(rows), 1),
+           'coverage_free': sum(x['ours_free'] for x in rows) / max(
+               sum(x['known_free'] for x in rows), 1),
+           'all_free_branches': float(np.mean([x['ours_free'] == x['known_free']
+                                               for x in rows])),
+           'distinct_threshold': ik.config.distinct_threshold,
            'labels_consistent': float(np.mean([x['consistent'] for x in rows])),
            'first_k': float(np.mean([x['first_k'] for x in rows])),
            'time_median_ms': float(np.median([x['time_s'] for x in rows]) * 1e3)}
@@ -256,6 +271,8 @@ def main(argv=None) -> int:
     parser.add_argument('--arm-poses', type=int, default=60)
     parser.add_argument('--restarts', type=int, default=300,
                         help='TRAC-IK restarts per pose of the six-joint arm')
+    parser.add_argument('--distinct', type=float, default=None,
+                        help='the six-joint arm\'s distinct_threshold (default: the solver\'s)')
     parser.add_argument('--seed', type=int, default=0)
     add_json_argument(parser)
     args = parser.parse_args(argv)

@@ -25,6 +25,7 @@ import numpy as np
 from sik_ros.deadline import Deadline
 from sik_ros.kinematics.collision import Obstacle
 from sik_ros.kinematics.periodic import nearest_turns
+from sik_ros.solver import families
 from sik_ros.solver.adjust import adjust_index, adjust_raw
 from sik_ros.solver.batch import Candidates
 from sik_ros.solver.candidates import (oriented_postures, own_index, starting_postures,
@@ -37,7 +38,6 @@ from sik_ros.solver.explore import (branch_starts, periodic_equivalents, restart
                                     unindexed, walk)
 from sik_ros.solver.isolated import every_branch
 from sik_ros.solver.objectives import Objective
-from sik_ros.solver import families
 from sik_ros.solver.ranking import (assess, best_distinct, by_score, distinct_mask,
                                     from_solutions, merge, pose_score, rank)
 from sik_ros.solver.refine import errors, refine

@@ -236,8 +236,6 @@ class SelectiveIK:
         # from starts spread over the postures
         wider = None if pose else PathSettings.for_paths(True, near_seed=False, **given)
         timeout = seconds(timeout, 'timeout')
-        per_family = None if one_per_family is None else flag(one_per_family,
-                                                              'one_per_family')
         deadline = Deadline.after(timeout, t0)
         with self._lock:
             result = _path.solve_path(self._ctx, goals, q_seed, obstacles, settings, deadline,
