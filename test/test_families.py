@@ -8,8 +8,7 @@ from sik_ros.errors import InvalidArgument
 from sik_ros.kernels.families import branch_labels
 from sik_ros.kinematics.periodic import TURN
 from sik_ros.kinematics.rotations import quaternion_matrix
-from sik_ros.solver import SelectiveIK, SolverConfig
-from sik_ros.solver import families
+from sik_ros.solver import families, SelectiveIK, SolverConfig
 from sik_ros.solver.context import Goal
 from sik_ros.solver.results import NO_FAMILY, result_to_dict
 
