@@ -216,11 +216,12 @@ def solve(ctx: Context, goal: Goal, num: int, q_seed: Optional[np.ndarray],
 
 
 def family_roots(ctx: Context, call: Call, c: Candidates) -> Optional[np.ndarray]:
-    """The family root of each candidate (-1: not exact), or None for a path's starts.
+    """The family root of each candidate (-1: not exact), or None when not labelled.
 
-    A path's starts (``first_found``) are not ranked by family: their tracks are.
+    A path's starts (``first_found``) are not ranked by family: their tracks are. A call
+    asking for one solution answers one family (:func:`finish`) without linking candidates.
     """
-    if call.first_found:
+    if call.first_found or call.num == 1:
         return None
     return families.roots(ctx, c, call.goal, call.deadline)
 
@@ -381,11 +382,16 @@ def finish(ctx: Context, call: Call, sols: List[Solution], timed_out: bool,
         if extra is not None:
             sols = merge(ctx, sols, extra, goal.kind, call.q_seed, obstacles, call.objective,
                          deadline)
-            fam = None if call.first_found else \
-                families.roots(ctx, from_solutions(sols), goal, deadline)
-            for s, f in zip(sols, [-1] * len(sols) if fam is None else fam):
-                s.family = int(f)
+            if not call.first_found and call.num > 1:  # ranked again, families first
+                c = from_solutions(sols)
+                fam = families.roots(ctx, c, goal, deadline)
+                sols = rank(ctx, c, call.q_seed, obstacles, call.objective, deadline=deadline,
+                            families=fam)
             sols = sols[:call.num]
+    if fam is None and call.num == 1:  # one solution: its own family, the one known
+        fam = [0] if sols and sols[0].converged else []
+        for s, f in zip(sols, fam):
+            s.family = f
     num_families = families.number(sols, () if fam is None else fam)
     if call.one_per_family:
         sols = families.one_per_family(sols)

@@ -122,7 +122,7 @@ def rank(ctx: Context, c: Candidates, q_seed: Optional[np.ndarray],
     ``self_collision`` (M,) bool: the candidates' self-collision when already checked.
     ``families`` (M,) int: the candidates' family roots (-1: none,
     :func:`sik_ros.solver.families.roots`): within a tier the best of each family (by the
-    order above, obstacles first) ranks before every second solution of a family, so the
+    order above, colliding ones last) ranks before every second solution of a family, so the
     first answers cover the families; each solution's ``family`` is its root (numbered later
     by :func:`sik_ros.solver.families.number`).
     """
@@ -169,6 +169,8 @@ def rank(ctx: Context, c: Candidates, q_seed: Optional[np.ndarray],
         selfc[i] = checked[key]
         free += not selfc[i]
     colliding = hit | selfc
+    if families is not None:  # a family's first: its best free one, once collisions are known
+        repeat[:] = ~firsts(families, np.lexsort((within, equivalent, inexact, colliding)))
     tier = np.where(colliding, COLLIDING, np.where(inexact, FREE_INEXACT, FREE_EXACT))
     family = np.full(len(c), -1, dtype=np.int64) if families is None else families
     return [Solution(c.q[i].copy(), float(c.perr[i]), float(c.oerr[i]),
