@@ -36,6 +36,7 @@ IK_SOLUTION_FIELDS = {
     'self_collision': 'boolean',
     'score': 'double',
     'tier': 'uint8',
+    'family': 'uint16',
 }
 IK_SOLUTION_ARRAY_FIELDS = {
     'header': 'std_msgs/Header',
@@ -110,6 +111,7 @@ def test_solution_array_round_trips_through_serialization():
     solution.orientation_error = 2e-3
     solution.min_obstacle_distance = math.inf
     solution.score = 0.125
+    solution.family = 3
     message = IKSolutionArray()
     message.header.frame_id = 'panda_link0'
     message.error_code = SolveIK.Response.SUCCESS
@@ -120,6 +122,7 @@ def test_solution_array_round_trips_through_serialization():
     assert back == message
     assert math.isinf(back.solutions[0].min_obstacle_distance)
     assert list(back.solutions[0].posture_index) == [0.25, -0.5]
+    assert back.solutions[0].family == 3 and IKSolution.NO_FAMILY == 65535
 
 
 def test_request_round_trips_through_serialization():

@@ -209,10 +209,13 @@ def test_pose_goal_verified_by_fk(ros, panda, goals):
 
 
 def test_solutions_are_ranked(ros, panda):
-    """(tier, score) are non-decreasing, at most max_solutions are returned, none repeated."""
+    """(tier, a family's first, score) non-decreasing, at most max_solutions, none repeated."""
     _, p, _ = target(panda, 1)
     answer = solve(ros, request(p, max_solutions=5))
-    ranks = [(s.tier, s.score) for s in answer.solutions]
+    seen, ranks = set(), []
+    for s in answer.solutions:
+        ranks.append((s.tier, s.family in seen, s.score))
+        seen.add(s.family)
     assert 1 <= len(ranks) <= 5
     assert ranks == sorted(ranks)
     q = np.array([s.joint_state.position for s in answer.solutions])

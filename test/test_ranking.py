@@ -16,8 +16,11 @@ def ik():
 
 
 def ordered(solutions):
-    """Whether solutions are in (tier, exact first, score) order."""
-    keys = [(s.tier, not s.converged, s.score) for s in solutions]
+    """Whether solutions are in (tier, exact first, a family's first first, score) order."""
+    seen, keys = set(), []
+    for s in solutions:
+        keys.append((s.tier, not s.converged, s.family in seen, s.score))
+        seen.add(s.family)
     return keys == sorted(keys)
 
 

@@ -12,7 +12,7 @@ from shape_msgs.msg import SolidPrimitive
 from std_msgs.msg import Header
 from visualization_msgs.msg import Marker
 
-from sik_interfaces.msg import IKSolutionArray
+from sik_interfaces.msg import IKSolution, IKSolutionArray
 from sik_interfaces.srv import SolveIK
 from sik_ros.errors import InvalidArgument, InvalidGoal, InvalidSeed, JointLimitViolation
 from sik_ros.ros import conversions as conv
@@ -132,8 +132,19 @@ def test_solution_message_fields():
     assert list(msg.posture_index) == [0.25, -0.5]
     assert (msg.position_error, msg.orientation_error, msg.score) == (2e-5, 1e-4, 0.5)
     assert math.isinf(msg.min_obstacle_distance)
+    assert msg.family == IKSolution.NO_FAMILY  # a Solution made without a family
     array = conv.solution_array(header, R.SUCCESS, 'ok', [msg])
     assert deserialize_message(serialize_message(array), IKSolutionArray) == array
+
+
+def test_solution_family_round_trips():
+    """A solution's family goes into IKSolution.family and survives serialization."""
+    sol = solution(np.zeros(7))
+    sol.family = 2
+    msg = conv.solution_to_msg(sol, NAMES, Header(frame_id='panda_link0'))
+    assert msg.family == 2
+    array = conv.solution_array(Header(), R.SUCCESS, '', [msg])
+    assert deserialize_message(serialize_message(array), IKSolutionArray).solutions[0].family == 2
 
 
 def test_markers_show_ranked_postures(panda):

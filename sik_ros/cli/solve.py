@@ -9,7 +9,7 @@ import numpy as np
 from sik_ros.cli import argv_or_default, Parser, run_cli
 from sik_ros.errors import InvalidArgument
 from sik_ros.solver.config import PATH_DEFAULTS
-from sik_ros.solver.results import dumps, IKResult, tier_label
+from sik_ros.solver.results import dumps, family_label, IKResult, tier_label
 
 if TYPE_CHECKING:  # loaded in main(): it brings torch and Pinocchio
     from sik_ros.solver.selective_ik import SelectiveIK
@@ -39,6 +39,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument('--sphere', nargs=4, type=float, action='append', default=[],
                    metavar=('X', 'Y', 'Z', 'R'), help='sphere obstacle; repeatable')
     p.add_argument('--no-refine', action='store_true', help='raw decoded solutions')
+    p.add_argument('--one-per-family', action='store_true',
+                   help='at most one solution per posture family (the best of each)')
     p.add_argument('--timeout', type=float, help='[s]')
     p.add_argument('--json', action='store_true', help='print the result as JSON')
     return p
@@ -66,16 +68,19 @@ def short_names(names: List[str]) -> List[str]:
 def format_table(res: IKResult, joint_names: List[str]) -> str:
     """A readable table of ranked solutions."""
     lines = [f"{'#':>2} {'pos err [mm]':>12} {'rot err [deg]':>13} {'clearance':>9} "
-             f"{'tier':>10} {'score':>8}  q [rad] ({', '.join(short_names(joint_names))})"]
+             f"{'tier':>10} {'family':>6} {'score':>8}  "
+             f"q [rad] ({', '.join(short_names(joint_names))})"]
     for i, s in enumerate(res.solutions, 1):
         clear = '-' if not np.isfinite(s.min_obstacle_distance) else \
             f'{s.min_obstacle_distance:.3f}'
         lines.append(f'{i:>2} {s.position_error * 1e3:>12.4f} '
                      f'{np.degrees(s.orientation_error):>13.4f} {clear:>9} '
-                     f'{tier_label(s.tier, s.self_collision):>10} {s.score:>8.3f}  '
+                     f'{tier_label(s.tier, s.self_collision):>10} {family_label(s):>6} '
+                     f'{s.score:>8.3f}  '
                      + ' '.join(f'{v:+.3f}' for v in s.q))
     head = (f"{'success' if res.success else 'FAILED'}: {len(res.solutions)} solutions for a "
-            f'{res.goal} goal in {res.elapsed * 1e3:.1f} ms')
+            f'{res.goal} goal in {res.elapsed * 1e3:.1f} ms, {res.num_families} '
+            f"famil{'y' if res.num_families == 1 else 'ies'} found")
     return head + ('' if not res.message else f' ({res.message})') + '\n' + '\n'.join(lines)
 
 
@@ -138,7 +143,7 @@ def main(argv: Optional[List[str]] = None) -> int:
         obstacles += [Obstacle('sphere', (s[3],), tuple(s[:3])) for s in args.sphere]
         res = ik.solve((args.x, args.y, args.z), args.orientation, args.num_solutions,
                        seed=args.seed, obstacles=obstacles, refine=not args.no_refine,
-                       timeout=args.timeout)
+                       timeout=args.timeout, one_per_family=args.one_per_family or None)
         print(dumps(res, ik.joint_names) if args.json else format_table(res, ik.joint_names))
         return 0 if res.success else 1
     return run_cli('sik-solve', body)

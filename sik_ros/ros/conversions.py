@@ -204,6 +204,7 @@ def solution_to_msg(solution: Solution, joint_names: Sequence[str], header: Head
     msg.self_collision = bool(solution.self_collision)
     msg.score = float(solution.score)
     msg.tier = int(solution.tier)
+    msg.family = int(solution.family)
     return msg
 
 

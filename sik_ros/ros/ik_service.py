@@ -48,7 +48,7 @@ def solver_settings(p: NodeParams) -> dict:
     return {'position_tolerance': p.position_tolerance,
             'orientation_tolerance': p.orientation_tolerance,
             'max_solutions_cap': p.max_solutions_cap, 'max_obstacles': p.max_obstacles,
-            'max_waypoints': p.max_waypoints}
+            'max_waypoints': p.max_waypoints, 'one_per_family': p.one_per_family}
 
 
 @dataclass(frozen=True)

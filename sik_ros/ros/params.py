@@ -103,6 +103,8 @@ SPECS: Tuple[ParamSpec, ...] = (
     ParamSpec('orientation_tolerance', float, SOLVER_DEFAULTS.orientation_tolerance,
               'and within this orientation error for pose goals [rad]; (0, pi]',
               min=0.0, max=math.pi, min_open=True, unit='rad'),
+    ParamSpec('one_per_family', bool, SOLVER_DEFAULTS.one_per_family,
+              'answer at most one solution per posture family (the best of each)'),
     ParamSpec('refine', bool, True,
               'refine decoded solutions numerically (false: raw network output)'),
     ParamSpec('timeout', float, 0.05,

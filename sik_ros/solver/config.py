@@ -86,6 +86,22 @@ RAW_ROUNDS = 3
 #: blocking pays (docs/design.md, "Measured choices").
 KERNEL_ROWS = 3
 
+#: Step of a family's trace along the self-motion of a 7-joint arm at a pose [rad] (joint
+#: distance; :mod:`sik_ros.solver.families`): small enough that a trace keeps to its curve
+#: where two pieces pass near each other (docs/design.md).
+FAMILY_TRACE_STEP = 0.1
+#: Most steps of a trace each way (a curve longer than this many steps may show as two
+#: families).
+FAMILY_TRACE_STEPS = 300
+#: A solution within this many trace steps of a traced point is on the traced family.
+FAMILY_LINK = 1.0
+#: Step of the corrected straight segments that link solutions of a goal with more dimensions
+#: of self-motion (position goals, pose goals of 8+ joints) [rad].
+FAMILY_SEGMENT_STEP = 0.25
+#: Solutions farther apart than this are not linked directly (only through others) [rad]: on
+#: the Panda 2.5 gave the traced labels (1.0 split 3.5 % of the pairs of one family).
+FAMILY_REACH = 2.5
+
 # -- paths ----------------------------------------------------------------------------------------
 
 #: Interpolation points checked on every edge (fractions of the edge).
@@ -192,6 +208,9 @@ class SolverConfig:
             instead). Redundant arms get none (docs/design.md).
         seed_neighbours: the configurations nearest the goal pose (by tip position [m] and
             0.3 m per unit of quaternion distance) that those are chosen among.
+        one_per_family: return at most one solution per posture family (the best of each,
+            :mod:`sik_ros.solver.families`) instead of filling ``num_solutions`` with more
+            solutions of the families already given.
     """
 
     position_tolerance: float = 1e-4
@@ -227,6 +246,7 @@ class SolverConfig:
     branch_restarts: int = 48
     seed_starts: int = 24
     seed_neighbours: int = 100
+    one_per_family: bool = False
 
     def __post_init__(self):
         """Reject values the solver cannot work with.
@@ -254,6 +274,9 @@ class SolverConfig:
             if isinstance(value, bool) or not isinstance(value, int) or value < low:
                 raise InvalidArgument(f'SolverConfig.{name} must be an integer >= {low}; got '
                                       f'{value!r}')
+        if not isinstance(self.one_per_family, bool):
+            raise InvalidArgument(f'SolverConfig.one_per_family must be a bool; got '
+                                  f'{self.one_per_family!r}')
         if self.distinct_threshold >= TURN:
             # 2 pi equivalents of a posture are told apart by a whole turn of some joint
             raise InvalidArgument(f'SolverConfig.distinct_threshold must be below 2 pi; got '

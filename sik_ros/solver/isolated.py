@@ -25,6 +25,7 @@ from sik_ros.solver.codec import encode
 from sik_ros.solver.config import ORIENTATION_WEIGHT
 from sik_ros.solver.context import Context, Goal
 from sik_ros.solver.explore import unindexed
+from sik_ros.solver.families import number
 from sik_ros.solver.ranking import assess
 from sik_ros.solver.refine import refine, Refined
 from sik_ros.solver.results import COLLIDING, FREE_EXACT, IKResult, PendingIndices, Solution
@@ -65,12 +66,14 @@ def every_branch(ctx: Context, goal: Goal, seeds: SeedTable, num: int,
         selfc[i] = ctx.checker.self_collision(r.q[row][None])[0]
         free += not selfc[i]
     unknown = np.full(ctx.models[goal.kind].table.indices.shape[1], np.nan, dtype=np.float32)
+    # distinct exact rows of isolated solutions without periodic joints: each its own branch
     sols = [Solution(r.q[keep[i]].copy(), float(r.perr[keep[i]]), float(r.oerr[keep[i]]),
                      unknown.copy(), float(cost[i]), float('inf'), bool(selfc[i]), True,
-                     COLLIDING if selfc[i] else FREE_EXACT)
+                     COLLIDING if selfc[i] else FREE_EXACT, int(keep[i]))
             for i in np.argsort(selfc, kind='stable')[:num]]
     PendingIndices(sols, functools.partial(encode, ctx, goal))  # encoded when first read
-    return IKResult(True, sols, goal.kind, r.cut_short), None, r.cut_short
+    found = number(sols, keep)
+    return IKResult(True, sols, goal.kind, r.cut_short, num_families=found), None, r.cut_short
 
 
 def as_candidates(ctx: Context, goal: Goal, r: Refined) -> Candidates:

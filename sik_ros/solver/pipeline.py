@@ -25,6 +25,7 @@ import numpy as np
 from sik_ros.deadline import Deadline
 from sik_ros.kinematics.collision import Obstacle
 from sik_ros.kinematics.periodic import nearest_turns
+from sik_ros.solver import families
 from sik_ros.solver.adjust import adjust_index, adjust_raw
 from sik_ros.solver.batch import Candidates
 from sik_ros.solver.candidates import (oriented_postures, own_index, starting_postures,
@@ -37,8 +38,8 @@ from sik_ros.solver.explore import (branch_starts, periodic_equivalents, restart
                                     unindexed, walk)
 from sik_ros.solver.isolated import every_branch
 from sik_ros.solver.objectives import Objective
-from sik_ros.solver.ranking import (assess, best_distinct, by_score, distinct_mask, merge,
-                                    pose_score, rank)
+from sik_ros.solver.ranking import (assess, best_distinct, by_score, distinct_mask,
+                                    from_solutions, merge, pose_score, rank)
 from sik_ros.solver.refine import errors, refine
 from sik_ros.solver.results import IKResult, Solution
 from sik_ros.solver.single import (fill_indices, from_starts, oriented_count,
@@ -141,6 +142,7 @@ class Call:
         far: the goal is farther than ``reach_margin`` from every table cell (out of reach).
         seeds: the seed table giving isolated pose solutions their starts, or None.
         isolated: a reachable, refined pose goal of an arm with six joints or fewer.
+        one_per_family: at most one solution per posture family.
     """
 
     goal: Goal
@@ -155,12 +157,17 @@ class Call:
     far: bool
     seeds: Optional[SeedTable]
     isolated: bool
+    one_per_family: bool = False
 
 
 def solve(ctx: Context, goal: Goal, num: int, q_seed: Optional[np.ndarray],
           obstacles: Sequence[Obstacle], refined: bool, objective: Optional[Objective],
-          deadline: Deadline, first_found: bool = False) -> IKResult:
+          deadline: Deadline, first_found: bool = False,
+          one_per_family: Optional[bool] = None) -> IKResult:
     """Ranked solutions for one checked goal (see the module's stages).
+
+    ``one_per_family``: at most one solution per posture family (None: the config's
+    ``one_per_family``).
 
     With ``first_found`` (a path's starts) refinement stops at the first ``num`` distinct
     exact solutions even with a seed (then ranked by it): the seed's own row may be left
@@ -178,7 +185,7 @@ def solve(ctx: Context, goal: Goal, num: int, q_seed: Optional[np.ndarray],
         if result is not None:
             return result
     call = make_call(ctx, goal, num, q_seed, obstacles, refined, objective, deadline,
-                     first_found, single)
+                     first_found, single, one_per_family)
     timed_out = False
     own = None
     if lean(call):
@@ -199,16 +206,30 @@ def solve(ctx: Context, goal: Goal, num: int, q_seed: Optional[np.ndarray],
             c = adjust_raw(ctx, goal, c, num, q_seed is not None, call.deadline)
         own = c.take(np.arange(1)) if q_seed is not None and objective is None else None
     c = distinct_postures(ctx, c, goal, q_seed)
-    sols = rank(ctx, c, q_seed, obstacles, objective, limit=num, deadline=deadline)
+    fam = family_roots(ctx, call, c)
+    sols = rank(ctx, c, q_seed, obstacles, objective, limit=num, deadline=deadline,
+                families=fam)
     if own is not None:
         sols = seed_posture_first(ctx, goal, own, sols, q_seed, obstacles, num, deadline)
-    sols, cut = free_rounds(ctx, call, c, sols)
-    return finish(ctx, call, sols, timed_out or cut)
+    sols, fam, cut = free_rounds(ctx, call, c, sols, fam)
+    return finish(ctx, call, sols, timed_out or cut, fam)
+
+
+def family_roots(ctx: Context, call: Call, c: Candidates) -> Optional[np.ndarray]:
+    """The family root of each candidate (-1: not exact), or None when not labelled.
+
+    A path's starts (``first_found``) are not ranked by family: their tracks are. A call
+    asking for one solution answers one family (:func:`finish`) without linking candidates.
+    """
+    if call.first_found or call.num == 1:
+        return None
+    return families.roots(ctx, c, call.goal, call.deadline)
 
 
 def make_call(ctx: Context, goal: Goal, num: int, q_seed: Optional[np.ndarray],
               obstacles: Sequence[Obstacle], refined: bool, objective: Optional[Objective],
-              deadline: Deadline, first_found: bool, single: bool) -> Call:
+              deadline: Deadline, first_found: bool, single: bool,
+              one_per_family: Optional[bool] = None) -> Call:
     """The :class:`Call` of a request: whether the goal is out of reach, isolated, seeded."""
     cfg = ctx.config
     # a goal far from every position in the data is out of reach: answer quickly
@@ -218,8 +239,9 @@ def make_call(ctx: Context, goal: Goal, num: int, q_seed: Optional[np.ndarray],
     # has one, else drawn at random
     isolated = goal.kind == POSE and not far and ctx.robot.dof <= 6 and refined
     seeds = ctx.models[goal.kind].seeds if isolated and cfg.seed_starts > 0 else None
+    per_family = cfg.one_per_family if one_per_family is None else one_per_family
     return Call(goal, num, q_seed, obstacles, refined, objective, deadline, first_found,
-                single, far, seeds, isolated)
+                single, far, seeds, isolated, per_family)
 
 
 def lean(call: Call) -> bool:
@@ -307,8 +329,9 @@ def more_oriented(ctx: Context, call: Call, c: Candidates,
     return Candidates.concat(c, more), r.cut_short
 
 
-def free_rounds(ctx: Context, call: Call, c: Candidates,
-                sols: List[Solution]) -> Tuple[List[Solution], bool]:
+def free_rounds(ctx: Context, call: Call, c: Candidates, sols: List[Solution],
+                fam: Optional[np.ndarray]
+                ) -> Tuple[List[Solution], Optional[np.ndarray], bool]:
     """Stage 4's restarts when every exact solution found collides with the arm itself.
 
     Perturbed copies and random configurations are refined for a free one, in a few rounds
@@ -318,7 +341,8 @@ def free_rounds(ctx: Context, call: Call, c: Candidates,
     "Measured choices").
 
     Returns:
-        the solutions, and whether the deadline cut a round's refinement short.
+        the solutions, the family roots of the candidates they were ranked from (as
+        :func:`family_roots`), and whether the deadline cut a round's refinement short.
     """
     goal, deadline = call.goal, call.deadline
     rounds = 0 if not call.refined or call.seeds is not None else \
@@ -331,13 +355,20 @@ def free_rounds(ctx: Context, call: Call, c: Candidates,
         more, cut = restart(ctx, c, goal, deadline, keep=FREE_RESTARTS, stream=stream)
         timed_out = timed_out or cut
         c = distinct_postures(ctx, more, goal, call.q_seed)
+        fam = family_roots(ctx, call, c)
         sols = rank(ctx, c, call.q_seed, call.obstacles, call.objective, limit=call.num,
-                    deadline=deadline)
-    return sols, timed_out
+                    deadline=deadline, families=fam)
+    return sols, fam, timed_out
 
 
-def finish(ctx: Context, call: Call, sols: List[Solution], timed_out: bool) -> IKResult:
-    """Stage 5 and the answer: indices filled in, Algorithm 2 around obstacles, the result."""
+def finish(ctx: Context, call: Call, sols: List[Solution], timed_out: bool,
+           fam: Optional[np.ndarray] = None) -> IKResult:
+    """Stage 5 and the answer: indices filled in, Algorithm 2 around obstacles, the result.
+
+    ``fam``: the family roots of the candidates ranked (:func:`family_roots`): the families
+    are numbered in the answer's order and counted; with ``one_per_family`` only the best
+    solution of each is kept.
+    """
     goal, obstacles, deadline = call.goal, call.obstacles, call.deadline
     if not call.first_found or obstacles:
         fill_indices(ctx, goal, sols)
@@ -347,11 +378,25 @@ def finish(ctx: Context, call: Call, sols: List[Solution], timed_out: bool) -> I
         extra = adjust_index(ctx, goal, sols, obstacles, deadline)
         if extra is not None:
             sols = merge(ctx, sols, extra, goal.kind, call.q_seed, obstacles, call.objective,
-                         deadline)[:call.num]
+                         deadline)
+            if not call.first_found and call.num > 1:  # ranked again, families first
+                c = from_solutions(sols)
+                fam = families.roots(ctx, c, goal, deadline)
+                sols = rank(ctx, c, call.q_seed, obstacles, call.objective, deadline=deadline,
+                            families=fam)
+            sols = sols[:call.num]
+    if fam is None and call.num == 1:  # one solution: its own family, the one known
+        fam = [0] if sols and sols[0].converged else []
+        for s, f in zip(sols, fam):
+            s.family = f
+    num_families = families.number(sols, () if fam is None else fam)
+    if call.one_per_family:
+        sols = families.one_per_family(sols)
     # collision checks the deadline cut short leave unknown clearances
     timed_out = timed_out or any(math.isnan(s.min_obstacle_distance) for s in sols)
     success = any(s.converged for s in sols)
     msg = '' if success else (
         'no solution within tolerance (best-effort solutions returned)' if sols else
         'no solution')
-    return IKResult(success, sols, goal.kind, timed_out, message=msg)
+    return IKResult(success, sols, goal.kind, timed_out, message=msg,
+                    num_families=num_families)

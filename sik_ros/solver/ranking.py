@@ -20,6 +20,7 @@ from sik_ros.kinematics.periodic import posture_keys
 from sik_ros.solver.batch import Candidates
 from sik_ros.solver.config import INEXACT_COST, ORIENTATION_WEIGHT, SolverConfig
 from sik_ros.solver.context import Context, POSITION
+from sik_ros.solver.families import firsts
 from sik_ros.solver.objectives import JointLimitMargin, Objective, SeedDistance
 from sik_ros.solver.results import COLLIDING, FREE_EXACT, FREE_INEXACT, Solution
 
@@ -104,7 +105,8 @@ def equivalents(keys: np.ndarray, cost: np.ndarray) -> np.ndarray:
 def rank(ctx: Context, c: Candidates, q_seed: Optional[np.ndarray],
          obstacles: Sequence[Obstacle], objective: Optional[Objective],
          limit: Optional[int] = None, deadline: Deadline = NO_DEADLINE,
-         self_collision: Optional[np.ndarray] = None) -> List[Solution]:
+         self_collision: Optional[np.ndarray] = None,
+         families: Optional[np.ndarray] = None) -> List[Solution]:
     """Solutions ranked best first; with ``limit``, only the best ``limit`` of them.
 
     The order is lexicographic: tier (free and exact, free and inexact, colliding or
@@ -118,6 +120,11 @@ def rank(ctx: Context, c: Candidates, q_seed: Optional[np.ndarray],
     postures are found. Past ``deadline`` no more collision checks start: clearances not
     computed are NaN and rank as colliding; self-collision not checked is reported False.
     ``self_collision`` (M,) bool: the candidates' self-collision when already checked.
+    ``families`` (M,) int: the candidates' family roots (-1: none,
+    :func:`sik_ros.solver.families.roots`): within a tier the best of each family (by the
+    order above, colliding ones last) ranks before every second solution of a family, so the
+    first answers cover the families; each solution's ``family`` is its root (numbered later
+    by :func:`sik_ros.solver.families.number`).
     """
     if len(c) == 0:
         return []
@@ -138,9 +145,13 @@ def rank(ctx: Context, c: Candidates, q_seed: Optional[np.ndarray],
     else:
         keys = None
 
+    repeat = np.zeros(len(c), dtype=bool)
+    if families is not None:
+        repeat = ~firsts(families, np.lexsort((within, equivalent, inexact, hit)))
+
     def order(colliding: np.ndarray) -> np.ndarray:
         tier = np.where(colliding, COLLIDING, np.where(inexact, FREE_INEXACT, FREE_EXACT))
-        return np.lexsort((within, equivalent, inexact, tier))
+        return np.lexsort((within, equivalent, repeat, inexact, tier))
 
     selfc = np.zeros(len(c), dtype=bool)
     limit = len(c) if limit is None else limit
@@ -158,10 +169,13 @@ def rank(ctx: Context, c: Candidates, q_seed: Optional[np.ndarray],
         selfc[i] = checked[key]
         free += not selfc[i]
     colliding = hit | selfc
+    if families is not None:  # a family's first: its best free one, once collisions are known
+        repeat[:] = ~firsts(families, np.lexsort((within, equivalent, inexact, colliding)))
     tier = np.where(colliding, COLLIDING, np.where(inexact, FREE_INEXACT, FREE_EXACT))
+    family = np.full(len(c), -1, dtype=np.int64) if families is None else families
     return [Solution(c.q[i].copy(), float(c.perr[i]), float(c.oerr[i]),
                      c.z[i].astype(np.float32), float(within[i]), float(clear[i]),
-                     bool(selfc[i]), bool(c.exact[i]), int(tier[i]))
+                     bool(selfc[i]), bool(c.exact[i]), int(tier[i]), int(family[i]))
             for i in order(colliding)[:limit]]
 
 

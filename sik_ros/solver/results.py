@@ -10,6 +10,8 @@ import numpy as np
 #: Ranking tiers (:attr:`Solution.tier`), best first: free of collisions and within the
 #: tolerances; free and outside them; touching an obstacle or the robot itself.
 FREE_EXACT, FREE_INEXACT, COLLIDING = 0, 1, 2
+#: :attr:`Solution.family` of a solution on no family: not exact (a best-effort answer).
+NO_FAMILY = 65535
 
 
 def tier_label(tier: int, self_collision: bool = False) -> str:
@@ -17,6 +19,11 @@ def tier_label(tier: int, self_collision: bool = False) -> str:
     if tier == COLLIDING:
         return 'self-coll.' if self_collision else 'obstacle'
     return {FREE_EXACT: 'free', FREE_INEXACT: 'inexact'}.get(tier, f'tier {tier}')
+
+
+def family_label(solution: 'Solution') -> str:
+    """A solution's family for tables: its number, or '-' when it has none (inexact)."""
+    return '-' if solution.family == NO_FAMILY else str(solution.family)
 
 
 @dataclass
@@ -37,6 +44,10 @@ class Solution:
         converged: whether it meets the tolerances.
         tier: the ranking tier, ranked first: 0 free of collisions and exact, 1 free and
             inexact, 2 touching an obstacle or itself (:mod:`sik_ros.solver.ranking`).
+        family: the posture family it belongs to, numbered within one answer by first
+            appearance (0: the best-ranked solution's): a branch of an arm with six joints or
+            fewer at a pose, a connected piece of self-motion of a redundant arm
+            (:mod:`sik_ros.solver.families`); :data:`NO_FAMILY` for an inexact solution.
     """
 
     q: np.ndarray
@@ -48,6 +59,7 @@ class Solution:
     self_collision: bool = False
     converged: bool = False
     tier: int = 0
+    family: int = NO_FAMILY
     _pending: Optional['PendingIndices'] = field(default=None, init=False, repr=False,
                                                  compare=False)
 
@@ -106,7 +118,19 @@ class PendingIndices:
 
 @dataclass
 class IKResult:
-    """The answer to one target: ranked solutions, best first."""
+    """The answer to one target: ranked solutions, best first.
+
+    Attributes:
+        success: at least one solution is exact.
+        solutions: the ranked solutions, best first.
+        goal: ``'position'`` or ``'pose'``.
+        timed_out: the deadline cut the search short.
+        elapsed: the call's wall time [s].
+        message: why there is no exact solution ('' when there is).
+        num_families: how many posture families the goal has as far as the solver found
+            (those of the solutions returned, and any others among the exact solutions found;
+            0 without an exact solution).
+    """
 
     success: bool
     solutions: List[Solution] = field(default_factory=list)
@@ -114,6 +138,7 @@ class IKResult:
     timed_out: bool = False
     elapsed: float = 0.0
     message: str = ''
+    num_families: int = 0
 
 
 def result_to_dict(res: IKResult, joint_names: Sequence[str]) -> Dict:
@@ -121,6 +146,7 @@ def result_to_dict(res: IKResult, joint_names: Sequence[str]) -> Dict:
     return {
         'success': res.success, 'goal': res.goal, 'timed_out': res.timed_out,
         'elapsed_s': res.elapsed, 'message': res.message, 'joint_names': list(joint_names),
+        'num_families': res.num_families,
         'solutions': [{
             'q': s.q.tolist(), 'position_error': s.position_error,
             'orientation_error': s.orientation_error,
@@ -128,6 +154,7 @@ def result_to_dict(res: IKResult, joint_names: Sequence[str]) -> Dict:
             'min_obstacle_distance': (None if not np.isfinite(s.min_obstacle_distance)
                                       else s.min_obstacle_distance),
             'self_collision': s.self_collision, 'converged': s.converged, 'tier': s.tier,
+            'family': None if s.family == NO_FAMILY else s.family,
         } for s in res.solutions],
     }
 

@@ -157,8 +157,8 @@ class SelectiveIK:
 
     def solve(self, position, orientation=None, num_solutions: int = 16, seed=None,
               obstacles: Sequence[Obstacle] = (), refine: bool = True,
-              objective: Optional[Objective] = None, timeout: Optional[float] = None
-              ) -> IKResult:
+              objective: Optional[Objective] = None, timeout: Optional[float] = None,
+              one_per_family: Optional[bool] = None) -> IKResult:
         """Ranked joint solutions for one target.
 
         Args:
@@ -172,6 +172,8 @@ class SelectiveIK:
             objective: custom ranking cost (lower is better); default: distance to the seed
                 if given, else closeness to the joint limits.
             timeout: give up refining after this many seconds [s].
+            one_per_family: at most one solution per posture family, the best of each
+                (``Solution.family``); None: the config's ``one_per_family``.
 
         Raises:
             InvalidGoal, InvalidSeed, InvalidArgument: bad input (see docs/interfaces.md).
@@ -184,10 +186,12 @@ class SelectiveIK:
         objective = check_objective(objective)
         refine = flag(refine, 'refine')
         timeout = seconds(timeout, 'timeout')
+        per_family = None if one_per_family is None else flag(one_per_family,
+                                                              'one_per_family')
         deadline = Deadline.after(timeout, t0)
         with self._lock:
             result = pipeline.solve(self._ctx, goal, num, q_seed, obstacles, refine, objective,
-                                    deadline)
+                                    deadline, one_per_family=per_family)
         result.elapsed = time.perf_counter() - t0
         return result
 

@@ -85,7 +85,8 @@ def from_starts(ctx: Context, goal: Goal, starts: np.ndarray, q_seed: Optional[n
                     self_collision=selfc)
         if sols and not sols[0].in_collision:
             fill_indices(ctx, goal, sols)
-            return IKResult(True, sols, goal.kind, cut)
+            sols[0].family = 0  # one exact solution: one family known
+            return IKResult(True, sols, goal.kind, cut, num_families=1)
     return None
 
 

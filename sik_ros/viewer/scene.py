@@ -12,6 +12,7 @@ import numpy as np
 from sik_ros.kinematics.collision import Obstacle
 from sik_ros.solver import IKResult, SelectiveIK
 from sik_ros.solver.path import PathResult
+from sik_ros.solver.results import family_label
 
 #: Colours of the ranking tiers (0 free and exact, 1 free and inexact, 2 colliding) [RGB].
 TIER_COLORS = ((40, 150, 85), (230, 140, 20), (210, 40, 40))
@@ -78,19 +79,22 @@ def _fmt(value: float, scale: float, digits: int) -> str:
 
 
 def table(result: IKResult, selected: Optional[int] = None) -> str:
-    """A Markdown table of the ranked solutions: errors, clearance, score, tier."""
+    """A Markdown table of the ranked solutions: errors, clearance, score, tier, family."""
     if not result.solutions:
         return '**No solution.**'
-    head = ('| # | pos err [mm] | rot err [deg] | clearance [m] | score | tier |\n'
-            '|---|---|---|---|---|---|\n')
+    head = ('| # | pos err [mm] | rot err [deg] | clearance [m] | score | tier | family |\n'
+            '|---|---|---|---|---|---|---|\n')
     rows = []
     for i, s in enumerate(result.solutions):
         mark = f'**{i + 1}**' if i == selected else str(i + 1)
         rows.append(f'| {mark} | {_fmt(s.position_error, 1e3, 3)} | '
                     f'{_fmt(s.orientation_error, 180 / math.pi, 3)} | '
-                    f'{_fmt(s.min_obstacle_distance, 1, 3)} | {s.score:.4g} | {s.tier} |')
+                    f'{_fmt(s.min_obstacle_distance, 1, 3)} | {s.score:.4g} | {s.tier} | '
+                    f'{family_label(s)} |')
     status = 'success' if result.success else 'no exact solution'
-    return f'{len(result.solutions)} solutions ({status})\n\n' + head + '\n'.join(rows)
+    return (f'{len(result.solutions)} solutions ({status}), {result.num_families} '
+            f"famil{'y' if result.num_families == 1 else 'ies'} found\n\n" + head
+            + '\n'.join(rows))
 
 
 def joint_text(names: Sequence[str], q: np.ndarray) -> str:

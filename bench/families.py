@@ -1,0 +1,289 @@
+"""Posture families: how many of a pose's families our answers cover, against references.
+
+- **Panda** (``--panda-poses``): the analytic solver ``frankik`` (He and Liu's geometric IK, up
+  to 4 solutions per value of joint 7) swept over joint 7 on a fine grid; its solutions at
+  neighbouring values linked when close give the pose's families (connected pieces of the
+  self-motion within the limits). Ours (16 asked) cover a family when one of our exact
+  solutions lies on it; TRAC-IK restarts from random seeds for the same wall time as ours are
+  counted alike. Our solutions on no family of the reference count apart (``frankik`` misses
+  some configurations). Also: whether our ``family`` labels agree with the reference's (pairs
+  of our solutions on one reference family labelled alike, and on two labelled apart), and
+  whether the first answers come from as many families.
+- **An arm of six joints** (``--arm-bundle``): the pose's branches (exact solutions with every
+  angle wrapped to one turn, 0.1 rad apart) known from the union of ours and of ``--restarts``
+  TRAC-IK restarts per pose; the share ours return, and the poses where ours return all.
+
+Every solution is checked by the solver's FK within the default tolerances (0.1 mm, 1 mrad).
+Prints the figures; ``--json`` writes them for ``bench/render.py``.
+"""
+
+import argparse
+import os
+import sys
+import time
+from typing import Dict, List
+
+import numpy as np
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from peers import TracIK  # noqa: E402
+from report import add_json_argument, write_json  # noqa: E402
+
+from sik_ros.kernels.families import branch_labels  # noqa: E402
+from sik_ros.solver import SelectiveIK  # noqa: E402
+
+#: Exactness of every counted solution (the solver's default tolerances).
+POS_TOL, ROT_TOL = 1e-4, 1e-3
+#: A solution lies on a reference family when this close to one of its samples [rad].
+ON_FAMILY = 0.25
+#: Reference samples at neighbouring values of joint 7 closer than this are linked [rad].
+LINK = 0.3
+#: Branches of an arm of six joints: wrapped solutions closer than this are one [rad].
+SAME_BRANCH = 0.1
+
+
+def exact(ik: SelectiveIK, q: np.ndarray, position: np.ndarray, rot: np.ndarray) -> bool:
+    """Whether ``q`` reaches the pose within the tolerances (the solver's own FK)."""
+    p, r = ik.robot.fk_rot(q[None])
+    dr = r[0].T @ rot
+    angle = np.arccos(np.clip((np.trace(dr) - 1) / 2, -1, 1))
+    return np.linalg.norm(p[0] - position) <= POS_TOL and angle <= ROT_TOL
+
+
+def homogeneous(p: np.ndarray, r: np.ndarray) -> np.ndarray:
+    """A 4 x 4 transform from a position (3,) and a rotation (3, 3)."""
+    t = np.eye(4)
+    t[:3, :3], t[:3, 3] = r, p
+    return t
+
+
+class Frankik:
+    """The analytic reference for the Panda: ``frankik.ik_full`` swept over joint 7."""
+
+    def __init__(self, ik: SelectiveIK, samples: int):
+        import frankik
+        self.fk, self.ik_full = frankik.fk, frankik.ik_full
+        self.lower, self.upper = ik.robot.lower, ik.robot.upper
+        self.q7 = np.linspace(self.lower[6], self.upper[6], samples)
+        q = np.array([0.1, -0.4, 0.2, -2.0, 0.3, 1.5, 0.6])
+        ours = homogeneous(*[a[0] for a in ik.robot.fk_rot(q[None])])
+        # the solver's tip in the frame of frankik's fk (a fixed offset), and the pose its ik
+        # takes: fk's frame less its hand offset
+        self.offset = np.linalg.inv(self.fk(q)) @ ours
+        self.hand = frankik.FrankaKinematics.FrankaHandTCPOffset
+
+    def families(self, p: np.ndarray, r: np.ndarray):
+        """The reference's samples (S, 7) and their family labels (S,), and the sweep's time."""
+        goal = homogeneous(p, r) @ np.linalg.inv(self.offset) @ np.linalg.inv(self.hand)
+        t0 = time.perf_counter()
+        rows, step = [], []
+        for k, q7 in enumerate(self.q7):
+            sol = self.ik_full(goal, None, float(q7))
+            for q in sol:
+                if np.isfinite(q).all() and np.all(q >= self.lower - 1e-9) and \
+                        np.all(q <= self.upper + 1e-9):
+                    rows.append(q)
+                    step.append(k)
+        elapsed = time.perf_counter() - t0
+        if not rows:
+            return np.empty((0, 7)), np.empty(0, dtype=int), elapsed
+        q, step = np.array(rows), np.array(step)
+        parent = np.arange(len(q))
+
+        def root(i):
+            while parent[i] != i:
+                parent[i] = parent[parent[i]]
+                i = parent[i]
+            return i
+        for k in np.unique(step):
+            a, b = np.flatnonzero(step == k), np.flatnonzero(step == k + 1)
+            for i in a:
+                for j in b:
+                    if np.linalg.norm(q[i] - q[j]) < LINK:
+                        parent[max(root(i), root(j))] = min(root(i), root(j))
+        labels = np.array([root(i) for i in range(len(q))])
+        return q, np.unique(labels, return_inverse=True)[1], elapsed
+
+
+def on_family(q: np.ndarray, ref_q: np.ndarray, ref_label: np.ndarray) -> int:
+    """The reference family ``q`` lies on, or -1."""
+    if len(ref_q) == 0:
+        return -1
+    d = np.linalg.norm(ref_q - q, axis=1)
+    i = int(np.argmin(d))
+    return int(ref_label[i]) if d[i] < ON_FAMILY else -1
+
+
+def panda(args) -> Dict:
+    """The Panda against frankik's families."""
+    ik = SelectiveIK.load('panda')
+    ik.solve(*ik.fk(np.zeros(7)), num_solutions=16)  # warm
+    ref = Frankik(ik, args.q7_samples)
+    tracik = TracIK(ik.robot)
+    rng = np.random.default_rng(args.seed)
+    seeds = np.random.default_rng(args.seed + 100)  # the peer's: apart from the poses' draws
+    rows = []
+    for t in range(args.panda_poses):
+        q0 = rng.uniform(ik.robot.lower, ik.robot.upper)
+        pos, quat = ik.fk(q0)
+        p, r = ik.robot.fk_rot(q0[None])
+        p, r = p[0], r[0]
+        ref_q, ref_label, sweep_s = ref.families(p, r)
+        known = set(ref_label.tolist())
+        res = ik.solve(pos, quat, num_solutions=16)
+        ours = [s for s in res.solutions if exact(ik, s.q, p, r)]
+        fams = [on_family(s.q, ref_q, ref_label) for s in ours]
+        covered = {f for f in fams if f >= 0}
+        beyond = sum(f < 0 for f in fams)
+        # labels against the reference, over pairs of our solutions on reference families
+        agree = pairs = split = merged = 0
+        for i in range(len(ours)):
+            for j in range(i + 1, len(ours)):
+                if fams[i] < 0 or fams[j] < 0:
+                    continue
+                pairs += 1
+                same_ref, same_ours = fams[i] == fams[j], ours[i].family == ours[j].family
+                agree += same_ref == same_ours
+                split += same_ref and not same_ours
+                merged += same_ours and not same_ref
+        k = len(covered)
+        first_k = len({f for f in fams[:k] if f >= 0}) == k
+        # TRAC-IK from random seeds for the same wall time
+        t_budget, t0 = res.elapsed, time.perf_counter()
+        peer = set()
+        while time.perf_counter() - t0 < t_budget:
+            ok, q = tracik.solve(pos, quat, seeds.uniform(ik.robot.lower, ik.robot.upper))
+            if ok and exact(ik, q, p, r):
+                f = on_family(q, ref_q, ref_label)
+                if f >= 0:
+                    peer.add(f)
+        rows.append({'known': len(known), 'ours': k, 'beyond': beyond,
+                     'num_families': res.num_families, 'pairs': pairs, 'agree': agree,
+                     'split': split, 'merged': merged,
+                     'first_k': first_k, 'peer': len(peer), 'time_s': res.elapsed,
+                     'sweep_s': sweep_s, 'success': res.success})
+        print(f'panda {t:3d}: frankik {len(known)} families; ours {k} (+{beyond} beyond), '
+              f'num_families {res.num_families}, labels {agree}/{pairs}, TRAC-IK {len(peer)}; '
+              f'{res.elapsed * 1e3:.1f} ms, sweep {sweep_s * 1e3:.1f} ms', flush=True)
+    with_ref = [x for x in rows if x['known']]
+    known = sum(x['known'] for x in with_ref)
+    out = {
+        'poses': len(rows), 'poses_with_reference': len(with_ref),
+        'known_mean': known / max(len(with_ref), 1),
+        'coverage': sum(x['ours'] for x in with_ref) / max(known, 1),
+        'all_families': float(np.mean([x['ours'] == x['known'] for x in with_ref])),
+        'beyond_mean': float(np.mean([x['beyond'] for x in rows])),
+        'peer_coverage': sum(x['peer'] for x in with_ref) / max(known, 1),
+        'label_agreement': sum(x['agree'] for x in rows) / max(
+            sum(x['pairs'] for x in rows), 1),
+        'label_split': sum(x['split'] for x in rows) / max(sum(x['pairs'] for x in rows), 1),
+        'label_merged': sum(x['merged'] for x in rows) / max(
+            sum(x['pairs'] for x in rows), 1),
+        'first_k': float(np.mean([x['first_k'] for x in with_ref])),
+        'num_families_mean': float(np.mean([x['num_families'] for x in rows])),
+        'time_median_ms': float(np.median([x['time_s'] for x in rows]) * 1e3),
+        'sweep_median_ms': float(np.median([x['sweep_s'] for x in rows]) * 1e3),
+        'q7_samples': args.q7_samples,
+    }
+    print('panda: ' + ', '.join(f'{k} {v:.3g}' if isinstance(v, float) else f'{k} {v}'
+                                for k, v in out.items()))
+    return out
+
+
+def branches(q: List[np.ndarray], periodic: np.ndarray) -> np.ndarray:
+    """Branch labels of solutions (every angle wrapped to one turn)."""
+    if not q:
+        return np.empty(0, dtype=np.int64)
+    return branch_labels(np.ascontiguousarray(q, dtype=float), SAME_BRANCH,
+                         np.ones(len(periodic), dtype=bool))
+
+
+def arm(args) -> Dict:
+    """An arm of six joints: our branches against the union with TRAC-IK's restarts."""
+    ik = SelectiveIK.load(args.arm_bundle)
+    if args.distinct is not None:
+        ik.configure(distinct_threshold=args.distinct)
+    robot = ik.robot
+    ik.solve(*ik.fk((robot.lower + robot.upper) / 2), num_solutions=16)  # warm
+    tracik = TracIK(robot)
+    rng = np.random.default_rng(args.seed + 1)
+    rows = []
+    for t in range(args.arm_poses):
+        q0 = rng.uniform(robot.lower, robot.upper)
+        pos, quat = ik.fk(q0)
+        p, r = robot.fk_rot(q0[None])
+        p, r = p[0], r[0]
+        res = ik.solve(pos, quat, num_solutions=16)
+        ours = [s.q for s in res.solutions if exact(ik, s.q, p, r)]
+        theirs = []
+        for _ in range(args.restarts):
+            ok, q = tracik.solve(pos, quat, rng.uniform(robot.lower, robot.upper))
+            if ok and exact(ik, q, p, r):
+                theirs.append(q)
+        labels = branches(ours + theirs, robot.periodic)
+        known = len(set(labels.tolist()))
+        found = len(set(labels[:len(ours)].tolist()))
+        # the branches free of self-collision (the seed table's data holds no others)
+        every = ours + theirs
+        free = {int(b) for b in set(labels.tolist()) if not ik.context.checker.self_collision(
+            every[int(np.flatnonzero(labels == b)[0])][None])[0]}
+        free_found = len(free & set(labels[:len(ours)].tolist()))
+        # our labels: one family per branch
+        fam = [s.family for s in res.solutions if exact(ik, s.q, p, r)]
+        consistent = all((labels[i] == labels[j]) == (fam[i] == fam[j])
+                         for i in range(len(ours)) for j in range(i + 1, len(ours)))
+        k = found
+        first_k = len(set(labels[:min(k, len(ours))].tolist())) == k
+        rows.append({'known': known, 'ours': found, 'consistent': consistent,
+                     'known_free': len(free), 'ours_free': free_found,
+                     'first_k': first_k, 'num_families': res.num_families,
+                     'time_s': res.elapsed})
+        print(f'{robot.name} {t:3d}: known {known} branches, ours {found}; free of '
+              f'self-collision {len(free)}, ours {free_found}; '
+              f'num_families {res.num_families}, labels consistent {consistent}, '
+              f'{res.elapsed * 1e3:.1f} ms', flush=True)
+    known = sum(x['known'] for x in rows)
+    out = {'arm': robot.name, 'dof': robot.dof, 'poses': len(rows),
+           'restarts': args.restarts, 'known_mean': known / max(len(rows), 1),
+           'coverage': sum(x['ours'] for x in rows) / max(known, 1),
+           'all_branches': float(np.mean([x['ours'] == x['known'] for x in rows])),
+           'known_free_mean': sum(x['known_free'] for x in rows) / max(len(rows), 1),
+           'coverage_free': sum(x['ours_free'] for x in rows) / max(
+               sum(x['known_free'] for x in rows), 1),
+           'all_free_branches': float(np.mean([x['ours_free'] == x['known_free']
+                                               for x in rows])),
+           'distinct_threshold': ik.config.distinct_threshold,
+           'labels_consistent': float(np.mean([x['consistent'] for x in rows])),
+           'first_k': float(np.mean([x['first_k'] for x in rows])),
+           'time_median_ms': float(np.median([x['time_s'] for x in rows]) * 1e3)}
+    print(f'{robot.name}: ' + ', '.join(f'{k} {v:.3g}' if isinstance(v, float) else f'{k} {v}'
+                                        for k, v in out.items()))
+    return out
+
+
+def main(argv=None) -> int:
+    """Run the comparisons asked for and print (and write) the figures."""
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument('--panda-poses', type=int, default=40)
+    parser.add_argument('--q7-samples', type=int, default=1200,
+                        help='values of joint 7 in frankik\'s sweep')
+    parser.add_argument('--arm-bundle', default='', help='bundle of an arm of six joints')
+    parser.add_argument('--arm-poses', type=int, default=60)
+    parser.add_argument('--restarts', type=int, default=300,
+                        help='TRAC-IK restarts per pose of the six-joint arm')
+    parser.add_argument('--distinct', type=float, default=None,
+                        help='the six-joint arm\'s distinct_threshold (default: the solver\'s)')
+    parser.add_argument('--seed', type=int, default=0)
+    add_json_argument(parser)
+    args = parser.parse_args(argv)
+    results = {'seed': args.seed}
+    if args.panda_poses > 0:
+        results['panda'] = panda(args)
+    if args.arm_bundle and args.arm_poses > 0:
+        results['arm'] = arm(args)
+    write_json(args.json, 'families', results)
+    return 0
+
+
+if __name__ == '__main__':
+    raise SystemExit(main())

@@ -1,0 +1,285 @@
+"""Compiled posture families: which exact solutions of one goal are connected.
+
+A *family* is a connected set of a goal's exact solutions within the joint limits, periodic
+joints taken modulo 2 pi (:mod:`sik_ros.solver.families` says which test each arm and goal
+gets):
+
+- :func:`branch_labels`: isolated solutions (a pose goal of an arm with six joints or fewer):
+  rows within ``threshold`` of each other, periodic joints at their nearest turn, are one
+  branch;
+- :func:`trace_labels`: the one-dimensional self-motion of a 7-joint arm at a pose: each curve
+  is followed from an unlabelled solution both ways (predictor along the null space of the
+  Jacobian, damped least squares corrector back onto the goal) until it leaves the limits,
+  closes on itself or fails; every solution it passes belongs to the start's family;
+- :func:`segment_labels`: self-motion of more dimensions (position goals, pose goals of 8+
+  joints): two solutions are linked when the straight joint segment between them, each point
+  corrected onto the goal, stays continuous and within the limits (nearest pairs first, only
+  between families not yet linked).
+
+Labels are each row's family root: the smallest row index of its family.
+"""
+
+import math
+
+from numba import njit
+import numpy as np
+
+from sik_ros.kernels.chain import _det6, place
+from sik_ros.kernels.clock import monotonic
+from sik_ros.kernels.dls import goal_error, limited_step
+from sik_ros.kinematics.periodic import PER_TURN, TURN
+
+#: Most corrector iterations per point of a trace or a segment.
+CORRECTIONS = 8
+#: Squared damping of the corrector's steps [1].
+CORRECT_DAMPING2 = 1e-8
+
+
+@njit(cache=True, nogil=True)
+def _distance(a, b, periodic):  # pragma: no cover (compiled)
+    """Joint distance [rad] of two rows, periodic joints at their nearest turn."""
+    s = 0.0
+    for c in range(a.shape[0]):
+        v = a[c] - b[c]
+        if periodic[c]:
+            v -= TURN * np.rint(v * PER_TURN)
+        s += v * v
+    return math.sqrt(s)
+
+
+@njit(cache=True, nogil=True)
+def _root(parent, i):  # pragma: no cover (compiled)
+    """The root of ``i`` in the union-find forest ``parent`` (paths halved)."""
+    while parent[i] != i:
+        parent[i] = parent[parent[i]]
+        i = parent[i]
+    return i
+
+
+@njit(cache=True, nogil=True)
+def _roots(parent):  # pragma: no cover (compiled)
+    """Each row's root."""
+    out = np.empty(parent.shape[0], dtype=np.int64)
+    for i in range(parent.shape[0]):
+        out[i] = _root(parent, i)
+    return out
+
+
+@njit(cache=True, nogil=True)
+def _union(parent, a, b):  # pragma: no cover (compiled)
+    """Join the families of ``a`` and ``b``; the smaller root stays the root."""
+    ra, rb = _root(parent, a), _root(parent, b)
+    if ra < rb:
+        parent[rb] = ra
+    elif rb < ra:
+        parent[ra] = rb
+
+
+@njit('int64[::1](float64[:, ::1], float64, boolean[::1])', cache=True, nogil=True)
+def branch_labels(q, threshold, periodic):  # pragma: no cover (compiled)
+    """Each row's branch: the first earlier row within ``threshold`` [rad], else itself."""
+    m = q.shape[0]
+    labels = np.arange(m)
+    for i in range(m):
+        for j in range(i):
+            if labels[j] == j and _distance(q[i], q[j], periodic) < threshold:
+                labels[i] = j
+                break
+    return labels
+
+
+@njit(cache=True, nogil=True)
+def _correct(frames, lower, upper, periodic, x, pos, rot, pose, tol_p, tol_o, max_step,
+             p, r, jac, jm, a, err, xs):  # pragma: no cover (compiled)
+    """``x`` corrected onto the goal in place; whether it met the tolerances within limits."""
+    dims = 6 if pose else 3
+    for _ in range(CORRECTIONS):
+        place(frames, x, p, r, jac, True)
+        pe, oe = goal_error(pos, rot, pose, p, r, err)
+        if pe < tol_p and (not pose or oe < tol_o):
+            return True
+        limited_step(x, jac, err, dims, lower, upper, periodic, True, CORRECT_DAMPING2,
+                     max_step, jm, a, xs)
+    place(frames, x, p, r, jac, False)
+    pe, oe = goal_error(pos, rot, pose, p, r, err)
+    return pe < tol_p and (not pose or oe < tol_o)
+
+
+@njit(cache=True, nogil=True)
+def _at_limit(x, lower, upper, periodic):  # pragma: no cover (compiled)
+    """Whether a joint that does not wrap stands at (or beyond) a limit."""
+    for j in range(x.shape[0]):
+        if not periodic[j] and (x[j] <= lower[j] + 1e-9 or x[j] >= upper[j] - 1e-9):
+            return True
+    return False
+
+
+@njit(cache=True, nogil=True)
+def _null7(jac, minor, v):  # pragma: no cover (compiled)
+    """``v`` (7,): the unit null vector of a 6 x 7 Jacobian (signed minors); False if singular."""
+    norm = 0.0
+    scale = 0.0
+    for r in range(6):
+        for c in range(7):
+            scale = max(scale, abs(jac[r, c]))
+    for i in range(7):
+        for r in range(6):
+            c2 = 0
+            for c in range(7):
+                if c != i:
+                    minor[r, c2] = jac[r, c]
+                    c2 += 1
+        d = _det6(minor)
+        v[i] = -d if i % 2 else d
+        norm += v[i] * v[i]
+    if norm <= (1e-9 * scale ** 6) ** 2:
+        return False
+    norm = math.sqrt(norm)
+    for i in range(7):
+        v[i] /= norm
+    return True
+
+
+@njit('int64[::1](float64[:, :, ::1], float64[::1], float64[::1], boolean[::1], '
+      'float64[:, ::1], float64[::1], float64[:, ::1], float64, int64, float64, float64, '
+      'float64, float64, float64)', cache=True, nogil=True)
+def trace_labels(frames, lower, upper, periodic, q, pos, rot, step, max_steps, link, tol_p,
+                 tol_o, max_step, deadline):  # pragma: no cover (compiled)
+    """Family roots of exact pose solutions ``q`` (M, 7) of a 7-joint arm by tracing.
+
+    From each solution not yet reached by an earlier trace, the self-motion curve is followed
+    both ways in steps of ``step`` [rad] (at most ``max_steps`` per way): the unit null vector
+    (kept pointing the way the trace goes), then the corrector onto the goal pose
+    (tolerances ``tol_p`` [m], ``tol_o`` [rad]). A way ends where a joint that does not wrap
+    reaches a limit (the family ends there), where the corrector fails or jumps more than two
+    steps (a singularity), or where the curve closes on its start. Every solution within
+    ``link`` [rad] of a point of the trace joins the start's family. Past ``deadline`` (a
+    :func:`~sik_ros.kernels.clock.monotonic` time) no trace starts and a running one stops:
+    solutions not reached stay families of their own.
+    """
+    m, n = q.shape[0], q.shape[1]
+    parent = np.arange(m)
+    p, r = np.empty(3), np.empty((3, 3))
+    jac, jm = np.empty((6, n)), np.empty((6, n))
+    a, err, xs = np.empty((6, 6)), np.empty(6), np.empty(6)
+    minor = np.empty((6, 6))
+    v, heading = np.empty(n), np.empty(n)
+    x, prev = np.empty(n), np.empty(n)
+    timed = deadline < np.inf
+    for i in range(m):
+        if _root(parent, i) != i:  # reached by an earlier solution's trace
+            continue
+        closed = False
+        for way in (1.0, -1.0):
+            if closed:
+                break
+            x[:] = q[i]
+            first = True
+            for s in range(max_steps):
+                if timed and monotonic() > deadline:
+                    return _roots(parent)
+                place(frames, x, p, r, jac, True)
+                if not _null7(jac, minor, v):
+                    break
+                if first:
+                    sign = way
+                else:
+                    dot = 0.0
+                    for j in range(n):
+                        dot += v[j] * heading[j]
+                    sign = 1.0 if dot >= 0.0 else -1.0
+                first = False
+                prev[:] = x
+                for j in range(n):
+                    heading[j] = sign * v[j]
+                    x[j] += step * heading[j]
+                    if periodic[j]:
+                        if x[j] < lower[j]:
+                            x[j] += TURN
+                        elif x[j] > upper[j]:
+                            x[j] -= TURN
+                    elif x[j] < lower[j] or x[j] > upper[j]:
+                        x[j] = min(max(x[j], lower[j]), upper[j])
+                if not _correct(frames, lower, upper, periodic, x, pos, rot, True, tol_p,
+                                tol_o, max_step, p, r, jac, jm, a, err, xs):
+                    break
+                if _distance(x, prev, periodic) > 2.0 * step:
+                    break
+                for k in range(m):
+                    if k != i and _distance(x, q[k], periodic) < link:
+                        _union(parent, i, k)
+                if s >= 2 and _distance(x, q[i], periodic) < link:
+                    closed = True
+                    break
+                if _at_limit(x, lower, upper, periodic):
+                    break
+    return _roots(parent)
+
+
+@njit('int64[::1](float64[:, :, ::1], float64[::1], float64[::1], boolean[::1], '
+      'float64[:, ::1], float64[::1], float64[:, ::1], boolean, float64, float64, float64, '
+      'float64, float64, float64)', cache=True, nogil=True)
+def segment_labels(frames, lower, upper, periodic, q, pos, rot, pose, step, reach, tol_p,
+                   tol_o, max_step, deadline):  # pragma: no cover (compiled)
+    """Family roots of exact solutions ``q`` (M, n) linked by corrected straight segments.
+
+    Pairs up to ``reach`` [rad] apart are tried nearest first, only between families not yet
+    joined (a chain of near solutions links far ones): the segment from
+    one to the other (periodic joints the short way round) in points ``step`` [rad] apart,
+    each point the previous corrected one moved by the segment's step and corrected onto
+    the goal (``pose``: position and orientation, else position). The pair is linked when
+    every point is corrected within the tolerances, stays within the limits and moves at
+    most two steps, and the last lands within ``2 * step`` of the other solution. Past
+    ``deadline`` no more pairs are tried.
+    """
+    m, n = q.shape[0], q.shape[1]
+    parent = np.arange(m)
+    if m < 2:
+        return _roots(parent)
+    pairs = m * (m - 1) // 2
+    dist = np.empty(pairs)
+    ia, ib = np.empty(pairs, dtype=np.int64), np.empty(pairs, dtype=np.int64)
+    k = 0
+    for i in range(m):
+        for j in range(i + 1, m):
+            dist[k], ia[k], ib[k] = _distance(q[i], q[j], periodic), i, j
+            k += 1
+    p, r = np.empty(3), np.empty((3, 3))
+    jac, jm = np.empty((6, n)), np.empty((6, n))
+    a, err, xs = np.empty((6, 6)), np.empty(6), np.empty(6)
+    x, prev, delta = np.empty(n), np.empty(n), np.empty(n)
+    timed = deadline < np.inf
+    for k in np.argsort(dist):
+        i, j = ia[k], ib[k]
+        if dist[k] > reach:
+            break
+        if _root(parent, i) == _root(parent, j):
+            continue
+        if timed and monotonic() > deadline:
+            break
+        count = max(1, int(math.ceil(dist[k] / step)))
+        for c in range(n):
+            v = q[j, c] - q[i, c]
+            if periodic[c]:
+                v -= TURN * np.rint(v * PER_TURN)
+            delta[c] = v / count
+        x[:] = q[i]
+        ok = True
+        for _ in range(count):
+            prev[:] = x
+            for c in range(n):
+                x[c] += delta[c]
+                if periodic[c]:
+                    if x[c] < lower[c]:
+                        x[c] += TURN
+                    elif x[c] > upper[c]:
+                        x[c] -= TURN
+                x[c] = min(max(x[c], lower[c]), upper[c])
+            if not _correct(frames, lower, upper, periodic, x, pos, rot, pose, tol_p, tol_o,
+                            max_step, p, r, jac, jm, a, err, xs) or \
+                    _distance(x, prev, periodic) > 2.0 * step:
+                ok = False
+                break
+        if ok and _distance(x, q[j], periodic) < 2.0 * step:
+            _union(parent, i, j)
+    return _roots(parent)

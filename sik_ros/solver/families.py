@@ -1,0 +1,124 @@
+"""Posture families: which of a goal's exact solutions are one way of reaching it.
+
+A family is a connected set of a goal's exact solutions within the joint limits, periodic joints
+taken modulo 2 pi:
+
+- an arm with six joints or fewer at a pose has isolated solutions: a family is a *branch*,
+  the solutions equal modulo 2 pi on periodic joints (the same placement of the arm);
+- a redundant arm (and any arm at a position goal) has self-motion: a family is a connected
+  piece of it within the limits. Two solutions are one family when a corrected straight
+  segment links them, directly (up to ``FAMILY_REACH`` apart) or through others: a
+  certificate of connection, so solutions it fails to link count as two families, as far as
+  the solver knows. On the Panda these labels are those of tracing each one-dimensional
+  self-motion curve from every solution (:func:`traced`, at 1.5x the time of a solve;
+  docs/design.md).
+
+The compiled tests are in :mod:`sik_ros.kernels.families`. Ranking takes the best of each
+family first (:func:`firsts`), then the others by rank.
+"""
+
+from typing import List, Sequence
+
+import numpy as np
+
+from sik_ros.deadline import Deadline
+from sik_ros.kernels import as_arg
+from sik_ros.kernels.families import branch_labels, segment_labels, trace_labels
+from sik_ros.solver.batch import Candidates
+from sik_ros.solver.config import (FAMILY_LINK, FAMILY_REACH, FAMILY_SEGMENT_STEP,
+                                   FAMILY_TRACE_STEP, FAMILY_TRACE_STEPS)
+from sik_ros.solver.context import Context, Goal, POSE
+from sik_ros.solver.refine import NO_ROTATION
+from sik_ros.solver.results import NO_FAMILY, Solution
+
+
+def labels(ctx: Context, q: np.ndarray, goal: Goal, deadline: Deadline) -> np.ndarray:
+    """(M,) int64: each exact solution's family root (the smallest row of its family).
+
+    ``q`` (M, n) [rad]: exact solutions of ``goal``. Past ``deadline`` solutions not yet
+    linked stay families of their own.
+    """
+    cfg, robot = ctx.config, ctx.robot
+    q = as_arg(q)
+    if len(q) < 2:
+        return np.arange(len(q))
+    periodic = as_arg(robot.periodic, bool)
+    pose = goal.kind == POSE
+    if pose and robot.dof <= 6:
+        return branch_labels(q, float(cfg.distinct_threshold), periodic)
+    rot = as_arg(goal.rotation) if pose else NO_ROTATION
+    args = (robot.frames, robot.lower, robot.upper, periodic, q, as_arg(goal.position), rot)
+    return segment_labels(*args, pose, FAMILY_SEGMENT_STEP, FAMILY_REACH,
+                          cfg.position_tolerance, cfg.orientation_tolerance, cfg.max_step,
+                          deadline.at)
+
+
+def traced(ctx: Context, q: np.ndarray, goal: Goal, deadline: Deadline) -> np.ndarray:
+    """(M,) int64: family roots of a 7-joint arm's exact pose solutions by tracing the curve.
+
+    The reference the segment links are checked against (tests, docs/design.md): each
+    solution's self-motion followed both ways in steps of ``FAMILY_TRACE_STEP``.
+    """
+    cfg, robot = ctx.config, ctx.robot
+    if robot.dof != 7 or goal.kind != POSE:
+        raise ValueError('tracing needs a pose goal of a 7-joint arm')
+    return trace_labels(robot.frames, robot.lower, robot.upper,
+                        as_arg(robot.periodic, bool), as_arg(q), as_arg(goal.position),
+                        as_arg(goal.rotation), FAMILY_TRACE_STEP, FAMILY_TRACE_STEPS,
+                        FAMILY_LINK * FAMILY_TRACE_STEP, cfg.position_tolerance,
+                        cfg.orientation_tolerance, cfg.max_step, deadline.at)
+
+
+def roots(ctx: Context, c: Candidates, goal: Goal, deadline: Deadline) -> np.ndarray:
+    """(M,) int64: the family root of each exact candidate of ``c`` (a row of ``c``), -1 else."""
+    out = np.full(len(c), -1, dtype=np.int64)
+    rows = np.flatnonzero(c.exact)
+    if len(rows):
+        out[rows] = rows[labels(ctx, c.q[rows], goal, deadline)]
+    return out
+
+
+def firsts(families: np.ndarray, order: np.ndarray) -> np.ndarray:
+    """(M,) bool: the first row of each family in ``order`` (rows without one: True).
+
+    ``families`` (M,): family roots, -1 for none; ``order``: the rows, best first.
+    """
+    first = np.ones(len(families), dtype=bool)
+    seen = set()
+    for i in order:
+        f = int(families[i])
+        if f < 0:
+            continue
+        first[i] = f not in seen
+        seen.add(f)
+    return first
+
+
+def number(sols: Sequence[Solution], families: Sequence[int]) -> int:
+    """Number the solutions' families by first appearance (0: the best-ranked family).
+
+    ``families``: every family root found (of the returned solutions and the others), each
+    solution's own in its ``family`` field (-1 or :data:`NO_FAMILY`: none). Families found
+    but not returned are counted, not numbered. Returns how many families were found.
+    """
+    found = {int(f) for f in families if 0 <= int(f) < NO_FAMILY}
+    named = {}
+    for s in sols:
+        if 0 <= s.family < NO_FAMILY and s.family in found:
+            s.family = named.setdefault(s.family, len(named))
+        else:
+            s.family = NO_FAMILY
+    return len(found)
+
+
+def one_per_family(sols: List[Solution]) -> List[Solution]:
+    """The best solution of each family (ranked order kept); those without one stay."""
+    seen = set()
+    out = []
+    for s in sols:
+        if s.family != NO_FAMILY:
+            if s.family in seen:
+                continue
+            seen.add(s.family)
+        out.append(s)
+    return out

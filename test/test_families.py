@@ -1,0 +1,131 @@
+"""Posture families: labels, their numbering, the order they give, the one-per-family option."""
+
+import numpy as np
+import pytest
+
+from sik_ros.deadline import NO_DEADLINE
+from sik_ros.errors import InvalidArgument
+from sik_ros.kernels.families import branch_labels
+from sik_ros.kinematics.periodic import TURN
+from sik_ros.kinematics.rotations import quaternion_matrix
+from sik_ros.solver import families, SelectiveIK, SolverConfig
+from sik_ros.solver.context import Goal
+from sik_ros.solver.results import NO_FAMILY, result_to_dict
+
+
+@pytest.fixture(scope='module')
+def bundled():
+    """The bundled Panda solver."""
+    return SelectiveIK.load('panda')
+
+
+def pose_goals(ik, count, seed=0):
+    """Reachable pose goals: FK of configurations drawn within the limits."""
+    rng = np.random.default_rng(seed)
+    return [ik.fk(rng.uniform(ik.robot.lower, ik.robot.upper)) for _ in range(count)]
+
+
+def test_families_numbered_by_first_appearance_and_distinct_first(bundled):
+    """Labels run 0, 1, ... in first appearance; the first answers come from distinct ones."""
+    for pos, quat in pose_goals(bundled, 6):
+        res = bundled.solve(pos, quat, num_solutions=16)
+        exact = [s for s in res.solutions if s.converged]
+        assert exact and all(s.family != NO_FAMILY for s in exact)
+        labels = [s.family for s in exact]
+        seen = []
+        for f in labels:
+            if f not in seen:
+                assert f == len(seen)
+                seen.append(f)
+        assert res.num_families >= len(seen)
+        # every family of the answer appears before any family's second solution
+        free = [s.family for s in exact if s.tier == 0]
+        k = len(set(free))
+        assert sorted(free[:k]) == sorted(set(free))
+
+
+def test_one_per_family_keeps_the_best_of_each(bundled):
+    """With one_per_family the answer holds each family once, as the full answer's first."""
+    pos, quat = pose_goals(bundled, 1, seed=3)[0]
+    full = bundled.solve(pos, quat, num_solutions=16)
+    one = bundled.solve(pos, quat, num_solutions=16, one_per_family=True)
+    labels = [s.family for s in one.solutions]
+    assert labels == list(range(len(labels)))
+    assert one.num_families == full.num_families
+    firsts = {}
+    for s in full.solutions:
+        firsts.setdefault(s.family, s)
+    for s in one.solutions:
+        assert np.allclose(s.q, firsts[s.family].q)
+
+
+def test_one_per_family_by_config_and_bad_values(bundled):
+    """The option is a SolverConfig field too; anything but a bool is refused."""
+    ik = bundled.with_config(one_per_family=True)
+    pos, quat = pose_goals(bundled, 1, seed=4)[0]
+    res = ik.solve(pos, quat, num_solutions=16)
+    assert len({s.family for s in res.solutions}) == len(res.solutions)
+    with pytest.raises(InvalidArgument, match='one_per_family'):
+        SolverConfig(one_per_family=1)
+    with pytest.raises(InvalidArgument, match='one_per_family'):
+        bundled.solve(pos, quat, one_per_family='yes')
+
+
+def test_one_solution_is_family_zero_of_one(bundled):
+    """A single answer names its family 0 and knows of one family at least."""
+    pos, quat = pose_goals(bundled, 1, seed=5)[0]
+    res = bundled.solve(pos, quat, num_solutions=1)
+    assert res.success and res.solutions[0].family == 0 and res.num_families >= 1
+
+
+def test_json_view_carries_families(bundled):
+    """sik-solve --json shows each solution's family and the families found."""
+    pos, quat = pose_goals(bundled, 1, seed=6)[0]
+    res = bundled.solve(pos, quat, num_solutions=4)
+    view = result_to_dict(res, bundled.joint_names)
+    assert view['num_families'] == res.num_families
+    assert [s['family'] for s in view['solutions']] == [s.family for s in res.solutions]
+
+
+def test_segment_links_split_no_traced_family(bundled):
+    """Solutions a corrected segment links lie on one traced self-motion curve (Panda)."""
+    ctx = bundled.context
+    for pos, quat in pose_goals(bundled, 4, seed=7):
+        res = bundled.solve(pos, quat, num_solutions=16)
+        q = np.array([s.q for s in res.solutions if s.converged])
+        goal = Goal(np.asarray(pos, float), quaternion_matrix(quat))
+        linked = families.labels(ctx, q, goal, NO_DEADLINE)
+        traced = families.traced(ctx, q, goal, NO_DEADLINE)
+        for i in range(len(q)):
+            for j in range(i + 1, len(q)):
+                if linked[i] == linked[j]:
+                    assert traced[i] == traced[j]
+
+
+def test_branch_labels_are_equal_modulo_turns(ur5):
+    """Rows equal modulo 2 pi on periodic joints share a branch; rows apart do not."""
+    rng = np.random.default_rng(0)
+    base = rng.uniform(-np.pi, np.pi, (3, 6))
+    base[1] = base[0] + 1.0
+    shifted = base[0] + TURN * np.array([1, 0, -1, 0, 0, 1]) + 1e-6
+    q = np.ascontiguousarray(np.vstack([base, shifted]))
+    labels = branch_labels(q, 0.1, np.ones(6, dtype=bool))
+    assert labels[3] == labels[0] and len({labels[0], labels[1], labels[2]}) == 3
+    # without periodic joints a whole turn is another branch
+    assert branch_labels(q, 0.1, np.zeros(6, dtype=bool))[3] == 3
+
+
+def test_ur5_families_are_its_branches(ur5_bundle):
+    """On a 6-joint arm, same family exactly when the same branch (angles wrapped)."""
+    ik = SelectiveIK.load(ur5_bundle[0])
+    for pos, quat in pose_goals(ik, 8, seed=1):
+        res = ik.solve(pos, quat, num_solutions=16)
+        exact = [s for s in res.solutions if s.converged]
+        q = np.ascontiguousarray([s.q for s in exact])
+        if len(q) < 2:
+            continue
+        branch = branch_labels(q, 0.1, np.ones(6, dtype=bool))
+        for i in range(len(q)):
+            for j in range(i + 1, len(q)):
+                assert (branch[i] == branch[j]) == (exact[i].family == exact[j].family)
+        assert res.num_families >= len(set(branch.tolist()))
