@@ -169,8 +169,10 @@ KERNEL_HASH="$(hash_of sik_ros/kernels/*.py -- "$REQ_HASH" "$REPO")"
 if is_done kernels "$KERNEL_HASH" && compgen -G 'sik_ros/kernels/__pycache__/*.nbi' >/dev/null; then
   log "kernels: compiled"
 else
-  log "compiling the kernels (about 30 s)"
+  log "compiling the kernels (about 30 s of CPU)"
+  started=$SECONDS
   (cd / && "$PY" -m sik_ros.kernels) | sed 's/^/[setup] /' || die "the kernels did not compile"
+  log "kernels compiled in $((SECONDS - started)) s"
   mark_done kernels "$KERNEL_HASH"
 fi
 
