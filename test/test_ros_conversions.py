@@ -225,3 +225,10 @@ def test_negative_or_malformed_timeouts_are_invalid_goals():
         with pytest.raises(InvalidGoal):
             conv.seconds_from_duration(Duration(sec=sec, nanosec=nanosec))
     assert conv.error_code_for(InvalidGoal('x')) == R.INVALID_GOAL
+
+
+def test_the_answer_message_counts_the_posture_families():
+    """A SolveIK answer's message says how many posture families the solve found."""
+    from sik_ros.solver.results import IKResult
+    code, text = conv.result_code(IKResult(success=False, num_families=3), False, 0.05)
+    assert '3 posture families' in text and code == SolveIK.Response.NO_SOLUTION

@@ -299,7 +299,8 @@ def result_code(result, obstacles: bool, timeout: float) -> Tuple[int, str]:
     """
     R = SolveIK.Response
     exact = sum(s.converged for s in result.solutions)
-    summary = f'{len(result.solutions)} solutions, {exact} within tolerance'
+    summary = (f'{len(result.solutions)} solutions, {exact} within tolerance, '
+               f'{result.num_families} posture families')
     if obstacles:
         summary += f', {sum(not s.in_collision for s in result.solutions)} collision-free'
     summary += f', {result.goal} goal, {result.elapsed * 1e3:.1f} ms'

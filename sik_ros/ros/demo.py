@@ -18,7 +18,7 @@ import numpy as np
 import rclpy
 from rclpy.node import Node
 
-from sik_interfaces.msg import IKSolutionArray
+from sik_interfaces.msg import IKSolution, IKSolutionArray
 from sik_interfaces.srv import SolveIK, SolvePath
 from sik_ros.ros.client import box, pose_request, SolveIKClient
 from sik_ros.ros.conversions import ERROR_NAMES
@@ -44,14 +44,15 @@ def format_answer(title: str, answer, seconds: Optional[float] = None, rows: int
         return '\n'.join(lines)
     names = [n.split('_')[-1] for n in answer.solutions[0].joint_state.name]
     lines.append(f"   {'rank':>4} {'pos err [mm]':>12} {'rot err [deg]':>13} "
-                 f"{'clearance [m]':>13} {'tier':>10} {'score':>8}  "
+                 f"{'clearance [m]':>13} {'tier':>10} {'family':>6} {'score':>8}  "
                  f"joints [rad] ({' '.join(names)})")
     for rank, s in enumerate(answer.solutions[:rows], 1):
         clear = '-' if not np.isfinite(s.min_obstacle_distance) else \
             f'{s.min_obstacle_distance:.3f}'
+        family = '-' if s.family == IKSolution.NO_FAMILY else str(s.family)
         lines.append(f'   {rank:>4} {s.position_error * 1e3:>12.4f} '
                      f'{np.degrees(s.orientation_error):>13.4f} {clear:>13} '
-                     f'{tier_label(s.tier, s.self_collision):>10} {s.score:>8.3f}  '
+                     f'{tier_label(s.tier, s.self_collision):>10} {family:>6} {s.score:>8.3f}  '
                      + ' '.join(f'{v:+.3f}' for v in s.joint_state.position))
     if len(answer.solutions) > rows:
         lines.append(f'   ... and {len(answer.solutions) - rows} more')
