@@ -2,7 +2,8 @@
 
 :class:`DLS`: single-solution damped least squares on Pinocchio (position goals). :class:`TracIK`:
 TRAC-IK through pytracik (5 ms timeout, eps 1e-5, Speed), its joint limits set from the robot
-(its URDF parse leaves some at zero).
+(its URDF parse leaves some at zero). :class:`Frankik`: the Panda's analytic IK (``frankik``, He
+and Liu's geometric solver), one solution for a value of joint 7.
 """
 
 import numpy as np
@@ -55,3 +56,43 @@ class TracIK:
         ok = out[0] >= 0 and len(q) == self.robot.dof and np.all(
             q >= self.robot.lower - 1e-9) and np.all(q <= self.robot.upper + 1e-9)
         return bool(ok), q
+
+
+class Frankik:
+    """The Panda's analytic IK (``frankik.ik``), as a user calls it for one solution.
+
+    Joint 7 is the seed's first; when the pose has no solution within the limits there, the
+    other values of a sweep of joint 7 are tried, nearest first. A solution counts when it is
+    within the limits and its FK (Pinocchio's, our tip frame) meets the tolerances.
+    """
+
+    def __init__(self, robot, sweep: int = 64, tol=(1e-4, 1e-3)):
+        import frankik
+        self.robot, self.tol, self.ik = robot, tol, frankik.ik
+        self.q7 = np.linspace(robot.lower[6], robot.upper[6], sweep)
+        q = np.array([0.1, -0.4, 0.2, -2.0, 0.3, 1.5, 0.6])
+        p, r = robot.fk_rot(q[None])
+        ours = np.eye(4)
+        ours[:3, :3], ours[:3, 3] = r[0], p[0]
+        # frankik's pose is its flange's; ours is the tip frame: a fixed offset between them
+        self.to_flange = np.linalg.inv(ours) @ frankik.fk(q) @ np.linalg.inv(
+            frankik.FrankaKinematics.FrankaHandTCPOffset)
+
+    def solve(self, position, quat, q0):
+        """One solution near ``q0``: (converged, q)."""
+        goal = np.eye(4)
+        goal[:3, :3] = pin.Quaternion(quat[3], *quat[:3]).normalized().matrix()
+        goal[:3, 3] = position
+        goal = goal @ self.to_flange
+        q = np.asarray(q0, dtype=float)
+        for q7 in (q0[6], *sorted(self.q7, key=lambda v: abs(v - q0[6]))):
+            q = np.asarray(self.ik(goal, np.asarray(q0, dtype=float), float(q7)), dtype=float)
+            if np.isfinite(q).all() and np.all(q >= self.robot.lower - 1e-9) \
+                    and np.all(q <= self.robot.upper + 1e-9):
+                p, r = self.robot.fk_rot(q[None])
+                perr = np.linalg.norm(p[0] - position)
+                oerr = np.linalg.norm(pin.log3(r[0].T @ goal[:3, :3] @ np.linalg.inv(
+                    self.to_flange)[:3, :3]))
+                if perr < self.tol[0] and oerr < self.tol[1]:
+                    return True, q
+        return False, q

@@ -13,9 +13,10 @@ emptied, as a service's requests and the calls in ``bench/arms.py`` (after the p
     python bench/solve_ab.py old=/path/to/checkout new=. --bundle DIR --busy 90
     python bench/solve_ab.py a=. b=. --goal pose --json docs/results/solve_ab-panda-pose.json
 
-A checkout spec ``NAME=tracik`` (pose goals) or ``NAME=dls`` (position goals) is a peer in the
-same turns instead: with ``--num 1`` one call from the same seed (the target's random current
-state with ``--seeded``, else a random one); with more, calls from random seeds until as many
+A checkout spec ``NAME=tracik`` (pose goals), ``NAME=frankik`` (the Panda's analytic IK, pose
+goals) or ``NAME=dls`` (position goals) is a peer in the same turns instead: with ``--num 1``
+one call from the same seed (the target's random current state with ``--seeded``, else a random
+one); with more, calls from random seeds until as many
 distinct solutions as asked for (or 300 attempts); ``--peer-num 1`` times one peer call beside
 calls asking for more (an arm whose poses have one solution: ours returns every branch).
 """
@@ -46,8 +47,8 @@ def worker(root: str, bundle: str, goal: str, num: int, seeded: bool, seed: int,
            count: int, busy_ms: float, peer_num: int) -> None:
     """Answer target numbers read from stdin with one JSON line each (run in a subprocess)."""
     here = os.path.dirname(os.path.abspath(__file__))
-    peer = root.rstrip('/').rsplit('/', 1)[-1] if os.path.basename(root) in ('tracik', 'dls') \
-        else None
+    peer = root.rstrip('/').rsplit('/', 1)[-1] \
+        if os.path.basename(root) in ('tracik', 'frankik', 'dls') else None
     sys.path.insert(0, os.path.dirname(here) if peer else root)
     sys.path.insert(0, here)
     import torch
@@ -68,15 +69,15 @@ def worker(root: str, bundle: str, goal: str, num: int, seeded: bool, seed: int,
     targets = [robot.fk(qi) for qi in q]
     if peer:
         num = peer_num or num
-        from peers import DLS, TracIK
+        from peers import DLS, Frankik, TracIK
         out = os.dup(1)
         os.dup2(2, 1)  # TRAC-IK's URDF parser prints to stdout, which carries the answers
-        solver = TracIK(robot) if peer == 'tracik' else DLS(robot)
+        solver = {'tracik': TracIK, 'frankik': Frankik, 'dls': DLS}[peer](robot)
         os.dup2(out, 1)
         draws = np.random.default_rng(seed + 1)
 
         def call(p, quat, q0):
-            return solver.solve(p, quat, q0) if peer == 'tracik' else solver.solve(p, q0)
+            return solver.solve(p, q0) if peer == 'dls' else solver.solve(p, quat, q0)
         call(targets[0][0], targets[0][1], seeds[0])  # warm-up
     else:
         ik.solve(targets[0][0], targets[0][1] if goal == 'pose' else None,
