@@ -242,8 +242,11 @@ def segment_labels(frames, lower, upper, periodic, q, pos, rot, pose, step, reac
     k = 0
     for i in range(m):
         for j in range(i + 1, m):
-            dist[k], ia[k], ib[k] = _distance(q[i], q[j], periodic), i, j
-            k += 1
+            d = _distance(q[i], q[j], periodic)
+            if d <= reach:  # only pairs within reach are sorted and tried
+                dist[k], ia[k], ib[k] = d, i, j
+                k += 1
+    dist = dist[:k]
     p, r = np.empty(3), np.empty((3, 3))
     jac, jm = np.empty((6, n)), np.empty((6, n))
     a, err, xs = np.empty((6, 6)), np.empty(6), np.empty(6)
@@ -251,8 +254,6 @@ def segment_labels(frames, lower, upper, periodic, q, pos, rot, pose, step, reac
     timed = deadline < np.inf
     for k in np.argsort(dist):
         i, j = ia[k], ib[k]
-        if dist[k] > reach:
-            break
         if _root(parent, i) == _root(parent, j):
             continue
         if timed and monotonic() > deadline:
