@@ -4,7 +4,9 @@ A family is a connected set of a goal's exact solutions within the joint limits,
 taken modulo 2 pi:
 
 - an arm with six joints or fewer at a pose has isolated solutions: a family is a *branch*,
-  the solutions equal modulo 2 pi on periodic joints (the same placement of the arm);
+  the solutions equal modulo 2 pi on periodic joints (the same placement of the arm), within
+  :data:`~sik_ros.solver.config.SAME_BRANCH`; solutions of two branches are never merged as
+  near postures (:func:`same_solution`);
 - a redundant arm (and any arm at a position goal) has self-motion: a family is a connected
   piece of it within the limits. Two solutions are one family when a corrected straight
   segment links them, directly (up to ``FAMILY_REACH`` apart) or through others: a
@@ -26,10 +28,26 @@ from sik_ros.kernels import as_arg
 from sik_ros.kernels.families import branch_labels, segment_labels, trace_labels
 from sik_ros.solver.batch import Candidates
 from sik_ros.solver.config import (FAMILY_LINK, FAMILY_REACH, FAMILY_SEGMENT_STEP,
-                                   FAMILY_TRACE_STEP, FAMILY_TRACE_STEPS)
+                                   FAMILY_TRACE_STEP, FAMILY_TRACE_STEPS, SAME_BRANCH)
 from sik_ros.solver.context import Context, Goal, POSE
 from sik_ros.solver.refine import NO_ROTATION
 from sik_ros.solver.results import NO_FAMILY, Solution
+
+
+def isolated(ctx: Context, goal: Goal) -> bool:
+    """Whether the goal's solutions are isolated: a pose of an arm with six joints or fewer."""
+    return goal.kind == POSE and ctx.robot.dof <= 6
+
+
+def same_solution(ctx: Context, goal: Goal) -> float:
+    """Distance [rad] under which two exact solutions of ``goal`` are merged as one.
+
+    Isolated solutions: :data:`~sik_ros.solver.config.SAME_BRANCH` (or ``distinct_threshold``
+    when smaller), so two branches are never merged by the distance; otherwise
+    ``distinct_threshold``.
+    """
+    threshold = float(ctx.config.distinct_threshold)
+    return min(SAME_BRANCH, threshold) if isolated(ctx, goal) else threshold
 
 
 def labels(ctx: Context, q: np.ndarray, goal: Goal, deadline: Deadline) -> np.ndarray:
@@ -44,8 +62,8 @@ def labels(ctx: Context, q: np.ndarray, goal: Goal, deadline: Deadline) -> np.nd
         return np.arange(len(q))
     periodic = as_arg(robot.periodic, bool)
     pose = goal.kind == POSE
-    if pose and robot.dof <= 6:
-        return branch_labels(q, float(cfg.distinct_threshold), periodic)
+    if isolated(ctx, goal):
+        return branch_labels(q, same_solution(ctx, goal), periodic)
     rot = as_arg(goal.rotation) if pose else NO_ROTATION
     args = (robot.frames, robot.lower, robot.upper, periodic, q, as_arg(goal.position), rot)
     return segment_labels(*args, pose, FAMILY_SEGMENT_STEP, FAMILY_REACH,
