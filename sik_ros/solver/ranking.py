@@ -161,13 +161,14 @@ def rank(ctx: Context, c: Candidates, q_seed: Optional[np.ndarray],
     tier = np.where(colliding, COLLIDING, np.where(inexact, FREE_INEXACT, FREE_EXACT))
     family = np.full(len(c), -1, dtype=np.int64) if families is None else families
     rows = order(colliding)[:limit]
-    # the fields of the rows kept as Python values at once (not one NumPy scalar at a time)
+    # the rows kept taken at once (each solution's arrays a row of its own), their fields as
+    # Python values (not one NumPy scalar at a time)
+    q, z = c.q[rows], c.z[rows].astype(np.float32)
     fields = zip(c.perr[rows].tolist(), c.oerr[rows].tolist(), within[rows].tolist(),
                  clear[rows].tolist(), selfc[rows].tolist(), c.exact[rows].tolist(),
                  tier[rows].tolist(), np.asarray(family)[rows].tolist())
-    return [Solution(c.q[i].copy(), pe, oe, c.z[i].astype(np.float32), score, cl, sc, ex, t,
-                     f)
-            for i, (pe, oe, score, cl, sc, ex, t, f) in zip(rows, fields)]
+    return [Solution(qk, pe, oe, zk, score, cl, sc, ex, t, f)
+            for qk, zk, (pe, oe, score, cl, sc, ex, t, f) in zip(q, z, fields)]
 
 
 def self_collisions(ctx: Context, c: Candidates, rows: np.ndarray, keys: Optional[np.ndarray],
