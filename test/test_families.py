@@ -149,3 +149,20 @@ def test_isolated_branches_are_not_merged_as_near_postures(ur5_bundle, bundled):
         postures = branch_labels(np.ascontiguousarray(kept.q), 0.05,
                                  np.asarray(ik.robot.periodic, dtype=bool))
         assert len(set(postures.tolist())) == keep
+
+
+def test_firsts_marks_each_familys_first_row_in_order():
+    """The compiled and the general marking agree: a family's first row in the given order."""
+    rng = np.random.default_rng(2)
+    for _ in range(50):
+        m = int(rng.integers(1, 12))
+        fam = rng.integers(-1, m, m)
+        order = rng.permutation(m)
+        seen, expect = set(), np.ones(m, dtype=bool)
+        for i in order:
+            if fam[i] >= 0:
+                expect[i] = fam[i] not in seen
+                seen.add(fam[i])
+        assert (families.firsts(fam, order) == expect).all()
+        # roots beyond the rows (another numbering) take the general path
+        assert (families.firsts(fam + 100 * (fam >= 0), order) == expect).all()

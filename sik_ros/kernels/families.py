@@ -75,6 +75,20 @@ def _union(parent, a, b):  # pragma: no cover (compiled)
         parent[ra] = rb
 
 
+@njit('boolean[::1](int64[::1], int64[::1])', cache=True, nogil=True)
+def first_rows(families, order):  # pragma: no cover (compiled)
+    """(M,) bool: the first row of each family in ``order`` (rows without one, -1: True)."""
+    m = families.shape[0]
+    first = np.ones(m, dtype=np.bool_)
+    seen = np.zeros(m, dtype=np.bool_)  # family roots are rows
+    for i in order:
+        f = families[i]
+        if 0 <= f < m:
+            first[i] = not seen[f]
+            seen[f] = True
+    return first
+
+
 @njit('int64[::1](float64[:, ::1], float64, boolean[::1])', cache=True, nogil=True)
 def branch_labels(q, threshold, periodic):  # pragma: no cover (compiled)
     """Each row's branch: the first earlier row within ``threshold`` [rad], else itself."""

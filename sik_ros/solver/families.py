@@ -25,7 +25,7 @@ import numpy as np
 
 from sik_ros.deadline import Deadline
 from sik_ros.kernels import as_arg
-from sik_ros.kernels.families import branch_labels, segment_labels, trace_labels
+from sik_ros.kernels.families import branch_labels, first_rows, segment_labels, trace_labels
 from sik_ros.solver.batch import Candidates
 from sik_ros.solver.config import (FAMILY_LINK, FAMILY_REACH, FAMILY_SEGMENT_STEP,
                                    FAMILY_TRACE_STEP, FAMILY_TRACE_STEPS, SAME_BRANCH)
@@ -101,6 +101,10 @@ def firsts(families: np.ndarray, order: np.ndarray) -> np.ndarray:
 
     ``families`` (M,): family roots, -1 for none; ``order``: the rows, best first.
     """
+    families = np.asarray(families, dtype=np.int64)
+    if not len(families) or families.max() < len(families):  # roots are rows: compiled
+        return first_rows(np.ascontiguousarray(families),
+                          np.ascontiguousarray(order, dtype=np.int64))
     first = np.ones(len(families), dtype=bool)
     seen = set()
     for i in order:
@@ -119,7 +123,8 @@ def number(sols: Sequence[Solution], families: Sequence[int]) -> int:
     solution's own in its ``family`` field (-1 or :data:`NO_FAMILY`: none). Families found
     but not returned are counted, not numbered. Returns how many families were found.
     """
-    found = {int(f) for f in families if 0 <= int(f) < NO_FAMILY}
+    values = families.tolist() if isinstance(families, np.ndarray) else families
+    found = {int(f) for f in values if 0 <= int(f) < NO_FAMILY}
     named = {}
     for s in sols:
         if 0 <= s.family < NO_FAMILY and s.family in found:
