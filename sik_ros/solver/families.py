@@ -34,20 +34,20 @@ from sik_ros.solver.refine import NO_ROTATION
 from sik_ros.solver.results import NO_FAMILY, Solution
 
 
-def isolated(ctx: Context, goal: Goal) -> bool:
-    """Whether the goal's solutions are isolated: a pose of an arm with six joints or fewer."""
-    return goal.kind == POSE and ctx.robot.dof <= 6
+def isolated(ctx: Context, kind: str) -> bool:
+    """Whether a ``kind`` goal's solutions are isolated: a pose of an arm of 6 joints or fewer."""
+    return kind == POSE and ctx.robot.dof <= 6
 
 
-def same_solution(ctx: Context, goal: Goal) -> float:
-    """Distance [rad] under which two exact solutions of ``goal`` are merged as one.
+def same_solution(ctx: Context, kind: str) -> float:
+    """Distance [rad] under which two exact solutions of a ``kind`` goal are merged as one.
 
     Isolated solutions: :data:`~sik_ros.solver.config.SAME_BRANCH` (or ``distinct_threshold``
     when smaller), so two branches are never merged by the distance; otherwise
     ``distinct_threshold``.
     """
     threshold = float(ctx.config.distinct_threshold)
-    return min(SAME_BRANCH, threshold) if isolated(ctx, goal) else threshold
+    return min(SAME_BRANCH, threshold) if isolated(ctx, kind) else threshold
 
 
 def labels(ctx: Context, q: np.ndarray, goal: Goal, deadline: Deadline) -> np.ndarray:
@@ -62,8 +62,8 @@ def labels(ctx: Context, q: np.ndarray, goal: Goal, deadline: Deadline) -> np.nd
         return np.arange(len(q))
     periodic = as_arg(robot.periodic, bool)
     pose = goal.kind == POSE
-    if isolated(ctx, goal):
-        return branch_labels(q, same_solution(ctx, goal), periodic)
+    if isolated(ctx, goal.kind):
+        return branch_labels(q, same_solution(ctx, goal.kind), periodic)
     rot = as_arg(goal.rotation) if pose else NO_ROTATION
     args = (robot.frames, robot.lower, robot.upper, periodic, q, as_arg(goal.position), rot)
     return segment_labels(*args, pose, FAMILY_SEGMENT_STEP, FAMILY_REACH,

@@ -55,7 +55,7 @@ def every_branch(ctx: Context, goal: Goal, seeds: SeedTable, num: int,
     if not robot.periodic.any():
         keep, cost = exact_by_margin(r.q, r.perr, r.oerr, cfg.position_tolerance,
                                      cfg.orientation_tolerance, ORIENTATION_WEIGHT,
-                                     same_solution(ctx, goal), robot.lower, robot.upper)
+                                     same_solution(ctx, goal.kind), robot.lower, robot.upper)
     if not len(keep):
         return None, as_candidates(ctx, goal, r), r.cut_short
     selfc = np.zeros(len(keep), dtype=bool)

@@ -97,7 +97,7 @@ def distinct_postures(ctx: Context, c: Candidates, goal: Goal,
     if c.exact.any():  # with exact solutions, only exact ones are returned
         c = c.take(c.exact)
         # isolated solutions: one per branch (two branches are never merged as near)
-        threshold = families.same_solution(ctx, goal)
+        threshold = families.same_solution(ctx, goal.kind)
     ignore_last = ctx.ignores_last(goal.kind)
     periodic = ctx.robot.periodic
     if not periodic.any():

@@ -20,7 +20,7 @@ from sik_ros.kinematics.periodic import posture_keys
 from sik_ros.solver.batch import Candidates
 from sik_ros.solver.config import INEXACT_COST, ORIENTATION_WEIGHT, SolverConfig
 from sik_ros.solver.context import Context, POSITION
-from sik_ros.solver.families import firsts
+from sik_ros.solver.families import firsts, same_solution
 from sik_ros.solver.objectives import JointLimitMargin, Objective, SeedDistance
 from sik_ros.solver.results import COLLIDING, FREE_EXACT, FREE_INEXACT, Solution
 
@@ -65,10 +65,12 @@ def posture_mask(ctx: Context, q: np.ndarray, kind: str,
                  threshold: Optional[float] = None) -> np.ndarray:
     """Greedy keep-mask of a ``kind`` goal's configurations (M, n) of distinct postures.
 
-    Rows at least ``threshold`` [rad] apart (default: ``config.distinct_threshold``), the last
-    joint left out where it only turns the tool (:meth:`Context.ignores_last`).
+    Rows at least ``threshold`` [rad] apart (default: the solver's own rule,
+    :func:`~sik_ros.solver.families.same_solution`: ``config.distinct_threshold``, or one
+    branch's reach for the isolated solutions of a pose of an arm of six joints or fewer), the
+    last joint left out where it only turns the tool (:meth:`Context.ignores_last`).
     """
-    return distinct_mask(q, ctx.config.distinct_threshold if threshold is None else threshold,
+    return distinct_mask(q, same_solution(ctx, kind) if threshold is None else threshold,
                          ctx.ignores_last(kind))
 
 
