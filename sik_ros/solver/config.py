@@ -170,7 +170,9 @@ class SolverConfig:
         max_step: largest joint change per iteration [rad] (also per step of a path's
             tracks onto the next waypoint).
         distinct_threshold: solutions closer than this (L2 over the joints that move the tool
-            centre point for position goals) are duplicates [rad]; below 2 pi.
+            centre point for position goals) are duplicates [rad]; below 2 pi. Exact pose
+            solutions of an arm of six joints or fewer are duplicates only within
+            :data:`SAME_BRANCH` (two branches are never merged).
         adjust_budget: decodes Algorithm 2 may spend adjusting an index.
         give_up_after: refinement iterations after which a candidate still ten tolerances away
             is dropped.
