@@ -16,6 +16,7 @@ from sik_ros.kinematics.robot import Robot
 from sik_ros.kinematics.robots import (build_model, chain_differences, load_robot,
                                        robot_from_manifest)
 from sik_ros.solver import SelectiveIK
+from sik_ros.solver.config import SAME_BRANCH
 from sik_ros.solver.context import Goal
 from sik_ros.solver.ranking import posture_mask
 from sik_ros.solver.refine import refine
@@ -214,7 +215,8 @@ def test_sik_build_makes_a_bundle_that_solves_with_2pi_equivalents(ur5_bundle, u
             reached, rot = ur5.fk_rot(qs)
             assert np.linalg.norm(reached - p, axis=1).max() <= 1e-4
             d = np.linalg.norm(qs[:, None] - qs[None], axis=2) + np.eye(len(qs)) * 9
-            assert d.min() >= 0.5  # distinct
+            # distinct: two branches of a pose are never merged as near postures
+            assert d.min() >= (SAME_BRANCH if goal == 'pose' else 0.5)
             # by the solver's own rule too (position goals: without the tool-roll joint)
             assert posture_mask(ik.context, qs, goal).all()
             if goal == 'pose':  # a pose has a few branches: their 2 pi equivalents follow them

@@ -9,7 +9,9 @@ from sik_ros.kernels.families import branch_labels
 from sik_ros.kinematics.periodic import TURN
 from sik_ros.kinematics.rotations import quaternion_matrix
 from sik_ros.solver import families, SelectiveIK, SolverConfig
+from sik_ros.solver.batch import Candidates
 from sik_ros.solver.context import Goal
+from sik_ros.solver.pipeline import distinct_postures
 from sik_ros.solver.results import NO_FAMILY, result_to_dict
 
 
@@ -129,3 +131,38 @@ def test_ur5_families_are_its_branches(ur5_bundle):
             for j in range(i + 1, len(q)):
                 assert (branch[i] == branch[j]) == (exact[i].family == exact[j].family)
         assert res.num_families >= len(set(branch.tolist()))
+
+
+def test_isolated_branches_are_not_merged_as_near_postures(ur5_bundle, bundled):
+    """At a 6-joint pose, exact rows 0.3 rad apart stay two; a 7-joint arm's merge."""
+    for ik, keep in ((SelectiveIK.load(ur5_bundle[0]), 2), (bundled, 1)):
+        q0 = (ik.robot.lower + ik.robot.upper) / 4
+        q = np.stack([q0, q0 + 0.3 / np.sqrt(ik.robot.dof), q0 + 0.01])
+        pos, quat = ik.fk(q0)
+        goal = Goal(np.asarray(pos, float), quaternion_matrix(quat))
+        c = Candidates(q, np.zeros((3, 4), np.float32), np.zeros(3), np.zeros(3),
+                       np.ones(3, dtype=bool))
+        assert ik.config.distinct_threshold > 0.3
+        kept = distinct_postures(ik.context, c, goal, None)
+        # postures modulo 2 pi (a UR5's equivalents added); the third row, 0.01 rad from the
+        # first, is the first found twice
+        postures = branch_labels(np.ascontiguousarray(kept.q), 0.05,
+                                 np.asarray(ik.robot.periodic, dtype=bool))
+        assert len(set(postures.tolist())) == keep
+
+
+def test_firsts_marks_each_familys_first_row_in_order():
+    """The compiled and the general marking agree: a family's first row in the given order."""
+    rng = np.random.default_rng(2)
+    for _ in range(50):
+        m = int(rng.integers(1, 12))
+        fam = rng.integers(-1, m, m)
+        order = rng.permutation(m)
+        seen, expect = set(), np.ones(m, dtype=bool)
+        for i in order:
+            if fam[i] >= 0:
+                expect[i] = fam[i] not in seen
+                seen.add(fam[i])
+        assert (families.firsts(fam, order) == expect).all()
+        # roots beyond the rows (another numbering) take the general path
+        assert (families.firsts(fam + 100 * (fam >= 0), order) == expect).all()

@@ -3,9 +3,12 @@
 import numpy as np
 import pytest
 
+from sik_ros.deadline import Deadline, NO_DEADLINE
 from sik_ros.kinematics.chain import chain_forward
 from sik_ros.solver import SelectiveIK
+from sik_ros.solver.batch import Candidates
 from sik_ros.solver.objectives import FromFunction, Obstacle, SeedDistance
+from sik_ros.solver.ranking import rank
 from sik_ros.solver.results import COLLIDING, FREE_EXACT, FREE_INEXACT, tier_label
 
 
@@ -91,3 +94,26 @@ def test_tier_labels_name_what_a_solution_touches():
     assert tier_label(FREE_INEXACT) == 'inexact'
     assert tier_label(COLLIDING, self_collision=True) == 'self-coll.'
     assert tier_label(COLLIDING) == 'obstacle'
+
+
+def test_batched_self_collision_checks_match_one_at_a_time(ik):
+    """Ranked self-collision flags are each configuration's own, free ones up to the limit."""
+    rng = np.random.default_rng(5)
+    robot = ik.robot
+    q = rng.uniform(robot.lower, robot.upper, (60, robot.dof))
+    own = ik.checker.self_collision(q)
+    assert own.any() and (~own).sum() >= 8  # both kinds among the rows
+    c = Candidates(q, np.zeros((60, 4), np.float32), np.zeros(60), np.zeros(60),
+                   np.ones(60, dtype=bool))
+    for limit in (1, 5, 8):
+        sols = rank(ik.context, c, None, [], None, limit=limit, deadline=NO_DEADLINE)
+        assert sum(not s.self_collision for s in sols) == limit
+        for s in sols:
+            assert s.self_collision == ik.checker.self_collision(s.q[None])[0]
+
+
+def test_self_collision_checks_stop_at_the_deadline(ik):
+    """Past its deadline the checker answers only the configurations it checked (the first)."""
+    q = np.zeros((5, ik.robot.dof))
+    assert len(ik.checker.self_collision(q, Deadline(0.0))) == 1
+    assert len(ik.checker.self_collision(q)) == 5

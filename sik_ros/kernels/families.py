@@ -75,6 +75,20 @@ def _union(parent, a, b):  # pragma: no cover (compiled)
         parent[ra] = rb
 
 
+@njit('boolean[::1](int64[::1], int64[::1])', cache=True, nogil=True)
+def first_rows(families, order):  # pragma: no cover (compiled)
+    """(M,) bool: the first row of each family in ``order`` (rows without one, -1: True)."""
+    m = families.shape[0]
+    first = np.ones(m, dtype=np.bool_)
+    seen = np.zeros(m, dtype=np.bool_)  # family roots are rows
+    for i in order:
+        f = families[i]
+        if 0 <= f < m:
+            first[i] = not seen[f]
+            seen[f] = True
+    return first
+
+
 @njit('int64[::1](float64[:, ::1], float64, boolean[::1])', cache=True, nogil=True)
 def branch_labels(q, threshold, periodic):  # pragma: no cover (compiled)
     """Each row's branch: the first earlier row within ``threshold`` [rad], else itself."""
@@ -242,8 +256,11 @@ def segment_labels(frames, lower, upper, periodic, q, pos, rot, pose, step, reac
     k = 0
     for i in range(m):
         for j in range(i + 1, m):
-            dist[k], ia[k], ib[k] = _distance(q[i], q[j], periodic), i, j
-            k += 1
+            d = _distance(q[i], q[j], periodic)
+            if d <= reach:  # only pairs within reach are sorted and tried
+                dist[k], ia[k], ib[k] = d, i, j
+                k += 1
+    dist = dist[:k]
     p, r = np.empty(3), np.empty((3, 3))
     jac, jm = np.empty((6, n)), np.empty((6, n))
     a, err, xs = np.empty((6, 6)), np.empty(6), np.empty(6)
@@ -251,8 +268,6 @@ def segment_labels(frames, lower, upper, periodic, q, pos, rot, pose, step, reac
     timed = deadline < np.inf
     for k in np.argsort(dist):
         i, j = ia[k], ib[k]
-        if dist[k] > reach:
-            break
         if _root(parent, i) == _root(parent, j):
             continue
         if timed and monotonic() > deadline:

@@ -144,10 +144,16 @@ class CollisionChecker:
             if a == b or parents[a] == b or parents[b] == a:
                 self.self_geom.removeCollisionPair(pair)
 
-    def self_collision(self, q: np.ndarray) -> np.ndarray:
-        """Whether each configuration (N, n) collides with itself, (N,) bool."""
+    def self_collision(self, q: np.ndarray, deadline: Deadline = NO_DEADLINE) -> np.ndarray:
+        """Whether each configuration (N, n) collides with itself, (N,) bool.
+
+        Past ``deadline`` no more checks start (the first is always made): the answer then
+        holds only the configurations checked, in order (shorter than ``q``).
+        """
         out = np.zeros(len(q), dtype=bool)
         for i, qi in enumerate(np.asarray(q, dtype=float)):
+            if i and deadline.expired():
+                return out[:i]
             out[i] = pin.computeCollisions(self.model, self.data, self._broad, qi, True)
         return out
 

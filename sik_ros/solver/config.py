@@ -86,6 +86,11 @@ RAW_ROUNDS = 3
 #: blocking pays (docs/design.md, "Measured choices").
 KERNEL_ROWS = 3
 
+#: Exact solutions of a pose goal of an arm with six joints or fewer closer than this [rad]
+#: (L2, periodic joints at their nearest turn) are one solution found twice, one branch;
+#: farther apart, two branches, never merged by ``distinct_threshold`` (which merges only
+#: within a family). Refinements of one branch meet within a few thousandths of a radian.
+SAME_BRANCH = 0.1
 #: Step of a family's trace along the self-motion of a 7-joint arm at a pose [rad] (joint
 #: distance; :mod:`sik_ros.solver.families`): small enough that a trace keeps to its curve
 #: where two pieces pass near each other (docs/design.md).
@@ -165,7 +170,9 @@ class SolverConfig:
         max_step: largest joint change per iteration [rad] (also per step of a path's
             tracks onto the next waypoint).
         distinct_threshold: solutions closer than this (L2 over the joints that move the tool
-            centre point for position goals) are duplicates [rad]; below 2 pi.
+            centre point for position goals) are duplicates [rad]; below 2 pi. Exact pose
+            solutions of an arm of six joints or fewer are duplicates only within
+            :data:`SAME_BRANCH` (two branches are never merged).
         adjust_budget: decodes Algorithm 2 may spend adjusting an index.
         give_up_after: refinement iterations after which a candidate still ten tolerances away
             is dropped.

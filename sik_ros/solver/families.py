@@ -4,7 +4,9 @@ A family is a connected set of a goal's exact solutions within the joint limits,
 taken modulo 2 pi:
 
 - an arm with six joints or fewer at a pose has isolated solutions: a family is a *branch*,
-  the solutions equal modulo 2 pi on periodic joints (the same placement of the arm);
+  the solutions equal modulo 2 pi on periodic joints (the same placement of the arm), within
+  :data:`~sik_ros.solver.config.SAME_BRANCH`; solutions of two branches are never merged as
+  near postures (:func:`same_solution`);
 - a redundant arm (and any arm at a position goal) has self-motion: a family is a connected
   piece of it within the limits. Two solutions are one family when a corrected straight
   segment links them, directly (up to ``FAMILY_REACH`` apart) or through others: a
@@ -23,13 +25,29 @@ import numpy as np
 
 from sik_ros.deadline import Deadline
 from sik_ros.kernels import as_arg
-from sik_ros.kernels.families import branch_labels, segment_labels, trace_labels
+from sik_ros.kernels.families import branch_labels, first_rows, segment_labels, trace_labels
 from sik_ros.solver.batch import Candidates
 from sik_ros.solver.config import (FAMILY_LINK, FAMILY_REACH, FAMILY_SEGMENT_STEP,
-                                   FAMILY_TRACE_STEP, FAMILY_TRACE_STEPS)
+                                   FAMILY_TRACE_STEP, FAMILY_TRACE_STEPS, SAME_BRANCH)
 from sik_ros.solver.context import Context, Goal, POSE
 from sik_ros.solver.refine import NO_ROTATION
 from sik_ros.solver.results import NO_FAMILY, Solution
+
+
+def isolated(ctx: Context, kind: str) -> bool:
+    """Whether a ``kind`` goal's solutions are isolated: a pose of an arm of 6 joints or fewer."""
+    return kind == POSE and ctx.robot.dof <= 6
+
+
+def same_solution(ctx: Context, kind: str) -> float:
+    """Distance [rad] under which two exact solutions of a ``kind`` goal are merged as one.
+
+    Isolated solutions: :data:`~sik_ros.solver.config.SAME_BRANCH` (or ``distinct_threshold``
+    when smaller), so two branches are never merged by the distance; otherwise
+    ``distinct_threshold``.
+    """
+    threshold = float(ctx.config.distinct_threshold)
+    return min(SAME_BRANCH, threshold) if isolated(ctx, kind) else threshold
 
 
 def labels(ctx: Context, q: np.ndarray, goal: Goal, deadline: Deadline) -> np.ndarray:
@@ -44,8 +62,8 @@ def labels(ctx: Context, q: np.ndarray, goal: Goal, deadline: Deadline) -> np.nd
         return np.arange(len(q))
     periodic = as_arg(robot.periodic, bool)
     pose = goal.kind == POSE
-    if pose and robot.dof <= 6:
-        return branch_labels(q, float(cfg.distinct_threshold), periodic)
+    if isolated(ctx, goal.kind):
+        return branch_labels(q, same_solution(ctx, goal.kind), periodic)
     rot = as_arg(goal.rotation) if pose else NO_ROTATION
     args = (robot.frames, robot.lower, robot.upper, periodic, q, as_arg(goal.position), rot)
     return segment_labels(*args, pose, FAMILY_SEGMENT_STEP, FAMILY_REACH,
@@ -83,6 +101,10 @@ def firsts(families: np.ndarray, order: np.ndarray) -> np.ndarray:
 
     ``families`` (M,): family roots, -1 for none; ``order``: the rows, best first.
     """
+    families = np.asarray(families, dtype=np.int64)
+    if not len(families) or families.max() < len(families):  # roots are rows: compiled
+        return first_rows(np.ascontiguousarray(families),
+                          np.ascontiguousarray(order, dtype=np.int64))
     first = np.ones(len(families), dtype=bool)
     seen = set()
     for i in order:
@@ -101,7 +123,8 @@ def number(sols: Sequence[Solution], families: Sequence[int]) -> int:
     solution's own in its ``family`` field (-1 or :data:`NO_FAMILY`: none). Families found
     but not returned are counted, not numbered. Returns how many families were found.
     """
-    found = {int(f) for f in families if 0 <= int(f) < NO_FAMILY}
+    values = families.tolist() if isinstance(families, np.ndarray) else families
+    found = {int(f) for f in values if 0 <= int(f) < NO_FAMILY}
     named = {}
     for s in sols:
         if 0 <= s.family < NO_FAMILY and s.family in found:

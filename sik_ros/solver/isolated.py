@@ -25,7 +25,7 @@ from sik_ros.solver.codec import encode
 from sik_ros.solver.config import ORIENTATION_WEIGHT
 from sik_ros.solver.context import Context, Goal
 from sik_ros.solver.explore import unindexed
-from sik_ros.solver.families import number
+from sik_ros.solver.families import number, same_solution
 from sik_ros.solver.ranking import assess
 from sik_ros.solver.refine import refine, Refined
 from sik_ros.solver.results import COLLIDING, FREE_EXACT, IKResult, PendingIndices, Solution
@@ -55,7 +55,7 @@ def every_branch(ctx: Context, goal: Goal, seeds: SeedTable, num: int,
     if not robot.periodic.any():
         keep, cost = exact_by_margin(r.q, r.perr, r.oerr, cfg.position_tolerance,
                                      cfg.orientation_tolerance, ORIENTATION_WEIGHT,
-                                     cfg.distinct_threshold, robot.lower, robot.upper)
+                                     same_solution(ctx, goal.kind), robot.lower, robot.upper)
     if not len(keep):
         return None, as_candidates(ctx, goal, r), r.cut_short
     selfc = np.zeros(len(keep), dtype=bool)

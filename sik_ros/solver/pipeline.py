@@ -93,19 +93,22 @@ def distinct_postures(ctx: Context, c: Candidates, goal: Goal,
     is kept once, nearest the seed, and its equivalents within the limits are added.
     """
     cfg = ctx.config
+    threshold = cfg.distinct_threshold
     if c.exact.any():  # with exact solutions, only exact ones are returned
         c = c.take(c.exact)
+        # isolated solutions: one per branch (two branches are never merged as near)
+        threshold = families.same_solution(ctx, goal.kind)
     ignore_last = ctx.ignores_last(goal.kind)
     periodic = ctx.robot.periodic
     if not periodic.any():
-        return best_distinct(c, cfg.distinct_threshold, ignore_last)
+        return best_distinct(c, threshold, ignore_last)
     centre = turns_centre(ctx, q_seed)
     q = nearest_turns(ctx.robot, c.q, centre)
     # exact ones nearest the seed first (of nearly one posture, the one kept), then by score
     near = np.linalg.norm(q - centre, axis=1)
     c = Candidates(q, c.z, c.perr, c.oerr, c.exact).take(
         np.lexsort((np.where(c.exact, near, pose_score(c.perr, c.oerr)), ~c.exact)))
-    c = c.take(distinct_mask(c.q, cfg.distinct_threshold, ignore_last, periodic))
+    c = c.take(distinct_mask(c.q, threshold, ignore_last, periodic))
     # postures apart however turned: so are their equivalents (a whole turn from each other
     # on some joint the distance counts: a last joint it leaves out is not turned), so they
     # need only their order (no pairwise check)

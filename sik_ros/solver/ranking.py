@@ -20,7 +20,7 @@ from sik_ros.kinematics.periodic import posture_keys
 from sik_ros.solver.batch import Candidates
 from sik_ros.solver.config import INEXACT_COST, ORIENTATION_WEIGHT, SolverConfig
 from sik_ros.solver.context import Context, POSITION
-from sik_ros.solver.families import firsts
+from sik_ros.solver.families import firsts, same_solution
 from sik_ros.solver.objectives import JointLimitMargin, Objective, SeedDistance
 from sik_ros.solver.results import COLLIDING, FREE_EXACT, FREE_INEXACT, Solution
 
@@ -65,10 +65,12 @@ def posture_mask(ctx: Context, q: np.ndarray, kind: str,
                  threshold: Optional[float] = None) -> np.ndarray:
     """Greedy keep-mask of a ``kind`` goal's configurations (M, n) of distinct postures.
 
-    Rows at least ``threshold`` [rad] apart (default: ``config.distinct_threshold``), the last
-    joint left out where it only turns the tool (:meth:`Context.ignores_last`).
+    Rows at least ``threshold`` [rad] apart (default: the solver's own rule,
+    :func:`~sik_ros.solver.families.same_solution`: ``config.distinct_threshold``, or one
+    branch's reach for the isolated solutions of a pose of an arm of six joints or fewer), the
+    last joint left out where it only turns the tool (:meth:`Context.ignores_last`).
     """
-    return distinct_mask(q, ctx.config.distinct_threshold if threshold is None else threshold,
+    return distinct_mask(q, same_solution(ctx, kind) if threshold is None else threshold,
                          ctx.ignores_last(kind))
 
 
@@ -153,30 +155,55 @@ def rank(ctx: Context, c: Candidates, q_seed: Optional[np.ndarray],
         tier = np.where(colliding, COLLIDING, np.where(inexact, FREE_INEXACT, FREE_EXACT))
         return np.lexsort((within, equivalent, repeat, inexact, tier))
 
-    selfc = np.zeros(len(c), dtype=bool)
     limit = len(c) if limit is None else limit
-    free = 0
-    # 2 pi equivalents place the arm alike: one check per posture
-    checked = {}
-    for i in order(hit):
-        if free >= limit or deadline.expired():
-            break
-        key = i if keys is None else keys[i].tobytes()
-        if self_collision is not None:
-            checked[key] = bool(self_collision[i])
-        elif key not in checked:
-            checked[key] = ctx.checker.self_collision(c.q[i:i + 1])[0]
-        selfc[i] = checked[key]
-        free += not selfc[i]
+    selfc = self_collisions(ctx, c, order(hit), keys, limit, self_collision, deadline)
     colliding = hit | selfc
-    if families is not None:  # a family's first: its best free one, once collisions are known
+    if families is not None and selfc.any():  # a family's first: its best free one
         repeat[:] = ~firsts(families, np.lexsort((within, equivalent, inexact, colliding)))
     tier = np.where(colliding, COLLIDING, np.where(inexact, FREE_INEXACT, FREE_EXACT))
     family = np.full(len(c), -1, dtype=np.int64) if families is None else families
-    return [Solution(c.q[i].copy(), float(c.perr[i]), float(c.oerr[i]),
-                     c.z[i].astype(np.float32), float(within[i]), float(clear[i]),
-                     bool(selfc[i]), bool(c.exact[i]), int(tier[i]), int(family[i]))
-            for i in order(colliding)[:limit]]
+    rows = order(colliding)[:limit]
+    # the rows kept taken at once (each solution's arrays a row of its own), their fields as
+    # Python values (not one NumPy scalar at a time)
+    q, z = c.q[rows], c.z[rows].astype(np.float32)
+    fields = zip(c.perr[rows].tolist(), c.oerr[rows].tolist(), within[rows].tolist(),
+                 clear[rows].tolist(), selfc[rows].tolist(), c.exact[rows].tolist(),
+                 tier[rows].tolist(), np.asarray(family)[rows].tolist())
+    return [Solution(qk, pe, oe, zk, score, cl, sc, ex, t, f)
+            for qk, zk, (pe, oe, score, cl, sc, ex, t, f) in zip(q, z, fields)]
+
+
+def self_collisions(ctx: Context, c: Candidates, rows: np.ndarray, keys: Optional[np.ndarray],
+                    limit: int, known: Optional[np.ndarray], deadline: Deadline) -> np.ndarray:
+    """(M,) bool: self-collision of ``c``'s rows checked in the order ``rows`` (False: not).
+
+    Checking stops once ``limit`` rows are free or past ``deadline``. 2 pi equivalents (equal
+    ``keys``) place the arm alike: one check per posture. The checks go in batches of the
+    rows still needed (each row frees at most one), one checker call per batch. ``known``:
+    the self-collision of each row when already checked.
+    """
+    selfc = np.zeros(len(c), dtype=bool)
+    checked = {}
+    free = start = 0
+    while start < len(rows) and free < limit and not deadline.expired():
+        batch = rows[start:start + limit - free]
+        start += len(batch)
+        batch_keys = [int(i) if keys is None else keys[i].tobytes() for i in batch]
+        if known is not None:
+            checked.update(zip(batch_keys, known[batch].tolist()))
+        else:
+            new = {}
+            for i, key in zip(batch, batch_keys):
+                if key not in checked:
+                    new.setdefault(key, i)
+            hits = ctx.checker.self_collision(c.q[list(new.values())], deadline)
+            checked.update(zip(new, hits.tolist()))
+        for i, key in zip(batch, batch_keys):
+            if key not in checked:  # past the deadline: not checked
+                return selfc
+            selfc[i] = checked[key]
+            free += not selfc[i]
+    return selfc
 
 
 def from_solutions(sols: Sequence[Solution]) -> Candidates:

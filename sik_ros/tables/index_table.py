@@ -106,6 +106,9 @@ class IndexTable:
             self.orientations = quat / np.linalg.norm(quat, axis=1, keepdims=True)
         self.postures = None if postures is None else np.asarray(postures, dtype=np.float32)
         self.realised = None if realised is None else np.asarray(realised, dtype=bool)
+        # the share of rows realised, counted once (the rows do not change; a look-up needs it)
+        self._realised_share = None if realised is None else \
+            np.count_nonzero(self.realised) / max(len(self.indices), 1)
         self.manifest = manifest
         self.tree = cKDTree(self.centers)
         self.reach = ReachGrid(self.tree, self.centers)
@@ -165,9 +168,9 @@ class IndexTable:
         ``k_cells`` for a table that marks no realised rows; more for one that does, by the
         share of rows it marks.
         """
-        if self.realised is None:
+        if self._realised_share is None:
             return k_cells
-        share = np.count_nonzero(self.realised) / max(len(self.indices), 1)
+        share = self._realised_share
         return max(k_cells, math.ceil(k_cells / max(share, 1e-9)))
 
     def rows_near(self, position: np.ndarray, k_cells: int) -> np.ndarray:
