@@ -188,7 +188,8 @@ def render_ab(data: dict) -> str:
     """bench/solve_ab.py: a paired A/B between checkouts."""
     r = data['results']
     first = r['checkouts'][0]['name']
-    rows = [[f'{c["name"]} (`{c["commit"]}`{", changed" if c["dirty"] else ""})',
+    rows = [[f'{c["name"]} (peer)' if 'commit' not in c else
+             f'{c["name"]} (`{c["commit"]}`{", changed" if c["dirty"] else ""})',
              pct(c['success']), num(c['distinct_mean']), num(c['branches_mean']),
              f'{num(c["time_median_ms"])} ms', f'**{num(c["ratio_median"], 3)}**']
             for c in r['checkouts']]
