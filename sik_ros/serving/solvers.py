@@ -146,27 +146,24 @@ class PooledSolvers:
 
     def solve(self, *args: Any, **kwargs: Any) -> IKResult:
         """:meth:`SelectiveIK.solve` in a solver process (or here, see the module)."""
-        start = time.monotonic()
-        try:
-            return self.pool.solve(*args, **kwargs)
-        except SolverTimeout:
-            raise
-        except (SolverUnavailable, SolverCrashed):
-            kwargs = self._fall_back(kwargs, start)
-        with self._borrow(kwargs.get('timeout')) as ik:
-            return ik.solve(*args, **kwargs)
+        return self._call(self.pool.solve, SelectiveIK.solve, args, kwargs)
 
     def solve_path(self, *args: Any, **kwargs: Any) -> PathResult:
         """:meth:`SelectiveIK.solve_path` in a solver process (or here, see the module)."""
+        return self._call(self.pool.solve_path, SelectiveIK.solve_path, args, kwargs)
+
+    def _call(self, remote: Callable[..., Any], local: Callable[..., Any], args: tuple,
+              kwargs: Dict[str, Any]) -> Any:
+        """``remote(*args, **kwargs)`` in a process, else ``local(own solver, ...)`` here."""
         start = time.monotonic()
         try:
-            return self.pool.solve_path(*args, **kwargs)
+            return remote(*args, **kwargs)
         except SolverTimeout:
             raise
         except (SolverUnavailable, SolverCrashed):
             kwargs = self._fall_back(kwargs, start)
         with self._borrow(kwargs.get('timeout')) as ik:
-            return ik.solve_path(*args, **kwargs)
+            return local(ik, *args, **kwargs)
 
     def configure(self, **settings: Any) -> None:
         """Change some config fields in the processes and the node's own solver."""
