@@ -137,6 +137,20 @@ def range_values(codes: np.ndarray, lower: np.ndarray, upper: np.ndarray) -> np.
     return lower + codes.astype(np.float32) / np.iinfo(codes.dtype).max * (upper - lower)
 
 
+def robot_section(content: Mapping, what: str) -> dict:
+    """The ``robot`` manifest of an artifact's ``content``, checked for its names.
+
+    Raises:
+        CorruptArtifact: it is not a mapping with ``robot``, ``base_frame`` and ``tip_frame``.
+    """
+    robot = content.get('robot')
+    if not isinstance(robot, dict) or not all(
+            isinstance(robot.get(k), str) for k in ('robot', 'base_frame', 'tip_frame')):
+        raise CorruptArtifact(f'{what}: "robot" must be a robot manifest with robot, '
+                              f'base_frame and tip_frame')
+    return robot
+
+
 def check_robot_manifest(what: str, expected: Mapping, found: Mapping) -> None:
     """Refuse an artifact whose robot identity differs from the expected one.
 

@@ -16,7 +16,7 @@ from typing import Callable, Dict, Mapping, Optional, Tuple, Union
 import torch
 
 from sik_ros.artifacts import (atomic_write, check_robot_manifest, FORMAT_VERSION, read_json,
-                               write_json_atomic)
+                               robot_section, write_json_atomic)
 from sik_ros.errors import ArtifactMismatch, CorruptArtifact
 from sik_ros.kinematics.robot import Robot
 from sik_ros.kinematics.robots import robot_from_manifest
@@ -80,11 +80,7 @@ def read_bundle_manifest(path: Path) -> Dict:
     manifest = read_json(file, f'bundle {path}')
     if not isinstance(manifest, dict) or manifest.get('kind') != 'sik_bundle':
         raise CorruptArtifact(f'{file} is not a sik_ros bundle manifest')
-    robot = manifest.get('robot')
-    if not isinstance(robot, dict) or not all(
-            isinstance(robot.get(k), str) for k in ('robot', 'base_frame', 'tip_frame')):
-        raise CorruptArtifact(f'{file}: "robot" must be a robot manifest with robot, base_frame '
-                              f'and tip_frame')
+    robot_section(manifest, str(file))
     models = manifest.get('models')
     if not isinstance(models, dict) or not models:
         raise CorruptArtifact(f'{file}: "models" must map goal kinds to their files')

@@ -21,7 +21,7 @@ from typing import Any, Dict, Mapping
 
 import numpy as np
 
-from sik_ros.artifacts import FORMAT_VERSION, read_json, write_json_atomic
+from sik_ros.artifacts import FORMAT_VERSION, read_json, robot_section, write_json_atomic
 from sik_ros.errors import CorruptArtifact
 from sik_ros.kinematics.chain import SerialChain
 from sik_ros.kinematics.periodic import periodic_joints
@@ -123,11 +123,7 @@ def chain_arm(content: Mapping, what: str = 'chain file') -> ChainArm:
     Raises:
         CorruptArtifact: naming the part that does not make an arm.
     """
-    robot = content.get('robot')
-    if not isinstance(robot, dict) or not all(
-            isinstance(robot.get(k), str) for k in ('robot', 'base_frame', 'tip_frame')):
-        raise CorruptArtifact(f'{what}: "robot" must be a robot manifest with robot, '
-                              f'base_frame and tip_frame')
+    robot = robot_section(content, what)
     names = robot.get('joint_names')
     if not isinstance(names, list) or not names or not all(isinstance(n, str) for n in names):
         raise CorruptArtifact(f'{what}: robot.joint_names must be a list of joint names')
