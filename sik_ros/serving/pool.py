@@ -96,8 +96,9 @@ def single_threaded() -> None:
 def _serve(conn: Connection, bundle: str, config: Dict[str, Any]) -> None:
     """Body of a solver process: load the bundle, then answer ``(method, settings, ...)``.
 
-    Each message is ``(method, settings, args, kwargs)``: ``settings`` is None, or the config
-    fields changed since the last message; None or a closed pipe ends it.
+    Each message is ``(method, settings, args, kwargs)``: ``settings`` is None, or, when they
+    changed since this process's last message, every config field the pool has changed since
+    it started; None or a closed pipe ends it.
     """
     # the parent owns SIGINT/SIGTERM and closes the pipe to stop us
     signal.signal(signal.SIGINT, signal.SIG_IGN)
