@@ -25,6 +25,7 @@ SOLVE_IK_REQUEST_FIELDS = {
 SOLVE_IK_RESPONSE_FIELDS = {
     'error_code': 'int32',
     'message': 'string',
+    'num_families': 'uint32',
     'solutions': 'sequence<sik_interfaces/IKSolution>',
 }
 IK_SOLUTION_FIELDS = {
@@ -42,6 +43,9 @@ IK_SOLUTION_ARRAY_FIELDS = {
     'header': 'std_msgs/Header',
     'error_code': 'int32',
     'message': 'string',
+    'num_families': 'uint32',
+    'goals_replaced': 'uint32',
+    'joint_step': 'double',
     'solutions': 'sequence<sik_interfaces/IKSolution>',
 }
 ERROR_CODES = {
@@ -52,6 +56,7 @@ ERROR_CODES = {
     'INVALID_SEED': -4,
     'TIMEOUT': -5,
     'ROBOT_MISMATCH': -6,
+    'JOINT_JUMP': -7,
     'INTERNAL_ERROR': -99,
 }
 

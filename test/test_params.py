@@ -28,12 +28,15 @@ EXPECTED = [
     ('refine', bool, True), ('timeout', float, 0.05),
     ('path_timeout', float, 2.0),
     ('use_joint_states', bool, False), ('goal_use_orientation', bool, False),
-    ('publish_markers', bool, True), ('solver_processes', int, 0),
+    ('publish_markers', bool, True), ('goal_num_solutions', int, 1),
+    ('goal_timeout', float, 0.02), ('goal_max_joint_step', float, 0.5),
+    ('goal_marker_rate', float, 10.0), ('command_format', str, 'none'),
+    ('command_topic', str, '~/command'), ('solver_processes', int, 0),
     ('max_obstacles', int, 256), ('max_waypoints', int, 2000), ('shutdown_grace', float, 1.0),
     ('robot_description', str, ''),
     ('lifecycle', bool, False)]
 READ_ONLY = {'robot', 'model_dir', 'base_frame', 'tip_frame', 'solver_processes',
-             'robot_description', 'lifecycle'}
+             'robot_description', 'lifecycle', 'command_format', 'command_topic'}
 
 
 def yaml_parameters():
@@ -63,6 +66,17 @@ def test_node_params_unchanged():
     assert [(f.name, f.type, f.default) for f in dataclasses.fields(NodeParams)] == EXPECTED
     assert set(params.READ_ONLY) == READ_ONLY
     assert set(params.DESCRIPTIONS) == {name for name, _, _ in EXPECTED}
+
+
+def test_command_output_settings_checked():
+    """command_format takes its three values only, and a command needs a topic."""
+    for fmt in params.COMMAND_FORMATS:
+        assert validate(NodeParams(command_format=fmt)) is None
+    reason = validate(NodeParams(command_format='position'))
+    assert reason is not None and 'command_format' in reason
+    reason = validate(NodeParams(command_format='joint_trajectory', command_topic=''))
+    assert reason is not None and 'command_topic' in reason
+    assert validate(NodeParams(goal_num_solutions=65)) is not None, 'over max_solutions_cap'
 
 
 def test_table_is_consistent():

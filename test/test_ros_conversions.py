@@ -117,7 +117,7 @@ def test_error_codes_of_library_errors():
     assert conv.error_code_for(InvalidArgument('x')) == R.INVALID_GOAL
     assert set(conv.ERROR_NAMES.values()) == {
         'SUCCESS', 'NO_SOLUTION', 'INVALID_GOAL', 'INVALID_FRAME', 'INVALID_SEED', 'TIMEOUT',
-        'ROBOT_MISMATCH', 'INTERNAL_ERROR'}
+        'ROBOT_MISMATCH', 'JOINT_JUMP', 'INTERNAL_ERROR'}
 
 
 # -- answers and markers --------------------------------------------------------------------------

@@ -36,6 +36,7 @@ ERROR_NAMES: Dict[int, str] = {
     SolveIK.Response.INVALID_SEED: 'INVALID_SEED',
     SolveIK.Response.TIMEOUT: 'TIMEOUT',
     SolveIK.Response.ROBOT_MISMATCH: 'ROBOT_MISMATCH',
+    SolveIK.Response.JOINT_JUMP: 'JOINT_JUMP',
     SolveIK.Response.INTERNAL_ERROR: 'INTERNAL_ERROR',
 }
 

@@ -2,9 +2,10 @@
 
 One ``diagnostic_msgs/DiagnosticStatus`` named ``sik_node: <node name>`` with the level (OK,
 WARN, ERROR), the bundle, the node's state, the request rate and the latency p50/p99 over the
-last :data:`WINDOW` seconds, failures by code since start, the solver processes' health and
-the robot_description check. :class:`RequestStats` (plain Python) keeps the figures; it hears
-every answer through :class:`~sik_ros.ros.guard.RequestGuard`'s listeners.
+last :data:`WINDOW` seconds, failures by code since start, the solver processes' health, the
+robot_description check and the ``~/goal`` stream's counts (goals received, replaced by a newer
+one, answered JOINT_JUMP, commands sent). :class:`RequestStats` (plain Python) keeps the
+figures; it hears every answer through :class:`~sik_ros.ros.guard.RequestGuard`'s listeners.
 """
 
 from collections import Counter, deque
@@ -164,6 +165,13 @@ class NodeDiagnostics:
             ('solver processes', processes),
             ('robot_description', self.description_check()),
         ]
+        stream = node.goal_stream
+        if stream is not None:
+            servo = stream.servo
+            values += [('goals received', str(stream.mailbox.received)),
+                       ('goals replaced', str(stream.mailbox.replaced)),
+                       ('goal joint jumps', str(servo.jumps if servo is not None else 0)),
+                       ('commands sent', str(stream.commands))]
         values += [(f'failures {name}', str(n)) for name, n in sorted(figures.failures.items())]
         return DiagnosticStatus(level=level, name=self.name, message=message,
                                 hardware_id=str(ik.bundle) if ik is not None else '',

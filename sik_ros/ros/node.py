@@ -1,23 +1,26 @@
 """sik_node: the ROS 2 node over :class:`~sik_ros.solver.SelectiveIK`.
 
 Service ``~/solve_ik`` (``sik_interfaces/srv/SolveIK``), service ``~/solve_path``
-(``sik_interfaces/srv/SolvePath``), topics ``~/goal`` -> ``~/solutions``, ``joint_states``
-(optional seed) and ``~/markers`` (RViz). Started by :mod:`sik_ros.ros.run` (the ``sik_node``
-command): ``sik_node --ros-args --params-file config/panda.yaml``. See docs/interfaces.md.
+(``sik_interfaces/srv/SolvePath``), topics ``~/goal`` -> ``~/solutions`` (a stream, newest
+goal first: :mod:`~sik_ros.ros.goal_stream`), ``joint_states`` (optional seed), ``~/markers``
+(RViz) and an optional command output for ros2_control. Started by :mod:`sik_ros.ros.run`
+(the ``sik_node`` command): ``sik_node --ros-args --params-file config/panda.yaml``. See
+docs/interfaces.md.
 
 The node is wiring: its constructor declares the parameters, loads the bundle, starts the
 solvers (:func:`~sik_ros.serving.solvers.make_solvers`) and creates the ROS interfaces; each
 callback hands its request to :class:`~sik_ros.ros.guard.RequestGuard` with a handler from
 :mod:`~sik_ros.ros.ik_service` or :mod:`~sik_ros.ros.path_service`. A
-:class:`MultiThreadedExecutor` runs the callbacks in a reentrant callback group.
+:class:`~sik_ros.ros.executor.SlottedExecutor` runs the callbacks in a reentrant callback group;
+``~/goal`` is answered by a thread of its own (:class:`~sik_ros.ros.goal_stream.GoalStream`).
 """
 
 from dataclasses import fields, replace
 import gc
 import logging
+import time
 from typing import List, Optional
 
-from geometry_msgs.msg import PoseStamped
 import numpy as np
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.callback_groups import ReentrantCallbackGroup
@@ -29,12 +32,12 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Header, String
 from visualization_msgs.msg import MarkerArray
 
-from sik_interfaces.msg import IKSolutionArray
 from sik_interfaces.srv import SolveIK, SolvePath
 from sik_ros.errors import SikError
 from sik_ros.kinematics.robots import chain_differences
 from sik_ros.ros import conversions as conv
 from sik_ros.ros.diagnostics import NodeDiagnostics
+from sik_ros.ros.goal_stream import GoalStream
 from sik_ros.ros.guard import RequestGuard
 from sik_ros.ros.ik_service import Arm, solution_msgs, solve_request, solver_settings
 from sik_ros.ros.params import declarations, NodeParams, validate
@@ -44,16 +47,12 @@ from sik_ros.serving.solvers import make_solvers, Solver
 from sik_ros.solver import SelectiveIK
 
 NODE_NAME = 'sik_node'
-#: Goals ``~/goal`` keeps while the solvers are busy (KEEP_LAST): a burst of more loses the
-#: oldest, as any KEEP_LAST subscription does; a client that needs every answer calls the
-#: service.
-GOAL_QUEUE = 100
 #: Depth of the services' request queues. ROS 2's default for services keeps the last 10
 #: requests: with more clients waiting than that while every executor thread is busy, Fast
 #: DDS drops the oldest unread requests, and their clients wait for a resend
 #: (docs/benchmarks.md, bench/soak.py).
 SERVICE_QUEUE = 256
-#: Executor threads, and solver instances in the pool (one per thread).
+#: Executor threads; the solver instances are one per thread and one for the ~/goal stream.
 WORKERS = 4
 #: Longest time the main thread waits in the executor before it checks for signals [s].
 SPIN_PERIOD = 0.1
@@ -96,9 +95,12 @@ class SikNode(Node):
         self.guard = RequestGuard(self.get_logger())
         self.guard.refusals.append(self._mismatch_refusal)
         self.diagnostics = NodeDiagnostics(self)
+        self.goal_stream: Optional[GoalStream] = None
         if not managed:
             self.start()
         self._joint_state: Optional[JointState] = None
+        #: when the latest joint_states arrived (time.monotonic) [s]; None: none yet
+        self.joint_state_received: Optional[float] = None
         self._joint_state_sub = None
         self.add_on_set_parameters_callback(self._on_set_parameters)
         self.add_post_set_parameters_callback(self._after_set_parameters)
@@ -116,12 +118,15 @@ class SikNode(Node):
             raise StartupError(f'bad parameters: {reason}')
         ik = self._load(self._params)
         try:
-            solvers = make_solvers(ik, self._params.solver_processes, self.workers, self._log)
+            solvers = make_solvers(ik, self._params.solver_processes, self.workers + 1,
+                                   self._log)
         except SikError as exc:
             raise StartupError(f'cannot start the solver processes: {exc}') from exc
         self.get_logger().info(f'solvers warmed up in {solvers.warm_up_seconds:.2f} s')
         self._ik, self.solvers = ik, solvers
         self.arm = Arm(ik.robot.base_frame, list(ik.joint_names))
+        if self.goal_stream is not None:
+            self.goal_stream.reset(ik.robot.velocity_limits)
         if self._description is not None:
             self._check_description(self._description)
         self.get_logger().info(
@@ -134,21 +139,23 @@ class SikNode(Node):
         """Stop the solvers and let go of the bundle (its models are freed)."""
         solvers, self.solvers = self.solvers, None
         self._ik, self.arm, self._mismatch = None, None, None
+        if self.goal_stream is not None:
+            self.goal_stream.reset(None)
         if solvers is not None:
             solvers.close()
         gc.collect()
 
     def _create_interfaces(self) -> None:
         group = ReentrantCallbackGroup()
-        self._solutions_pub = self.create_publisher(IKSolutionArray, '~/solutions', 10)
         self._markers_pub = self.create_publisher(MarkerArray, '~/markers', 5)
         requests = QoSProfile(depth=SERVICE_QUEUE, reliability=ReliabilityPolicy.RELIABLE)
         self.create_service(SolveIK, '~/solve_ik', self._on_solve_ik, qos_profile=requests,
                             callback_group=group)
         self.create_service(SolvePath, '~/solve_path', self._on_solve_path,
                             qos_profile=requests, callback_group=group)
-        self.create_subscription(PoseStamped, '~/goal', self._on_goal, GOAL_QUEUE,
-                                 callback_group=group)
+        self.goal_stream = GoalStream(self)
+        if self._ik is not None:
+            self.goal_stream.reset(self._ik.robot.velocity_limits)
         self._update_joint_state_subscription()
         latched = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL,
                              reliability=ReliabilityPolicy.RELIABLE)
@@ -211,7 +218,7 @@ class SikNode(Node):
         elif not want and self._joint_state_sub is not None:
             self.destroy_subscription(self._joint_state_sub)
             self._joint_state_sub = None
-            self._joint_state = None
+            self._joint_state, self.joint_state_received = None, None
 
     # -- the bundle ------------------------------------------------------------------------------
 
@@ -302,7 +309,7 @@ class SikNode(Node):
         return Header(stamp=self.get_clock().now().to_msg(),
                       frame_id=arm.base_frame if arm is not None else '')
 
-    def _state_seed(self) -> Optional[np.ndarray]:
+    def state_seed(self) -> Optional[np.ndarray]:
         """Return the latest ``joint_states`` as a seed (clipped to the limits), or None."""
         msg = self._joint_state
         if msg is None:
@@ -317,18 +324,25 @@ class SikNode(Node):
             return None
         return np.clip(q, self._ik.robot.lower, self._ik.robot.upper)
 
-    def _want_markers(self) -> bool:
+    def want_markers(self) -> bool:
+        """Whether markers are wanted now (on, not closing, someone listening)."""
         return (self._params.publish_markers and not self.closing
                 and self._markers_pub.get_subscription_count() > 0)
 
+    def publish_markers(self, solutions, header: Header, position: np.ndarray,
+                        orientation: Optional[np.ndarray]) -> None:
+        """Draw ranked solutions and their goal on ``~/markers``."""
+        self._markers_pub.publish(conv.posture_markers(
+            self._ik.robot.chain, solutions, header, position, orientation))
+
     def _fill_ik(self, request: SolveIK.Request, response, header: Header):
         """Solve a SolveIK request into ``response`` (its solutions); the code and message."""
-        answer = solve_request(self.solvers, self.arm, request, self._params, self._state_seed)
+        answer = solve_request(self.solvers, self.arm, request, self._params, self.state_seed)
         response.solutions = solution_msgs(answer.result, self.arm, header)
-        if self._want_markers():
-            self._markers_pub.publish(conv.posture_markers(
-                self._ik.robot.chain, answer.result.solutions, header, answer.position,
-                answer.orientation))
+        response.num_families = int(answer.result.num_families)
+        if self.want_markers():
+            self.publish_markers(answer.result.solutions, header, answer.position,
+                                 answer.orientation)
         return answer.code, answer.message
 
     def _on_solve_ik(self, request: SolveIK.Request, response: SolveIK.Response
@@ -344,7 +358,7 @@ class SikNode(Node):
             header)
         response.fraction = float(result.fraction)
         response.trajectories, response.metrics = trajectories, metrics
-        if result.paths and self._want_markers():
+        if result.paths and self.want_markers():
             self._markers_pub.publish(path_markers(self._ik.robot.chain, result, header))
         return code, message
 
@@ -353,20 +367,14 @@ class SikNode(Node):
         return self.guard.answer('solve_path', response,
                                  lambda r: self._fill_path(request, r))
 
-    def _on_goal(self, msg: PoseStamped) -> None:
-        request = SolveIK.Request(target=msg, use_orientation=self._params.goal_use_orientation)
-        header = self._header()
-        answer = self.guard.answer('goal', SolveIK.Response(),
-                                   lambda r: self._fill_ik(request, r, header))
-        if not self.closing:
-            self._solutions_pub.publish(conv.solution_array(
-                header, answer.error_code, answer.message, answer.solutions))
-
     def _on_joint_state(self, msg: JointState) -> None:
-        self._joint_state = msg
+        self._joint_state, self.joint_state_received = msg, time.monotonic()
 
     def destroy_node(self) -> None:
         """Log the request statistics, stop the solver processes, then destroy the node."""
+        stream = getattr(self, 'goal_stream', None)
+        if stream is not None:
+            stream.close()
         diagnostics = getattr(self, 'diagnostics', None)
         if diagnostics is not None:
             diagnostics.log_summary()

@@ -75,6 +75,9 @@ MAX_SOLVER_PROCESSES = 16
 #: Most solutions per answer (the highest ``max_solutions_cap``).
 MAX_SOLUTIONS = 1024
 
+#: Values of ``command_format``: no command, or the message of a ros2_control controller.
+COMMAND_FORMATS = ('none', 'float64_multi_array', 'joint_trajectory')
+
 #: Every node parameter, in declaration order (the order of :class:`NodeParams`' fields).
 SPECS: Tuple[ParamSpec, ...] = (
     ParamSpec('robot', str, 'panda',
@@ -119,6 +122,30 @@ SPECS: Tuple[ParamSpec, ...] = (
               '~/goal poses are pose goals (false: position goals)'),
     ParamSpec('publish_markers', bool, True,
               'publish the ranked postures on ~/markers for RViz'),
+    ParamSpec('goal_num_solutions', int, 1,
+              'solutions in each answer to a ~/goal (a stream: 1, the one nearest the seed); '
+              '1..max_solutions_cap',
+              min=1, max=MAX_SOLUTIONS, max_param='max_solutions_cap'),
+    ParamSpec('goal_timeout', float, 0.02,
+              'time budget of each ~/goal [s]; (0, 60]',
+              min=0.0, max=60.0, min_open=True, unit='s'),
+    ParamSpec('goal_max_joint_step', float, 0.5,
+              'a ~/goal answer whose best solution is farther than this from the seed (the '
+              'previous answer or joint_states) in any joint is a jump: answered JOINT_JUMP, '
+              'not followed and not commanded [rad]; 0: no bound; [0, 10]',
+              min=0.0, max=10.0, unit='rad'),
+    ParamSpec('goal_marker_rate', float, 10.0,
+              'most ~/markers messages per second for ~/goal answers [Hz]; 0: none; [0, 1000]',
+              min=0.0, max=1000.0, unit='Hz'),
+    ParamSpec('command_format', str, 'none',
+              'command output for ros2_control of each ~/goal answer: none, '
+              'float64_multi_array (forward_command_controller) or joint_trajectory '
+              '(joint_trajectory_controller) (read-only)',
+              read_only=True),
+    ParamSpec('command_topic', str, '~/command',
+              'topic of the command output, e.g. /forward_position_controller/commands '
+              '(read-only)',
+              read_only=True),
     ParamSpec('solver_processes', int, 0,
               'solver processes serving requests in parallel (beyond the GIL); 0: solve in the '
               'executor threads; 0..16 (read-only)',
@@ -215,6 +242,11 @@ def validate(p: 'NodeParams') -> Optional[str]:
     """
     if not p.robot and not p.model_dir:
         return 'robot and model_dir are both empty: name a bundled model or a bundle directory'
+    if p.command_format not in COMMAND_FORMATS:
+        return (f'command_format must be one of {", ".join(COMMAND_FORMATS)}; '
+                f'got {p.command_format!r}')
+    if p.command_format != 'none' and not p.command_topic:
+        return 'command_topic is empty: name the controller\'s command topic'
     # ints before floats; a number bounded by another parameter after that parameter
     for s in sorted((s for s in SPECS if s.numeric),
                     key=lambda s: (s.type is float, bool(s.max_param))):

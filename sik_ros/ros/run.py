@@ -70,9 +70,10 @@ def _serve(args: Optional[List[str]]) -> int:
     """Start the node, spin until a signal, drain the requests in flight and shut down."""
     # imported here: ``--help`` and a refused argument answer without loading the solver
     import rclpy
-    from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
+    from rclpy.executors import ExternalShutdownException
     from rclpy.signals import SignalHandlerOptions
 
+    from sik_ros.ros.executor import SlottedExecutor
     from sik_ros.ros.lifecycle import make_node
     from sik_ros.ros.node import SPIN_PERIOD
     # The node owns SIGINT and SIGTERM (systemd, docker stop, kill): both raise
@@ -93,7 +94,7 @@ def _serve(args: Optional[List[str]]) -> int:
         rclpy.logging.get_logger(LOGGER).fatal(f'cannot start: {reason}')
         rclpy.try_shutdown()
         return 1
-    executor = MultiThreadedExecutor(num_threads=node.workers)
+    executor = SlottedExecutor(node.workers)
     executor.add_node(node)
     try:
         while rclpy.ok() and not getattr(node, 'finished', False):  # a managed node's shutdown
