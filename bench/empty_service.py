@@ -1,11 +1,11 @@
 """An empty ROS 2 service served as sik_node serves ``~/solve_ik``: the floor of a round trip.
 
 ``std_srvs/Trigger`` at ``/sik_bench_empty/trigger``, answered at once, by a node spun as
-``sik_node`` is (:mod:`sik_ros.ros.run`): a :class:`MultiThreadedExecutor` with the node's
-executor threads, the service in a reentrant callback group with the node's request queue
-depth. ``bench/service.py`` starts it as a process beside the node and calls both from the same
-client, so what the node adds to rclpy's own cost of a call shows as a ratio measured in one
-run.
+``sik_node`` is (:mod:`sik_ros.ros.run`): a :class:`~sik_ros.ros.executor.SlottedExecutor`
+with the node's executor threads, the service in a reentrant callback group with the node's
+request queue depth. ``bench/service.py`` starts it as a process beside the node and calls both
+from the same client, so what the node adds to rclpy's own cost of a call shows as a ratio
+measured in one run.
 
 Beside it, the floor of an answer of sik_node's size: ``sik_interfaces/SolveIK`` at
 ``/sik_bench_empty/message``, answering every request with the same 16 ranked solutions,
@@ -20,12 +20,13 @@ from typing import Callable, List, Optional
 
 import rclpy
 from rclpy.callback_groups import ReentrantCallbackGroup
-from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
+from rclpy.executors import ExternalShutdownException
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from std_msgs.msg import Header
 from std_srvs.srv import Trigger
 
 from sik_interfaces.srv import SolveIK
+from sik_ros.ros.executor import SlottedExecutor
 from sik_ros.ros.ik_service import Arm, solution_msgs
 from sik_ros.ros.node import SERVICE_QUEUE, SPIN_PERIOD, WORKERS
 from sik_ros.solver import SelectiveIK
@@ -75,7 +76,7 @@ def main(argv: Optional[List[str]] = None) -> int:
                         callback_group=group)
     node.create_service(SolveIK, '~/message', solutions_answer(node), qos_profile=requests,
                         callback_group=group)
-    executor = MultiThreadedExecutor(num_threads=WORKERS)
+    executor = SlottedExecutor(WORKERS)
     executor.add_node(node)
     try:
         while rclpy.ok():

@@ -31,6 +31,9 @@ run solve bench/solve.py --targets 100
 run paths bench/paths.py --paths 100
 run tracik_protocol bench/tracik_protocol.py --targets 10000
 run service bench/service.py --requests 1000 --duration 10 --goals mixed
+run stream bench/stream.py --rates 100 500 1000 --duration 10
+run stream-busy bench/stream.py --rates 100 500 1000 --duration 10 --busy
+run executors bench/executors.py --duration 5
 run arms bench/arms.py --arms panda,ur5 --targets 50 --max-attempts 100
 run families bench/families.py --panda-poses 40 --arm-bundle bundles_bench/ur5 --arm-poses 60
 run solve_ab-panda-pose bench/solve_ab.py a=. b=. --goal pose --targets 100
