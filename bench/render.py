@@ -591,12 +591,58 @@ def render_families(data: dict) -> str:
             + note)
 
 
+def render_stream(data: dict) -> str:
+    """``bench/stream.py``: goal streams on the wire, and ``~/solve_ik`` during one."""
+    r = data['results']
+    rows, calls = [], []
+    for row in r['rows']:
+        if 'rate' not in row:
+            calls.append(row)
+            continue
+        rows.append([row['kind'], f'{row["rate"]:,.0f} Hz', pct(row['answered']),
+                     f'{num(row["latency_p50"])} / {num(row["latency_p99"])}',
+                     f'{num(row["staleness_p50"])} / {num(row["staleness_p99"])}',
+                     num(row['last_answer']), str(row['out_of_order']),
+                     f'{row["stamped"]:,} / {row["answers"]:,}',
+                     f'{row["timeout"]} / {row["joint_jump"]}', str(row['flips']),
+                     f'{row["invalid"]} / {row["checked"]:,}',
+                     f'{row["replaced_reported"]:,}', f'{row["node_cpu"]:.0f} %'])
+    text = table(['goals', 'rate', 'goals answered', 'own answer p50 / p99 [ms]',
+                  'newest answer staleness p50 / p99 [ms]', 'last answer after last goal [ms]',
+                  'out of order', 'answers with their goal\'s stamp', 'TIMEOUT / JOINT_JUMP',
+                  'posture flips', 'invalid (FK) / checked', 'replaced', 'node CPU'], rows)
+    if calls:
+        text += '\n\n' + table(
+            ['goals', '`~/solve_ik` p50 alone [ms]', 'during a 1 kHz stream [ms]'],
+            [[c['kind'], num(c['service_alone_p50']), num(c['service_during_1khz_p50'])]
+             for c in calls])
+    if r.get('busy'):
+        text += '\n\nWith one core kept busy by another process throughout (`--busy`).'
+    return text
+
+
+def render_executors(data: dict) -> str:
+    """``bench/executors.py``: three rclpy executors serving a slow subscription and a service."""
+    r = data['results']
+    rows = [[row['executor'], f'{row["idle_cpu"]:.1f} %',
+             f'{num(row["service_p50"])} / {num(row["service_p99"])}',
+             f'{row["stream_done"]} / {row["stream_sent"]}',
+             f'{num(row["stream_delay_p50"], 1)} / {num(row["stream_delay_p99"], 1)}',
+             num(row['handovers_per_goal'], 1), num(row['service_during_p50'])]
+            for row in r['rows']]
+    return (table(['executor', 'idle CPU', 'service p50 / p99 [ms]',
+                   f'callbacks run / goals sent (100 Hz, {r["work_ms"]:g} ms each)',
+                   'callback delay p50 / p99 [ms]', 'hand-overs per goal',
+                   'service p50 during the stream [ms]'], rows))
+
+
 RENDER: Dict[str, Callable] = {
     'collect': render_collect, 'solve': render_solve, 'solve_ab': render_ab,
     'arms': render_arms, 'paths': render_paths, 'paths_ab': render_paths_ab,
     'service_probe': render_service_probe, 'soak': render_soak, 'sweep': render_sweep,
     'train_step': render_train_step, 'tracik_protocol': render_tracik_protocol,
-    'ablation': render_ablation, 'families': render_families}
+    'ablation': render_ablation, 'families': render_families, 'stream': render_stream,
+    'executors': render_executors}
 
 
 def load() -> Dict[str, List[dict]]:

@@ -4,7 +4,8 @@ For each goal kind (pose, position) a node serves the bundled model with
 ``use_joint_states:=true`` (and ``goal_use_orientation`` for pose goals); a client
 (:class:`~sik_ros.ros.stream_client.GoalStreamClient`) streams goals along a smooth 10 cm circle
 (one turn in 4 s) at each rate for ``--duration`` seconds, with a simulated arm that follows the
-first solution of each answer on ``joint_states``. Per stream: goals answered, the latency of a
+first solution of each answer on ``joint_states`` (and starts each stream at the circle's
+start). Per stream: goals answered, the latency of a
 goal's own answer, the staleness of the newest answer (from each goal until an answer to it or
 to a newer goal arrived: p50, p99), the last answer's delay after the last goal, answers out of
 order, answers that carry their goal's stamp, codes (TIMEOUT, JOINT_JUMP), posture flips
@@ -83,8 +84,11 @@ def run_kind(kind: str, args, robot, env: Dict[str, str]) -> List[Dict]:
                 raise SystemExit('sik_node did not come up')
             warm, quat = circle(robot, 100, 1.0)
             client.run(warm, 100, quat if pose else None)  # warm-up, not measured
+            q_mid = (robot.lower + robot.upper) / 2
             for rate in args.rates:
                 goals, quat = circle(robot, rate, args.duration)
+                client.publish_state(q_mid)  # the arm back at the circle's start
+                time.sleep(0.2)
                 cpu0, t0 = cpu_seconds(proc.pid), time.monotonic()
                 record = client.run(goals, rate, quat if pose else None)
                 cpu = (cpu_seconds(proc.pid) - cpu0) / (time.monotonic() - t0) * 100
@@ -94,6 +98,8 @@ def run_kind(kind: str, args, robot, env: Dict[str, str]) -> List[Dict]:
                 print(f'{kind} {rate:g} Hz: {format_row(row)}', flush=True)
             alone = service_p50(service, goals, quat, pose)
             goals, quat = circle(robot, 1000, 3.0)
+            client.publish_state(q_mid)
+            time.sleep(0.2)
             during: List[float] = []
             thread = threading.Thread(target=lambda: during.append(
                 service_p50(service, goals, quat, pose)))
