@@ -111,7 +111,8 @@ class GoalStream:
 
     def reset(self, velocity_limits: Optional[np.ndarray]) -> None:
         """Start a new stream (a bundle loaded: its velocity limits; None: unloaded)."""
-        self.servo = None if velocity_limits is None else ServoState(velocity_limits)
+        self.servo = (None if velocity_limits is None
+                      else ServoState(velocity_limits, clock=time.time))
 
     # -- the answering thread ---------------------------------------------------------------------
 
@@ -154,9 +155,10 @@ class GoalStream:
             return R.TIMEOUT, 'sik_node has no bundle loaded'
         arm.check_frame(msg.header.frame_id, 'goal')
         position, orientation = conv.goal_from_pose(msg.pose, p.goal_use_orientation)
-        received = node.joint_state_received
-        if p.use_joint_states and received is not None and received > servo.measured_at:
-            servo.measured(node.state_seed(), received)  # newer than the one in use
+        if p.use_joint_states:
+            _, received = node.joint_states.latest()
+            if received is not None and received > servo.measured_at:
+                servo.measured(node.state_seed(), received)  # newer than the one in use
         seed = servo.seed()
         result = node.solvers.solve(position, orientation, p.goal_num_solutions, seed=seed,
                                     refine=p.refine, timeout=p.goal_timeout)

@@ -18,7 +18,6 @@ callback hands its request to :class:`~sik_ros.ros.guard.RequestGuard` with a ha
 from dataclasses import fields, replace
 import gc
 import logging
-import time
 from typing import List, Optional
 
 import numpy as np
@@ -27,8 +26,7 @@ from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.exceptions import InvalidParameterValueException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
-from rclpy.qos import DurabilityPolicy, qos_profile_sensor_data, QoSProfile, ReliabilityPolicy
-from sensor_msgs.msg import JointState
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from std_msgs.msg import Header, String
 from visualization_msgs.msg import MarkerArray
 
@@ -40,6 +38,7 @@ from sik_ros.ros.diagnostics import NodeDiagnostics
 from sik_ros.ros.goal_stream import GoalStream
 from sik_ros.ros.guard import RequestGuard
 from sik_ros.ros.ik_service import Arm, solution_msgs, solve_request, solver_settings
+from sik_ros.ros.joint_states import JointStateTap
 from sik_ros.ros.params import declarations, NodeParams, validate
 from sik_ros.ros.path_service import path_markers, solve_path_request
 from sik_ros.serving.pool import single_threaded
@@ -98,10 +97,7 @@ class SikNode(Node):
         self.goal_stream: Optional[GoalStream] = None
         if not managed:
             self.start()
-        self._joint_state: Optional[JointState] = None
-        #: when the latest joint_states arrived (time.monotonic) [s]; None: none yet
-        self.joint_state_received: Optional[float] = None
-        self._joint_state_sub = None
+        self.joint_states = JointStateTap(self)
         self.add_on_set_parameters_callback(self._on_set_parameters)
         self.add_post_set_parameters_callback(self._after_set_parameters)
         self._create_interfaces()
@@ -211,14 +207,7 @@ class SikNode(Node):
             f'{c.name}={c.value!r}' for c in changes))
 
     def _update_joint_state_subscription(self) -> None:
-        want = self._params.use_joint_states
-        if want and self._joint_state_sub is None:
-            self._joint_state_sub = self.create_subscription(
-                JointState, 'joint_states', self._on_joint_state, qos_profile_sensor_data)
-        elif not want and self._joint_state_sub is not None:
-            self.destroy_subscription(self._joint_state_sub)
-            self._joint_state_sub = None
-            self._joint_state, self.joint_state_received = None, None
+        self.joint_states.enable(self._params.use_joint_states)
 
     # -- the bundle ------------------------------------------------------------------------------
 
@@ -311,7 +300,7 @@ class SikNode(Node):
 
     def state_seed(self) -> Optional[np.ndarray]:
         """Return the latest ``joint_states`` as a seed (clipped to the limits), or None."""
-        msg = self._joint_state
+        msg, _ = self.joint_states.latest()
         if msg is None:
             return None
         try:
@@ -367,14 +356,14 @@ class SikNode(Node):
         return self.guard.answer('solve_path', response,
                                  lambda r: self._fill_path(request, r))
 
-    def _on_joint_state(self, msg: JointState) -> None:
-        self._joint_state, self.joint_state_received = msg, time.monotonic()
-
     def destroy_node(self) -> None:
         """Log the request statistics, stop the solver processes, then destroy the node."""
         stream = getattr(self, 'goal_stream', None)
         if stream is not None:
             stream.close()
+        tap = getattr(self, 'joint_states', None)
+        if tap is not None:
+            tap.close()
         diagnostics = getattr(self, 'diagnostics', None)
         if diagnostics is not None:
             diagnostics.log_summary()
