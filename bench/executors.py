@@ -184,7 +184,8 @@ def main(argv: Optional[List[str]] = None) -> int:
     finally:
         rclpy.try_shutdown()
     if args.json:
-        write_json(args.json, {'work_ms': args.work, 'duration': args.duration, 'rows': rows})
+        write_json(args.json, 'executors',
+                   {'work_ms': args.work, 'duration': args.duration, 'rows': rows})
     return 0
 
 

@@ -158,8 +158,9 @@ def main(argv: Optional[List[str]] = None) -> int:
         if busy is not None:
             busy.terminate()
     if args.json:
-        write_json(args.json, {'busy': args.busy, 'duration': args.duration, 'rows': rows,
-                               'tolerances': {'position': 1e-4, 'orientation': 1e-3}})
+        write_json(args.json, 'stream',
+                   {'busy': args.busy, 'duration': args.duration, 'rows': rows,
+                    'tolerances': {'position': 1e-4, 'orientation': 1e-3}})
     return 0
 
 
