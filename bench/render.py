@@ -532,6 +532,10 @@ def render_summary(results: Dict[str, List[dict]]) -> Optional[str]:
                      f'{s["throughput"][str(s["clients"])]["floor"]:.0f} requests/s',
                      NA if not floor else f'**{num(s["ratio"]["p50"])}** (p50)'])
         sources.append(service)
+    stream = next((d for d in results.get('stream', []) if d['file'] == 'stream'), None)
+    if stream:
+        rows.append(_stream_summary(stream['results']['rows']))
+        sources.append(stream)
     if not sources:
         return None
 
@@ -551,6 +555,18 @@ def render_summary(results: Dict[str, List[dict]]) -> Optional[str]:
                'the peers not comparable with a quiet run\'s.' if busy else '')
             + ' Each row\'s command and the full tables: '
             '[docs/benchmarks.md](docs/benchmarks.md).')
+
+
+def _stream_summary(rows: List[dict]) -> List[str]:
+    """The summary's row of the goal streams: pose goals at 500 and 1,000 Hz."""
+    pose = {r['rate']: r for r in rows if r.get('kind') == 'pose' and 'rate' in r}
+    cells = [f'{rate:,.0f} Hz {num(pose[rate]["staleness_p50"])} / '
+             f'{num(pose[rate]["staleness_p99"])} ms' for rate in (500, 1000) if rate in pose]
+    disorder = sum(r['out_of_order'] for r in pose.values())
+    stamped = all(r['unstamped'] == 0 for r in pose.values())
+    return ['`sik_node` pose goal stream on `~/goal`: newest answer p50 / p99 after its goal; '
+            'order', '; '.join(cells) + f'; {disorder} out of order'
+            + ('' if stamped else ' (some answers without their stamp)'), NA, NA]
 
 
 def render_families(data: dict) -> str:
