@@ -136,8 +136,7 @@ class GoalStream:
 
     def _answer(self, msg: PoseStamped, arrived: float, replaced: int) -> None:
         node = self.node
-        out = IKSolutionArray(header=msg.header, goals_replaced=replaced,
-                              joint_step=float('nan'))
+        out = IKSolutionArray(header=msg.header, goals_replaced=replaced, joint_step=-1.0)
         response = node.guard.answer('goal', SolveIK.Response(),
                                      lambda r: self._solve(msg, arrived, out))
         if node.closing:
