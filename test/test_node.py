@@ -26,7 +26,7 @@ from sensor_msgs.msg import JointState
 from visualization_msgs.msg import Marker, MarkerArray
 
 import harness
-from sik_interfaces.msg import IKSolutionArray
+from sik_interfaces.msg import IKSolution, IKSolutionArray
 from sik_interfaces.srv import SolveIK
 
 pytestmark = [pytest.mark.e2e, pytest.mark.timeout(120)]
@@ -128,9 +128,10 @@ def quat_angle(a, b):
 
 
 def check_answer(panda, answer, position, orientation=None):
-    """Errors reported equal errors by FK; SUCCESS iff some solution is within tolerance."""
+    """Errors reported equal errors by FK (at least one solution); SUCCESS iff one is exact."""
     assert answer.error_code in ANSWERED, answer.message
     assert answer.message
+    assert answer.solutions, f'no solution to verify ({answer.message})'
     within = []
     for s in answer.solutions:
         assert list(s.joint_state.name) == list(panda.joint_names)
@@ -149,8 +150,13 @@ def check_answer(panda, answer, position, orientation=None):
         assert len(s.posture_index) > 0
         within.append(ok)
     assert (answer.error_code == R.SUCCESS) == any(within), answer.message
+    families = {s.family for s in answer.solutions if s.family != IKSolution.NO_FAMILY}
     if answer.error_code == R.SUCCESS:
         assert within[0], 'the best-ranked solution must be within tolerance'
+        assert answer.num_families >= max(1, len(families)), answer.message
+        assert f'{answer.num_families} posture families' in answer.message
+    elif answer.error_code == R.NO_SOLUTION:
+        assert answer.num_families == 0 and not families
 
 
 def set_parameters(node, params, atomically=False):
