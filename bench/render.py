@@ -652,13 +652,25 @@ def render_executors(data: dict) -> str:
                    'service p50 during the stream [ms]'], rows))
 
 
+def render_service_ab(data: dict) -> str:
+    """``bench/service_ab.py``: the node's round trip, paired between two checkouts."""
+    r = data['results']
+    a, b = r['names']
+    commits = data.get('checkouts', {})
+    rows = [[f'{n} (`{commits.get(n, {}).get("commit", "?")}`)',
+             f'{num(r["rows"][n]["p50_ms"])} / {num(r["rows"][n]["p99_ms"])}',
+             str(r['rows'][n]['requests'])] for n in (a, b)]
+    return (table(['checkout', 'round trip p50 / p99 [ms]', 'requests'], rows)
+            + f'\n\n{b} / {a}, median of the paired per-request ratios: **{num(r["ratio"], 3)}**')
+
+
 RENDER: Dict[str, Callable] = {
     'collect': render_collect, 'solve': render_solve, 'solve_ab': render_ab,
     'arms': render_arms, 'paths': render_paths, 'paths_ab': render_paths_ab,
     'service_probe': render_service_probe, 'soak': render_soak, 'sweep': render_sweep,
     'train_step': render_train_step, 'tracik_protocol': render_tracik_protocol,
     'ablation': render_ablation, 'families': render_families, 'stream': render_stream,
-    'executors': render_executors}
+    'executors': render_executors, 'service_ab': render_service_ab}
 
 
 def load() -> Dict[str, List[dict]]:
