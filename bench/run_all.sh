@@ -34,8 +34,8 @@ run service bench/service.py --requests 1000 --duration 10 --goals mixed
 run stream bench/stream.py --rates 100 500 1000 --duration 10
 run stream-busy bench/stream.py --rates 100 500 1000 --duration 10 --busy
 run executors bench/executors.py --duration 5
-# OLD: a checkout of the release to compare with (git worktree add /tmp/old <tag>)
-[[ -n "${OLD:-}" ]] && run service_ab bench/service_ab.py "old=$OLD" new=. --requests 300
+# OLD: a revision to compare the node's round trip with (e.g. OLD=013d4cc, 0.4.0)
+[[ -n "${OLD:-}" ]] && run service_ab bench/service_ab.py "old=@$OLD" new=. --requests 300
 run arms bench/arms.py --arms panda,ur5 --targets 50 --max-attempts 100
 run families bench/families.py --panda-poses 40 --arm-bundle bundles_bench/ur5 --arm-poses 60
 run solve_ab-panda-pose bench/solve_ab.py a=. b=. --goal pose --targets 100

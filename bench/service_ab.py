@@ -8,14 +8,17 @@ goals alternating), 16 solutions each. Prints per checkout the round trip p50 / 
 median of the per-request ratios to the first checkout.
 
     python bench/service_ab.py old=/path/to/checkout new=. --requests 400
+    python bench/service_ab.py old=@v0.4.0 new=. --requests 400   # @REV: a worktree of REV
 
 The figures are never asserted (see docs/benchmarks.md).
 """
 
 import argparse
+from contextlib import ExitStack
 from pathlib import Path
 import subprocess
 import sys
+import tempfile
 import time
 from typing import Dict, List, Optional
 
@@ -38,15 +41,34 @@ def start(name: str, checkout: Path, env: Dict[str, str]) -> subprocess.Popen:
                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
 
 
+def checkout_path(spec: str, stack: ExitStack) -> Path:
+    """A checkout's folder: ``PATH``, or for ``@REV`` a temporary worktree of this repository."""
+    if not spec.startswith('@'):
+        return Path(spec).resolve()
+    repo = Path(__file__).resolve().parents[1]
+    folder = Path(stack.enter_context(tempfile.TemporaryDirectory())) / 'checkout'
+    subprocess.run(['git', 'worktree', 'add', '--detach', str(folder), spec[1:]], cwd=repo,
+                   check=True, capture_output=True)
+    stack.callback(subprocess.run, ['git', 'worktree', 'remove', '--force', str(folder)],
+                   cwd=repo, capture_output=True)
+    return folder
+
+
 def main(argv: Optional[List[str]] = None) -> int:
-    """Run the A/B; print and optionally write the figures."""
+    """Run the A/B between two checkouts."""
     parser = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
     parser.add_argument('checkouts', nargs=2, metavar='NAME=PATH')
     parser.add_argument('--requests', type=int, default=400)
     add_json_argument(parser)
     args = parser.parse_args(argv)
-    names = [c.split('=', 1)[0] for c in args.checkouts]
-    paths = [Path(c.split('=', 1)[1]).resolve() for c in args.checkouts]
+    with ExitStack() as stack:
+        names = [c.split('=', 1)[0] for c in args.checkouts]
+        paths = [checkout_path(c.split('=', 1)[1], stack) for c in args.checkouts]
+        return run(args, names, paths)
+
+
+def run(args, names: List[str], paths: List[Path]) -> int:
+    """Call both nodes in turn; print and optionally write the figures."""
     env = launch.ros_env()
     procs = [start(n, p, env) for n, p in zip(names, paths)]
     robot = load_robot('panda')
