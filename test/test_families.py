@@ -92,6 +92,7 @@ def test_json_view_carries_families(bundled):
 def test_segment_links_split_no_traced_family(bundled):
     """Solutions a corrected segment links lie on one traced self-motion curve (Panda)."""
     ctx = bundled.context
+    pairs = 0
     for pos, quat in pose_goals(bundled, 4, seed=7):
         res = bundled.solve(pos, quat, num_solutions=16)
         q = np.array([s.q for s in res.solutions if s.converged])
@@ -102,6 +103,8 @@ def test_segment_links_split_no_traced_family(bundled):
             for j in range(i + 1, len(q)):
                 if linked[i] == linked[j]:
                     assert traced[i] == traced[j]
+                    pairs += 1
+    assert pairs >= 8  # linked pairs were checked
 
 
 def test_branch_labels_are_equal_modulo_turns(ur5):
@@ -117,20 +120,31 @@ def test_branch_labels_are_equal_modulo_turns(ur5):
     assert branch_labels(q, 0.1, np.zeros(6, dtype=bool))[3] == 3
 
 
-def test_ur5_families_are_its_branches(ur5_bundle):
-    """On a 6-joint arm, same family exactly when the same branch (angles wrapped)."""
+def test_ur5_families_are_its_branches_every_one(ur5_bundle):
+    """On a 6-joint arm a family is a branch (angles wrapped), and every branch is found.
+
+    The branches known: ours and those of 300 refinements from uniform random starts.
+    """
+    from test_branches import every_branch
     ik = SelectiveIK.load(ur5_bundle[0])
-    for pos, quat in pose_goals(ik, 8, seed=1):
-        res = ik.solve(pos, quat, num_solutions=16)
+    rng = np.random.default_rng(1)
+    checked = 0
+    for t in range(8):
+        q0 = rng.uniform(ik.robot.lower, ik.robot.upper)
+        res = ik.solve(*ik.fk(q0), num_solutions=16)
         exact = [s for s in res.solutions if s.converged]
         q = np.ascontiguousarray([s.q for s in exact])
-        if len(q) < 2:
-            continue
-        branch = branch_labels(q, 0.1, np.ones(6, dtype=bool))
+        assert len(q) >= 2  # a UR5 pose has 2 to 8 branches (and their 2 pi equivalents)
+        reference = every_branch(ik.robot, q0, seed=t)
+        branch = branch_labels(np.ascontiguousarray(np.concatenate([q, reference])), 0.1,
+                               np.ones(6, dtype=bool))
         for i in range(len(q)):
             for j in range(i + 1, len(q)):
                 assert (branch[i] == branch[j]) == (exact[i].family == exact[j].family)
-        assert res.num_families >= len(set(branch.tolist()))
+        known = len(set(branch.tolist()))
+        assert len(set(branch[:len(q)].tolist())) == known == res.num_families
+        checked += known
+    assert checked >= 8 * 2
 
 
 def test_isolated_branches_are_not_merged_as_near_postures(ur5_bundle, bundled):

@@ -65,6 +65,9 @@ RESTART_SPREAD = 0.15
 #: the base axis may need more than one round (docs/design.md).
 FREE_RESTARTS = 16
 FREE_ROUNDS = 3
+#: Seed-table starts refined for each branch code no exact solution of an isolated pose goal
+#: has (:func:`sik_ros.solver.explore.other_branches`).
+BRANCH_CODE_STARTS = 2
 #: Most 2 pi equivalents added per solution (periodic joints): one joint turned, then two.
 EQUIVALENTS_PER_SOLUTION = 16
 #: Algorithm 2's move of one index element, as a share of its range in the table.

@@ -34,8 +34,8 @@ from sik_ros.solver.codec import decode
 from sik_ros.solver.config import (FAR_ITERATIONS, FREE_RESTARTS, FREE_ROUNDS, SolverConfig,
                                    START_MERGE)
 from sik_ros.solver.context import Context, Goal, POSE, POSITION
-from sik_ros.solver.explore import (branch_starts, periodic_equivalents, restart, seed_starts,
-                                    unindexed, walk)
+from sik_ros.solver.explore import (branch_starts, other_branches, periodic_equivalents,
+                                    restart, seed_starts, unindexed, walk)
 from sik_ros.solver.isolated import every_branch
 from sik_ros.solver.objectives import Objective
 from sik_ros.solver.ranking import (assess, best_distinct, by_score, distinct_mask,
@@ -292,7 +292,11 @@ def refine_all(ctx: Context, call: Call, c: Candidates) -> Tuple[Candidates, boo
     # solution saves less than it costs (docs/design.md, "Measured choices")
     r = refine(ctx, c.q, goal, deadline, FAR_ITERATIONS if call.far else None,
                prune=call.seeds is None, enough=enough)
-    c = assess(r.q, c.z, r.perr, r.oerr, goal.kind, cfg)
+    z = c.z
+    if call.seeds is not None and enough is None:  # every branch: starts for those missed
+        r = other_branches(ctx, goal, call.seeds, r, deadline)
+        z = np.concatenate([z, unindexed(r.q[len(z):], z.shape[1])])
+    c = assess(r.q, z, r.perr, r.oerr, goal.kind, cfg)
     return more_starts(ctx, call, c, enough, r.cut_short)
 
 
