@@ -180,3 +180,56 @@ def test_firsts_marks_each_familys_first_row_in_order():
         assert (families.firsts(fam, order) == expect).all()
         # roots beyond the rows (another numbering) take the general path
         assert (families.firsts(fam + 100 * (fam >= 0), order) == expect).all()
+
+
+def test_family_search_adds_exact_points_of_pieces_apart_from_the_found(bundled):
+    """The traced pieces' points reach the pose (Pinocchio FK), lie within the limits and
+    away from every solution they were traced from; the flips keep the tip (Panda: 1)."""
+    from sik_ros.kernels.sweep import trace_pieces
+    from sik_ros.solver.search import flips_of
+    robot, cfg = bundled.robot, bundled.config
+    assert flips_of(robot).tolist() == [0]  # the Panda's spherical shoulder
+    points = 0
+    for pos, quat in pose_goals(bundled, 6, seed=3):
+        bundled.configure(family_search=False)  # the solutions found before the search
+        try:
+            res = bundled.solve(pos, quat, num_solutions=16)
+        finally:
+            bundled.configure(family_search=True)
+        q = np.ascontiguousarray([s.q for s in res.solutions if s.converged])
+        rot = quaternion_matrix(quat)
+        out, owner = np.empty((32, 7)), np.empty(32, dtype=np.int64)
+        k = trace_pieces(robot.frames, robot.lower, robot.upper, q, flips_of(robot),
+                         np.asarray(pos, float), rot, 0.15, 400, 0.2, cfg.position_tolerance,
+                         cfg.orientation_tolerance, cfg.max_step, out, owner)
+        for x in out[:k]:
+            tip = robot.pin_placement(x)
+            assert np.linalg.norm(tip.translation - pos) <= cfg.position_tolerance
+            dr = tip.rotation.T @ rot
+            assert np.arccos(np.clip((np.trace(dr) - 1) / 2, -1, 1)) <= \
+                cfg.orientation_tolerance
+            assert np.all(x >= robot.lower) and np.all(x <= robot.upper)
+            assert np.linalg.norm(q - x, axis=1).min() >= 0.2
+        points += k
+    assert points >= 3  # pieces were found and checked
+
+
+def test_family_search_finds_more_families(bundled):
+    """With the search, no pose has fewer families, and some have more; every answer exact."""
+    cfg = bundled.config
+    more = 0
+    for pos, quat in pose_goals(bundled, 10, seed=11):
+        bundled.configure(family_search=False)
+        try:
+            without = bundled.solve(pos, quat, num_solutions=16)
+        finally:
+            bundled.configure(family_search=True)
+        with_search = bundled.solve(pos, quat, num_solutions=16)
+        assert with_search.num_families >= without.num_families
+        more += with_search.num_families > without.num_families
+        exact = [s for s in with_search.solutions if s.converged]
+        assert len(exact) >= 2
+        for s in exact:
+            tip = bundled.robot.pin_placement(s.q)
+            assert np.linalg.norm(tip.translation - pos) <= cfg.position_tolerance
+    assert more >= 2

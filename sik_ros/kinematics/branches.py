@@ -94,3 +94,32 @@ def branch_signs(robot: Robot, seed: int = 0) -> BranchSigns:
                 centres.append(float(c))
                 break
     return BranchSigns(tuple(joints), tuple(centres), robot.dof == 6)
+
+
+def exact_flips(robot: Robot, seed: int = 0) -> Tuple[int, ...]:
+    """The joints ``a`` whose half-turn flip ``(q_a + pi, -q_a+1, q_a+2 + pi)`` keeps the tip.
+
+    Three consecutive joints whose axes meet in one point (a spherical shoulder or wrist,
+    such as the Panda's first three) reach every tip pose a second way: the first and third
+    turned by half a turn, the middle one mirrored. Checked at :data:`SAMPLES` random
+    configurations (tip poses equal to 1e-9), no arm assumed.
+    """
+    rng = np.random.default_rng(seed)
+    q = rng.uniform(robot.lower, robot.upper, (SAMPLES, robot.dof))
+    p, r = robot.fk_rot(q)
+    found = []
+    for a in range(robot.dof - 2):
+        flipped = flip(q, a)
+        p2, r2 = robot.fk_rot(flipped)
+        if np.allclose(p, p2, rtol=0, atol=1e-9) and np.allclose(r, r2, rtol=0, atol=1e-9):
+            found.append(a)
+    return tuple(found)
+
+
+def flip(q: np.ndarray, a: int) -> np.ndarray:
+    """Configurations (M, n) with joints ``a, a+1, a+2`` flipped (:func:`exact_flips`)."""
+    out = np.array(q, dtype=float)
+    out[:, a] += np.pi
+    out[:, a + 1] *= -1.0
+    out[:, a + 2] += np.pi
+    return out

@@ -42,6 +42,7 @@ from sik_ros.solver.ranking import (assess, best_distinct, by_score, distinct_ma
                                     from_solutions, merge, pose_score, rank)
 from sik_ros.solver.refine import errors, refine
 from sik_ros.solver.results import IKResult, Solution
+from sik_ros.solver.search import search, searchable
 from sik_ros.solver.single import (fill_indices, from_starts, oriented_count,
                                    single_starts, turns_centre)
 from sik_ros.tables.seed_table import SeedTable
@@ -320,6 +321,8 @@ def more_starts(ctx: Context, call: Call, c: Candidates, enough: Optional[int],
         # the first exact ones are as good as any only with the default ranking
         margin = spare(cfg, num) if enough is not None else cfg.early_stop_margin
         c = walk(ctx, c, goal, deadline, num + max(margin, 0))
+    if num > 1 and not call.far and not call.first_found and searchable(ctx, goal):
+        c = search(ctx, c, goal, deadline)  # the pieces the limits part from those found
     return c, timed_out
 
 
