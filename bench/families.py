@@ -117,6 +117,7 @@ def on_family(q: np.ndarray, ref_q: np.ndarray, ref_label: np.ndarray) -> int:
 def panda(args) -> Dict:
     """The Panda against frankik's families."""
     ik = SelectiveIK.load('panda')
+    ik.configure(family_search=args.family_search)
     ik.solve(*ik.fk(np.zeros(7)), num_solutions=16)  # warm
     ref = Frankik(ik, args.q7_samples)
     tracik = TracIK(ik.robot)
@@ -183,7 +184,7 @@ def panda(args) -> Dict:
         'num_families_mean': float(np.mean([x['num_families'] for x in rows])),
         'time_median_ms': float(np.median([x['time_s'] for x in rows]) * 1e3),
         'sweep_median_ms': float(np.median([x['sweep_s'] for x in rows]) * 1e3),
-        'q7_samples': args.q7_samples,
+        'q7_samples': args.q7_samples, 'family_search': args.family_search,
     }
     print('panda: ' + ', '.join(f'{k} {v:.3g}' if isinstance(v, float) else f'{k} {v}'
                                 for k, v in out.items()))
@@ -273,6 +274,8 @@ def main(argv=None) -> int:
                         help='TRAC-IK restarts per pose of the six-joint arm')
     parser.add_argument('--distinct', type=float, default=None,
                         help='the six-joint arm\'s distinct_threshold (default: the solver\'s)')
+    parser.add_argument('--family-search', action='store_true',
+                        help='the Panda with SolverConfig.family_search on')
     parser.add_argument('--seed', type=int, default=0)
     add_json_argument(parser)
     args = parser.parse_args(argv)

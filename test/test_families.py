@@ -189,13 +189,10 @@ def test_family_search_adds_exact_points_of_pieces_apart_from_the_found(bundled)
     from sik_ros.solver.search import flips_of
     robot, cfg = bundled.robot, bundled.config
     assert flips_of(robot).tolist() == [0]  # the Panda's spherical shoulder
+    assert not cfg.family_search  # the solutions found without the search
     points = 0
     for pos, quat in pose_goals(bundled, 6, seed=3):
-        bundled.configure(family_search=False)  # the solutions found before the search
-        try:
-            res = bundled.solve(pos, quat, num_solutions=16)
-        finally:
-            bundled.configure(family_search=True)
+        res = bundled.solve(pos, quat, num_solutions=16)
         q = np.ascontiguousarray([s.q for s in res.solutions if s.converged])
         rot = quaternion_matrix(quat)
         out, owner = np.empty((32, 7)), np.empty(32, dtype=np.int64)
@@ -219,12 +216,12 @@ def test_family_search_finds_more_families(bundled):
     cfg = bundled.config
     more = 0
     for pos, quat in pose_goals(bundled, 10, seed=11):
-        bundled.configure(family_search=False)
+        without = bundled.solve(pos, quat, num_solutions=16)
+        bundled.configure(family_search=True)
         try:
-            without = bundled.solve(pos, quat, num_solutions=16)
+            with_search = bundled.solve(pos, quat, num_solutions=16)
         finally:
-            bundled.configure(family_search=True)
-        with_search = bundled.solve(pos, quat, num_solutions=16)
+            bundled.configure(family_search=False)
         assert with_search.num_families >= without.num_families
         more += with_search.num_families > without.num_families
         exact = [s for s in with_search.solutions if s.converged]
