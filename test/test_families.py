@@ -183,8 +183,10 @@ def test_firsts_marks_each_familys_first_row_in_order():
 
 
 def test_family_search_adds_exact_points_of_pieces_apart_from_the_found(bundled):
-    """The traced pieces' points reach the pose (Pinocchio FK), lie within the limits and
-    away from every solution they were traced from; the flips keep the tip (Panda: 1)."""
+    """The traced pieces' points reach the pose (Pinocchio FK), within limits, apart from all.
+
+    Apart: from every solution they were traced from; the Panda has one exact flip.
+    """
     from sik_ros.kernels.sweep import trace_pieces
     from sik_ros.solver.search import flips_of
     robot, cfg = bundled.robot, bundled.config
