@@ -32,7 +32,7 @@ run paths bench/paths.py --paths 100
 run tracik_protocol bench/tracik_protocol.py --targets 10000
 run service bench/service.py --requests 1000 --duration 10 --goals mixed
 run arms bench/arms.py --arms panda,ur5 --targets 50 --max-attempts 100
-run families bench/families.py --panda-poses 40 --arm-bundle bundles_bench/ur5 --arm-poses 60
+run families bench/families.py --panda-poses 40 --family-search --arm-bundle bundles_bench/ur5 --arm-poses 60
 run solve_ab-panda-pose bench/solve_ab.py a=. b=. --goal pose --targets 100
 run solve_ab-panda-analytic bench/solve_ab.py ours=. frankik=frankik tracik=tracik --goal pose \
   --num 1 --targets 200
