@@ -169,7 +169,7 @@ def solve(ctx: Context, goal: Goal, num: int, q_seed: Optional[np.ndarray],
     c = distinct_postures(ctx, c, goal, q_seed)
     fam = family_roots(ctx, call, c)
     sols = rank(ctx, c, q_seed, obstacles, objective, limit=num, deadline=deadline,
-                families=fam)
+                families=fam, branches_first=call.isolated)
     if own is not None:
         sols = seed_posture_first(ctx, goal, own, sols, q_seed, obstacles, num, deadline)
     sols, fam, cut = free_rounds(ctx, call, c, sols, fam)
@@ -279,7 +279,7 @@ def free_rounds(ctx: Context, call: Call, c: Candidates, sols: List[Solution],
         c = distinct_postures(ctx, more, goal, call.q_seed)
         fam = family_roots(ctx, call, c)
         sols = rank(ctx, c, call.q_seed, call.obstacles, call.objective, limit=call.num,
-                    deadline=deadline, families=fam)
+                    deadline=deadline, families=fam, branches_first=call.isolated)
     return sols, fam, timed_out
 
 
@@ -305,7 +305,7 @@ def finish(ctx: Context, call: Call, sols: List[Solution], timed_out: bool,
                 c = from_solutions(sols)
                 fam = families.roots(ctx, c, goal, deadline)
                 sols = rank(ctx, c, call.q_seed, obstacles, call.objective, deadline=deadline,
-                            families=fam)
+                            families=fam, branches_first=call.isolated)
             sols = sols[:call.num]
     if fam is None and call.num == 1:  # one solution: its own family, the one known
         fam = [0] if sols and sols[0].converged else []
