@@ -81,3 +81,24 @@ def test_branch_starts_come_from_one_code(ur5, tmp_path):
             assert np.all(table.signs.codes(ur5, starts) == code)
             counted += len(starts)
     assert counted >= 4 * table.signs.count
+
+
+def test_exact_flips_keep_the_tip_and_turn_into_the_limits():
+    """A spherical wrist's flip (the Kinova's joints 4-6) reaches the same pose, by Pinocchio.
+
+    Turned by whole turns into the limits (as the solver's starts are), it is a configuration
+    within them at that pose; the UR5 (offset wrist) has no exact flip.
+    """
+    from sik_ros.kinematics.branches import exact_flips, flip
+    from sik_ros.kinematics.periodic import TURN
+    from sik_ros.kinematics.robots import load_robot
+    kinova = load_robot('kinova')
+    assert exact_flips(kinova) == (3,) and exact_flips(load_robot('ur5')) == ()
+    q = np.random.default_rng(4).uniform(kinova.lower, kinova.upper, (20, kinova.dof))
+    turned = kinova.lower + np.mod(flip(q, 3) - kinova.lower, TURN)
+    fits = np.all(turned <= kinova.upper, axis=1)
+    assert fits.sum() >= 10
+    for a, b in zip(q[fits], turned[fits]):
+        pa, pb = kinova.pin_placement(a), kinova.pin_placement(b)
+        assert np.allclose(pa.translation, pb.translation, atol=1e-9)
+        assert np.allclose(pa.rotation, pb.rotation, atol=1e-9)

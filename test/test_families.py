@@ -188,7 +188,7 @@ def test_family_search_adds_exact_points_of_pieces_apart_from_the_found(bundled)
     Apart: from every solution they were traced from; the Panda has one exact flip.
     """
     from sik_ros.kernels.sweep import trace_pieces
-    from sik_ros.solver.search import flips_of
+    from sik_ros.kinematics.branches import robot_flips as flips_of
     robot, cfg = bundled.robot, bundled.config
     assert flips_of(robot).tolist() == [0]  # the Panda's spherical shoulder
     assert not cfg.family_search  # the solutions found without the search

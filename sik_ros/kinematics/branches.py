@@ -19,6 +19,7 @@ solutions) still gets starts for every code.
 """
 
 from dataclasses import dataclass
+import functools
 from typing import Tuple
 
 import numpy as np
@@ -114,6 +115,12 @@ def exact_flips(robot: Robot, seed: int = 0) -> Tuple[int, ...]:
         if np.allclose(p, p2, rtol=0, atol=1e-9) and np.allclose(r, r2, rtol=0, atol=1e-9):
             found.append(a)
     return tuple(found)
+
+
+@functools.lru_cache(maxsize=16)
+def robot_flips(robot: Robot) -> np.ndarray:
+    """:func:`exact_flips` of ``robot`` as int64, found once per arm."""
+    return np.array(exact_flips(robot), dtype=np.int64)
 
 
 def flip(q: np.ndarray, a: int) -> np.ndarray:

@@ -16,7 +16,8 @@ import numpy as np
 
 from sik_ros.deadline import Deadline
 from sik_ros.kernels.chain import null_directions
-from sik_ros.kinematics.periodic import equivalents
+from sik_ros.kinematics.branches import flip, robot_flips
+from sik_ros.kinematics.periodic import equivalents, TURN
 from sik_ros.solver.batch import Candidates
 from sik_ros.solver.config import (BRANCH_CODE_STARTS, EQUIVALENTS_PER_SOLUTION,
                                    RESTART_SPREAD, RESTARTS)
@@ -96,14 +97,19 @@ def other_branches(ctx: Context, goal: Goal, seeds: SeedTable, r: Refined,
     of them) are refined and appended. The nearest rows of the whole table can all lie on a
     few branches; a code's own rows lie on its branch wherever the goal is.
     """
-    signs = seeds.signs
+    signs, robot = seeds.signs, ctx.robot
     if signs is None:
         return r
     exact = converged(r.perr, r.oerr, goal.kind, ctx.config)
-    found = set(signs.codes(ctx.robot, r.q[exact]).tolist()) if exact.any() else set()
+    found = set(signs.codes(robot, r.q[exact]).tolist()) if exact.any() else set()
     starts = [seeds.branch_starts(goal.position, goal.quaternion, code, BRANCH_CODE_STARTS,
                                   ctx.config.seed_neighbours)
               for code in range(signs.count) if code not in found]
+    if starts and exact.any():  # an exact flip of a found branch (a spherical wrist) is one
+        # every angle turned by whole turns into its limits (the same placement), else dropped
+        for a in robot_flips(robot):
+            q = robot.lower + np.mod(flip(r.q[exact], a) - robot.lower, TURN)
+            starts.append(q[np.all(q <= robot.upper, axis=1)])
     if not starts or deadline.expired():
         return r
     more = refine(ctx, np.concatenate(starts), goal, deadline)

@@ -13,27 +13,18 @@ has them. Its points are exact (the tracer's corrector meets the tolerances), an
 labels then link or part them as any other (:mod:`sik_ros.solver.families`).
 """
 
-import functools
-
 import numpy as np
 
 from sik_ros.deadline import Deadline
 from sik_ros.kernels import as_arg
 from sik_ros.kernels.sweep import trace_pieces
-from sik_ros.kinematics.branches import exact_flips
-from sik_ros.kinematics.robot import Robot
+from sik_ros.kinematics.branches import robot_flips
 from sik_ros.solver.batch import Candidates
 from sik_ros.solver.config import (SEARCH_LINK, SEARCH_POINTS, SEARCH_STEP, SEARCH_STEPS)
 from sik_ros.solver.context import Context, Goal, POSE
 from sik_ros.solver.explore import unindexed
 from sik_ros.solver.ranking import assess
 from sik_ros.solver.refine import errors
-
-
-@functools.lru_cache(maxsize=16)
-def flips_of(robot: Robot) -> np.ndarray:
-    """The first joints of ``robot``'s exact flips (int64), found once per arm."""
-    return np.array(exact_flips(robot), dtype=np.int64)
 
 
 def searchable(ctx: Context, goal: Goal) -> bool:
@@ -52,7 +43,7 @@ def search(ctx: Context, c: Candidates, goal: Goal, deadline: Deadline) -> Candi
     out = np.empty((SEARCH_POINTS, robot.dof))
     owner = np.empty(SEARCH_POINTS, dtype=np.int64)
     count = trace_pieces(robot.frames, robot.lower, robot.upper, as_arg(c.q[c.exact]),
-                         flips_of(robot), as_arg(goal.position), as_arg(goal.rotation),
+                         robot_flips(robot), as_arg(goal.position), as_arg(goal.rotation),
                          SEARCH_STEP, SEARCH_STEPS, SEARCH_LINK, cfg.position_tolerance,
                          cfg.orientation_tolerance, cfg.max_step, out, owner)
     if count == 0:
