@@ -232,7 +232,7 @@ class SolverConfig:
             the found solutions' self-motion curves past the joint limits for the families
             the limits part from them (:mod:`sik_ros.solver.search`). Off by default: on the
             Panda it covers 85 % of an analytic sweep's families instead of 74 % at about
-            0.7 ms more a call (docs/benchmarks.md).
+            1.6x the time of a 16-solution call (docs/benchmarks.md).
     """
 
     position_tolerance: float = 1e-4
