@@ -114,42 +114,85 @@ def on_family(q: np.ndarray, ref_q: np.ndarray, ref_label: np.ndarray) -> int:
     return int(ref_label[i]) if d[i] < ON_FAMILY else -1
 
 
+def panda_row(ik: SelectiveIK, res, p: np.ndarray, r: np.ndarray, ref_q: np.ndarray,
+              ref_label: np.ndarray) -> Dict:
+    """One answer's figures against the reference's families (no peer)."""
+    known = set(ref_label.tolist())
+    ours = [s for s in res.solutions if exact(ik, s.q, p, r)]
+    fams = [on_family(s.q, ref_q, ref_label) for s in ours]
+    covered = {f for f in fams if f >= 0}
+    # labels against the reference, over pairs of our solutions on reference families
+    agree = pairs = split = merged = 0
+    for i in range(len(ours)):
+        for j in range(i + 1, len(ours)):
+            if fams[i] < 0 or fams[j] < 0:
+                continue
+            pairs += 1
+            same_ref, same_ours = fams[i] == fams[j], ours[i].family == ours[j].family
+            agree += same_ref == same_ours
+            split += same_ref and not same_ours
+            merged += same_ours and not same_ref
+    k = len(covered)
+    return {'known': len(known), 'ours': k, 'beyond': sum(f < 0 for f in fams),
+            'num_families': res.num_families, 'pairs': pairs, 'agree': agree,
+            'split': split, 'merged': merged,
+            'first_k': len({f for f in fams[:k] if f >= 0}) == k,
+            'time_s': res.elapsed, 'success': res.success}
+
+
+def panda_summary(rows: List[Dict], q7_samples: int, family_search: bool) -> Dict:
+    """The figures of one configuration over every pose."""
+    with_ref = [x for x in rows if x['known']]
+    known = sum(x['known'] for x in with_ref)
+    pairs = max(sum(x['pairs'] for x in rows), 1)
+    return {
+        'poses': len(rows), 'poses_with_reference': len(with_ref),
+        'known_mean': known / max(len(with_ref), 1),
+        'coverage': sum(x['ours'] for x in with_ref) / max(known, 1),
+        'all_families': float(np.mean([x['ours'] == x['known'] for x in with_ref])),
+        'poses_all': int(sum(x['ours'] == x['known'] for x in with_ref)),
+        'beyond_mean': float(np.mean([x['beyond'] for x in rows])),
+        'peer_coverage': sum(x['peer'] for x in with_ref) / max(known, 1),
+        'label_agreement': sum(x['agree'] for x in rows) / pairs,
+        'label_split': sum(x['split'] for x in rows) / pairs,
+        'label_merged': sum(x['merged'] for x in rows) / pairs,
+        'first_k': float(np.mean([x['first_k'] for x in with_ref])),
+        'num_families_mean': float(np.mean([x['num_families'] for x in rows])),
+        'time_median_ms': float(np.median([x['time_s'] for x in rows]) * 1e3),
+        'sweep_median_ms': float(np.median([x['sweep_s'] for x in rows]) * 1e3),
+        'q7_samples': q7_samples, 'family_search': family_search,
+    }
+
+
 def panda(args) -> Dict:
-    """The Panda against frankik's families."""
+    """The Panda against frankik's families (and, with ``--family-search``, with the search).
+
+    With the search, each pose is solved by both configurations in turn (which first
+    alternates per pose), the peer's budget the default's time.
+    """
     ik = SelectiveIK.load('panda')
     ik.solve(*ik.fk(np.zeros(7)), num_solutions=16)  # warm
+    variants = [False, True] if args.family_search else [False]
+    for v in variants:
+        ik.configure(family_search=v)
+        ik.solve(*ik.fk(np.full(7, 0.1)), num_solutions=16)
     ref = Frankik(ik, args.q7_samples)
     tracik = TracIK(ik.robot)
     rng = np.random.default_rng(args.seed)
     seeds = np.random.default_rng(args.seed + 100)  # the peer's: apart from the poses' draws
-    rows = []
+    rows = {v: [] for v in variants}
     for t in range(args.panda_poses):
         q0 = rng.uniform(ik.robot.lower, ik.robot.upper)
         pos, quat = ik.fk(q0)
         p, r = ik.robot.fk_rot(q0[None])
         p, r = p[0], r[0]
         ref_q, ref_label, sweep_s = ref.families(p, r)
-        known = set(ref_label.tolist())
-        res = ik.solve(pos, quat, num_solutions=16)
-        ours = [s for s in res.solutions if exact(ik, s.q, p, r)]
-        fams = [on_family(s.q, ref_q, ref_label) for s in ours]
-        covered = {f for f in fams if f >= 0}
-        beyond = sum(f < 0 for f in fams)
-        # labels against the reference, over pairs of our solutions on reference families
-        agree = pairs = split = merged = 0
-        for i in range(len(ours)):
-            for j in range(i + 1, len(ours)):
-                if fams[i] < 0 or fams[j] < 0:
-                    continue
-                pairs += 1
-                same_ref, same_ours = fams[i] == fams[j], ours[i].family == ours[j].family
-                agree += same_ref == same_ours
-                split += same_ref and not same_ours
-                merged += same_ours and not same_ref
-        k = len(covered)
-        first_k = len({f for f in fams[:k] if f >= 0}) == k
-        # TRAC-IK from random seeds for the same wall time
-        t_budget, t0 = res.elapsed, time.perf_counter()
+        answers = {}
+        for v in (variants if t % 2 == 0 else variants[::-1]):
+            ik.configure(family_search=v)
+            answers[v] = ik.solve(pos, quat, num_solutions=16)
+        # TRAC-IK from random seeds for the default's wall time
+        t_budget, t0 = answers[False].elapsed, time.perf_counter()
         peer = set()
         while time.perf_counter() - t0 < t_budget:
             ok, q = tracik.solve(pos, quat, seeds.uniform(ik.robot.lower, ik.robot.upper))
@@ -157,36 +200,25 @@ def panda(args) -> Dict:
                 f = on_family(q, ref_q, ref_label)
                 if f >= 0:
                     peer.add(f)
-        rows.append({'known': len(known), 'ours': k, 'beyond': beyond,
-                     'num_families': res.num_families, 'pairs': pairs, 'agree': agree,
-                     'split': split, 'merged': merged,
-                     'first_k': first_k, 'peer': len(peer), 'time_s': res.elapsed,
-                     'sweep_s': sweep_s, 'success': res.success})
-        print(f'panda {t:3d}: frankik {len(known)} families; ours {k} (+{beyond} beyond), '
-              f'num_families {res.num_families}, labels {agree}/{pairs}, TRAC-IK {len(peer)}; '
-              f'{res.elapsed * 1e3:.1f} ms, sweep {sweep_s * 1e3:.1f} ms', flush=True)
-    with_ref = [x for x in rows if x['known']]
-    known = sum(x['known'] for x in with_ref)
-    out = {
-        'poses': len(rows), 'poses_with_reference': len(with_ref),
-        'known_mean': known / max(len(with_ref), 1),
-        'coverage': sum(x['ours'] for x in with_ref) / max(known, 1),
-        'all_families': float(np.mean([x['ours'] == x['known'] for x in with_ref])),
-        'beyond_mean': float(np.mean([x['beyond'] for x in rows])),
-        'peer_coverage': sum(x['peer'] for x in with_ref) / max(known, 1),
-        'label_agreement': sum(x['agree'] for x in rows) / max(
-            sum(x['pairs'] for x in rows), 1),
-        'label_split': sum(x['split'] for x in rows) / max(sum(x['pairs'] for x in rows), 1),
-        'label_merged': sum(x['merged'] for x in rows) / max(
-            sum(x['pairs'] for x in rows), 1),
-        'first_k': float(np.mean([x['first_k'] for x in with_ref])),
-        'num_families_mean': float(np.mean([x['num_families'] for x in rows])),
-        'time_median_ms': float(np.median([x['time_s'] for x in rows]) * 1e3),
-        'sweep_median_ms': float(np.median([x['sweep_s'] for x in rows]) * 1e3),
-        'q7_samples': args.q7_samples,
-    }
-    print('panda: ' + ', '.join(f'{k} {v:.3g}' if isinstance(v, float) else f'{k} {v}'
-                                for k, v in out.items()))
+        for v in variants:
+            row = panda_row(ik, answers[v], p, r, ref_q, ref_label)
+            row.update(peer=len(peer), sweep_s=sweep_s)
+            rows[v].append(row)
+            print(f'panda {t:3d}{" search" if v else ""}: frankik {row["known"]} families; '
+                  f'ours {row["ours"]} (+{row["beyond"]} beyond), num_families '
+                  f'{row["num_families"]}, labels {row["agree"]}/{row["pairs"]}, TRAC-IK '
+                  f'{len(peer)}; {row["time_s"] * 1e3:.1f} ms, sweep {sweep_s * 1e3:.1f} ms',
+                  flush=True)
+    out = panda_summary(rows[False], args.q7_samples, False)
+    if args.family_search:
+        out['search'] = panda_summary(rows[True], args.q7_samples, True)
+        out['search']['time_ratio_median'] = float(np.median(
+            [b['time_s'] / a['time_s'] for a, b in zip(rows[False], rows[True])]))
+    for name, o in (('panda', out), ('panda, family search', out.get('search'))):
+        if o:
+            shown = [(k, v) for k, v in o.items() if not isinstance(v, dict)]
+            print(f'{name}: ' + ', '.join(f'{k} {v:.3g}' if isinstance(v, float) else f'{k} {v}'
+                                          for k, v in shown))
     return out
 
 
@@ -273,6 +305,9 @@ def main(argv=None) -> int:
                         help='TRAC-IK restarts per pose of the six-joint arm')
     parser.add_argument('--distinct', type=float, default=None,
                         help='the six-joint arm\'s distinct_threshold (default: the solver\'s)')
+    parser.add_argument('--family-search', action='store_true',
+                        help='the Panda also with SolverConfig.family_search on (each pose '
+                        'solved both ways in turn)')
     parser.add_argument('--seed', type=int, default=0)
     add_json_argument(parser)
     args = parser.parse_args(argv)

@@ -581,6 +581,14 @@ def render_families(data: dict) -> str:
                      f'{pct(p["peer_coverage"])} (same time)',
                      f'{pct(p["label_agreement"])} ({pct(p["label_split"])} split, '
                      f'{pct(p["label_merged"])} joined)', f'{num(p["time_median_ms"])} ms'])
+    q = (p or {}).get('search')
+    if q:
+        rows.append(['Panda, `family_search` on', 'the same poses, each solved both ways in '
+                     'turn', num(q['known_mean'], 2), f'**{pct(q["coverage"])}**',
+                     pct(q['all_families'], 0), NA,
+                     f'{pct(q["label_agreement"])} ({pct(q["label_split"])} split, '
+                     f'{pct(q["label_merged"])} joined)',
+                     f'{num(q["time_median_ms"])} ms ({num(q["time_ratio_median"], 2)}x)'])
     a = r.get('arm')
     if a:
         rows.append([f'{a["arm"]} ({a["dof"]})', f'ours ∪ {a["restarts"]} TRAC-IK restarts, '

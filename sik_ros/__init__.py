@@ -24,6 +24,12 @@ _EXPORTS = {
     'SelectiveIK': 'sik_ros.solver.selective_ik', 'SikError': 'sik_ros.errors',
     'Solution': 'sik_ros.solver.results', 'SolverConfig': 'sik_ros.solver.config',
     'TrainingDiverged': 'sik_ros.errors', 'load_robot': 'sik_ros.kinematics.robots',
+    # the ranking objectives (sik_ros.objectives, as before 0.4.0)
+    'ElbowHeight': 'sik_ros.solver.objectives', 'FromFunction': 'sik_ros.solver.objectives',
+    'JointLimitMargin': 'sik_ros.solver.objectives',
+    'Manipulability': 'sik_ros.solver.objectives', 'Objective': 'sik_ros.solver.objectives',
+    'ObstacleClearance': 'sik_ros.solver.objectives',
+    'SeedDistance': 'sik_ros.solver.objectives',
 }
 
 __all__ = sorted(_EXPORTS)

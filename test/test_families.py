@@ -92,6 +92,7 @@ def test_json_view_carries_families(bundled):
 def test_segment_links_split_no_traced_family(bundled):
     """Solutions a corrected segment links lie on one traced self-motion curve (Panda)."""
     ctx = bundled.context
+    pairs = 0
     for pos, quat in pose_goals(bundled, 4, seed=7):
         res = bundled.solve(pos, quat, num_solutions=16)
         q = np.array([s.q for s in res.solutions if s.converged])
@@ -102,6 +103,8 @@ def test_segment_links_split_no_traced_family(bundled):
             for j in range(i + 1, len(q)):
                 if linked[i] == linked[j]:
                     assert traced[i] == traced[j]
+                    pairs += 1
+    assert pairs >= 8  # linked pairs were checked
 
 
 def test_branch_labels_are_equal_modulo_turns(ur5):
@@ -117,20 +120,31 @@ def test_branch_labels_are_equal_modulo_turns(ur5):
     assert branch_labels(q, 0.1, np.zeros(6, dtype=bool))[3] == 3
 
 
-def test_ur5_families_are_its_branches(ur5_bundle):
-    """On a 6-joint arm, same family exactly when the same branch (angles wrapped)."""
+def test_ur5_families_are_its_branches_every_one(ur5_bundle):
+    """On a 6-joint arm a family is a branch (angles wrapped), and every branch is found.
+
+    The branches known: ours and those of 300 refinements from uniform random starts.
+    """
+    from test_branches import every_branch
     ik = SelectiveIK.load(ur5_bundle[0])
-    for pos, quat in pose_goals(ik, 8, seed=1):
-        res = ik.solve(pos, quat, num_solutions=16)
+    rng = np.random.default_rng(1)
+    checked = 0
+    for t in range(8):
+        q0 = rng.uniform(ik.robot.lower, ik.robot.upper)
+        res = ik.solve(*ik.fk(q0), num_solutions=16)
         exact = [s for s in res.solutions if s.converged]
         q = np.ascontiguousarray([s.q for s in exact])
-        if len(q) < 2:
-            continue
-        branch = branch_labels(q, 0.1, np.ones(6, dtype=bool))
+        assert len(q) >= 2  # a UR5 pose has 2 to 8 branches (and their 2 pi equivalents)
+        reference = every_branch(ik.robot, q0, seed=t)
+        branch = branch_labels(np.ascontiguousarray(np.concatenate([q, reference])), 0.1,
+                               np.ones(6, dtype=bool))
         for i in range(len(q)):
             for j in range(i + 1, len(q)):
                 assert (branch[i] == branch[j]) == (exact[i].family == exact[j].family)
-        assert res.num_families >= len(set(branch.tolist()))
+        known = len(set(branch.tolist()))
+        assert len(set(branch[:len(q)].tolist())) == known == res.num_families
+        checked += known
+    assert checked >= 8 * 2
 
 
 def test_isolated_branches_are_not_merged_as_near_postures(ur5_bundle, bundled):
@@ -166,3 +180,55 @@ def test_firsts_marks_each_familys_first_row_in_order():
         assert (families.firsts(fam, order) == expect).all()
         # roots beyond the rows (another numbering) take the general path
         assert (families.firsts(fam + 100 * (fam >= 0), order) == expect).all()
+
+
+def test_family_search_adds_exact_points_of_pieces_apart_from_the_found(bundled):
+    """The traced pieces' points reach the pose (Pinocchio FK), within limits, apart from all.
+
+    Apart: from every solution they were traced from; the Panda has one exact flip.
+    """
+    from sik_ros.kernels.sweep import trace_pieces
+    from sik_ros.kinematics.branches import robot_flips as flips_of
+    robot, cfg = bundled.robot, bundled.config
+    assert flips_of(robot).tolist() == [0]  # the Panda's spherical shoulder
+    assert not cfg.family_search  # the solutions found without the search
+    points = 0
+    for pos, quat in pose_goals(bundled, 6, seed=3):
+        res = bundled.solve(pos, quat, num_solutions=16)
+        q = np.ascontiguousarray([s.q for s in res.solutions if s.converged])
+        rot = quaternion_matrix(quat)
+        out, owner = np.empty((32, 7)), np.empty(32, dtype=np.int64)
+        k = trace_pieces(robot.frames, robot.lower, robot.upper, q, flips_of(robot),
+                         np.asarray(pos, float), rot, 0.15, 400, 0.2, cfg.position_tolerance,
+                         cfg.orientation_tolerance, cfg.max_step, out, owner)
+        for x in out[:k]:
+            tip = robot.pin_placement(x)
+            assert np.linalg.norm(tip.translation - pos) <= cfg.position_tolerance
+            dr = tip.rotation.T @ rot
+            assert np.arccos(np.clip((np.trace(dr) - 1) / 2, -1, 1)) <= \
+                cfg.orientation_tolerance
+            assert np.all(x >= robot.lower) and np.all(x <= robot.upper)
+            assert np.linalg.norm(q - x, axis=1).min() >= 0.2
+        points += k
+    assert points >= 3  # pieces were found and checked
+
+
+def test_family_search_finds_more_families(bundled):
+    """With the search, no pose has fewer families, and some have more; every answer exact."""
+    cfg = bundled.config
+    more = 0
+    for pos, quat in pose_goals(bundled, 10, seed=11):
+        without = bundled.solve(pos, quat, num_solutions=16)
+        bundled.configure(family_search=True)
+        try:
+            with_search = bundled.solve(pos, quat, num_solutions=16)
+        finally:
+            bundled.configure(family_search=False)
+        assert with_search.num_families >= without.num_families
+        more += with_search.num_families > without.num_families
+        exact = [s for s in with_search.solutions if s.converged]
+        assert len(exact) >= 2
+        for s in exact:
+            tip = bundled.robot.pin_placement(s.q)
+            assert np.linalg.norm(tip.translation - pos) <= cfg.position_tolerance
+    assert more >= 2

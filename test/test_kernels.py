@@ -159,9 +159,10 @@ def test_last_joint_alignment_is_the_best_turn(bundled):
 def test_null_directions_are_the_svds_up_to_sign(bundled):
     """The minors' null vectors of 6 x 7 Jacobians are the SVD's, unit, up to sign.
 
-    A singular Jacobian (a column repeated) is reported, for the caller's SVD.
+    ``null_vector7``, the one formula (the walk, the family traces and the family search call
+    it), row by row. A singular Jacobian (a column repeated) is reported, for the caller's SVD.
     """
-    from sik_ros.kernels.chain import null_directions
+    from sik_ros.kernels.chain import null_directions, null_vector7
     robot = bundled.robot
     q = np.random.default_rng(5).uniform(robot.lower, robot.upper, (50, robot.dof))
     _, _, jac = robot.jacobian_batch(q)
@@ -170,6 +171,9 @@ def test_null_directions_are_the_svds_up_to_sign(bundled):
     reference = np.linalg.svd(jac)[2][:, -1]
     assert np.allclose(np.abs(np.sum(out * reference, axis=1)), 1.0, atol=1e-9)
     assert np.allclose(np.einsum('kij,kj->ki', jac, out), 0.0, atol=1e-9)
+    one = np.empty(7)
+    assert null_vector7(np.ascontiguousarray(jac[3]), np.empty((6, 6)), one)
+    np.testing.assert_array_equal(one, out[3])
     singular = jac[:2].copy()
     singular[:, :, 1] = singular[:, :, 0]
     singular[:, :, 2] = singular[:, :, 0]

@@ -80,8 +80,14 @@ def test_a_robot_description_that_differs_is_refused(ur5_bundle, ur5, graph, tmp
         assert harness.wait_for_service(node, client, proc, 90.0), \
             (tmp_path / 'node.log').read_text()
         p, quat = ur5.fk(np.zeros(6))
-        pub.publish(String(data=text))  # the same chain: served
-        time.sleep(1.0)
+        pub.publish(String(data=text))  # the same chain: served, once the node has it
+        log = tmp_path / 'node.log'
+        deadline = time.monotonic() + 20
+        while time.monotonic() < deadline and \
+                "robot_description matches the bundle's chain" not in log.read_text():
+            time.sleep(0.2)
+        assert "robot_description matches the bundle's chain" in log.read_text(), \
+            'the description never arrived'
         ok = harness.call(node, client, harness.pose_request(p, None, 4), 20.0)
         assert ok.error_code == R.SUCCESS, ok.message
         pub.publish(String(data=moved))

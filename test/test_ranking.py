@@ -117,3 +117,16 @@ def test_self_collision_checks_stop_at_the_deadline(ik):
     q = np.zeros((5, ik.robot.dof))
     assert len(ik.checker.self_collision(q, Deadline(0.0))) == 1
     assert len(ik.checker.self_collision(q)) == 5
+
+
+def test_objectives_import_from_the_top_level():
+    """``sik_ros.objectives`` and ``from sik_ros import ...`` name the solver's objectives."""
+    import sik_ros
+    import sik_ros.objectives as top
+    from sik_ros.solver import objectives
+    names = ['ElbowHeight', 'FromFunction', 'JointLimitMargin', 'Manipulability', 'Objective',
+             'ObstacleClearance', 'SeedDistance']
+    for name in names:
+        assert getattr(top, name) is getattr(objectives, name) is getattr(sik_ros, name)
+        assert name in sik_ros.__all__
+    assert len(names) == 7

@@ -259,6 +259,7 @@ def test_the_lean_path_answers_as_the_general_stages(ur5_bundle, monkeypatch):
     stages answer the same goals when it is switched off. Every field is equal.
     """
     from sik_ros import SelectiveIK
+    import sik_ros.solver.call as call_module
     import sik_ros.solver.isolated as isolated
     import sik_ros.solver.pipeline as pipeline
     ik = SelectiveIK.load(ur5_bundle[0])
@@ -278,7 +279,7 @@ def test_the_lean_path_answers_as_the_general_stages(ur5_bundle, monkeypatch):
         for num in (16, 2, 1):
             lean = ik.solve(p, quat, num_solutions=num)
             with monkeypatch.context() as m:
-                m.setattr(pipeline, 'lean', lambda call: False)
+                m.setattr(call_module, 'lean', lambda call: False)
                 general = ik.solve(p, quat, num_solutions=num)
             assert (lean.success, lean.timed_out, lean.message) == \
                 (general.success, general.timed_out, general.message)

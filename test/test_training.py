@@ -6,6 +6,7 @@ import sys
 import numpy as np
 import pinocchio as pin
 import pytest
+from served import check_served
 import torch
 
 from sik_ros.errors import ArtifactMismatch, CorruptArtifact, TrainingDiverged
@@ -107,13 +108,24 @@ def test_nan_loss_stops_with_clear_error(panda, uniform_small, tmp_path):
 
 
 def test_psik_fcn_and_anfis_train(panda, uniform_small, tmp_path):
-    """PSIK (with KL), the FCN and ANFIS (particle swarm) all run and report errors."""
+    """PSIK (with KL), the FCN and ANFIS (particle swarm) each take their 10 steps.
+
+    Each reports a finite validation error and loss; the gradient-trained ones move their
+    weights (a swarm keeps its start while no particle beats it: its own test checks it).
+    """
+    trained = 0
     for kind in ('psik', 'fcn', 'anfis'):
         cfg = ModelConfig(kind=kind, encoder=PRESETS['tiny'][0], decoder=PRESETS['tiny'][1])
         t = trainer(panda, uniform_small, tmp_path / kind, model=cfg, steps=10, eval_every=10,
                     pso_particles=10, pso_batch=256)
+        start = [p.detach().clone() for p in t.model.parameters()]
         rec = t.run()
-        assert rec['val_dist_mean_m'] > 0 and 'loss' in rec
+        assert t.step == 10
+        moved = any(not torch.equal(a, b) for a, b in zip(start, t.model.parameters()))
+        assert moved or kind == 'anfis', kind
+        assert 0 < rec['val_dist_mean_m'] < np.inf and np.isfinite(rec['loss'])
+        trained += 1
+    assert trained == 3
 
 
 @pytest.mark.parametrize('args,message', [
@@ -184,7 +196,7 @@ def test_two_gloo_processes_train_in_sync_and_the_checkpoint_serves(
                           uniform_small, TableConfig(cell=0.1))
     p, _ = panda.fk(panda.lower * 0.3 + panda.upper * 0.7)
     res = SelectiveIK.load(bundle).solve(p, num_solutions=4)
-    assert res.solutions and np.isfinite(res.solutions[0].position_error)
+    assert check_served(panda, res, p) >= 1
 
 
 def test_fresh_samples_and_the_cycle_term_train_and_keep_the_index(
@@ -199,7 +211,7 @@ def test_fresh_samples_and_the_cycle_term_train_and_keep_the_index(
     before = t.validate()
     after = t.run()
     assert after['val_dist_mean_m'] < 0.7 * before['val_dist_mean_m'], (before, after)
-    assert after['cycle'] >= 0 and after['fk_other'] > 0
+    assert after['cycle'] > 0 and after['fk_other'] > 0  # both terms were in the loss
     assert after['val_index_spread'] > 0.1, after
 
 

@@ -3,7 +3,8 @@
 import argparse
 import json
 from pathlib import Path
-from typing import List, Optional
+import time
+from typing import Dict, List, Optional
 
 from sik_ros.cli import argv_or_default, Parser, run_cli
 from sik_ros.defaults import BUILD_BATCH, BuildConfig
@@ -73,11 +74,45 @@ def main(argv: Optional[List[str]] = None) -> int:
         cfg = BuildConfig(args.time, args.sampler, args.rows, args.preset, args.device,
                           args.batch_size or BUILD_BATCH[args.device], args.check_targets,
                           args.seed)
-        report = Builder(robot, args.out, cfg, args.work, bars=not args.quiet).run()
+        report = Builder(robot, args.out, cfg, self_check, args.work,
+                         bars=not args.quiet).run()
         print(json.dumps({'bundle': args.out, 'self_check': report}))
         return 0
     return run_cli('sik-build', body, 'the bundle was not written; its work folder stays '
                    '(run the same command to resume)')
+
+
+def self_check(out: Path, robot, cfg: BuildConfig, say) -> Dict:
+    """``sik-build``'s last stage: random reachable targets per goal kind solved by the bundle.
+
+    Returns, per goal kind: targets, success, distinct exact solutions (median, p10) of 16
+    asked, and the median time per call [ms].
+    """
+    import numpy as np
+    from sik_ros.bundles.build_training import GOALS
+    from sik_ros.solver import SelectiveIK
+    ik = SelectiveIK.load(out)
+    rng = np.random.default_rng(cfg.seed + 1)
+    q = rng.uniform(robot.lower, robot.upper, (cfg.check_targets, robot.dof))
+    report = {}
+    for goal in GOALS:
+        ok, distinct, times = 0, [], []
+        for qi in q:
+            p, quat = ik.fk(qi)
+            t0 = time.perf_counter()
+            res = ik.solve(p, quat if goal == 'pose' else None, num_solutions=16)
+            times.append(time.perf_counter() - t0)
+            ok += res.success
+            distinct.append(sum(s.converged for s in res.solutions))
+        report[goal] = {'targets': len(q), 'success': ok / len(q),
+                        'distinct_median': float(np.median(distinct)),
+                        'distinct_p10': float(np.percentile(distinct, 10)),
+                        'time_median_ms': 1e3 * float(np.median(times))}
+        r = report[goal]
+        say(f'self-check, {goal} goals: success {100 * r["success"]:.1f} % of {len(q)}, '
+            f'distinct exact solutions median {r["distinct_median"]:.0f} (p10 '
+            f'{r["distinct_p10"]:.0f}) of 16, {r["time_median_ms"]:.1f} ms per call')
+    return report
 
 
 if __name__ == '__main__':

@@ -195,39 +195,48 @@ def _det6(a):  # pragma: no cover (compiled)
     return det
 
 
+@njit(cache=CACHE, nogil=True)
+def null_vector7(jac, minor, v):  # pragma: no cover (compiled)
+    """``v`` (7,): the unit null vector of a 6 x 7 Jacobian ``jac``; False if (nearly) singular.
+
+    The null vector of a full-rank 6 x 7 matrix has the signed 6 x 6 minors as its entries
+    (the generalised cross product); ``minor`` (6, 6) is work space. The minors scale as the
+    sixth power of the entries: relative to that, too small a vector means a rank below 6
+    (the caller then takes the null space from an SVD, or stops).
+    """
+    norm = 0.0
+    scale = 0.0
+    for r in range(6):
+        for c in range(7):
+            scale = max(scale, abs(jac[r, c]))
+    for i in range(7):
+        for r in range(6):
+            c2 = 0
+            for c in range(7):
+                if c != i:
+                    minor[r, c2] = jac[r, c]
+                    c2 += 1
+        d = _det6(minor)
+        v[i] = -d if i % 2 else d
+        norm += v[i] * v[i]
+    if norm <= (1e-9 * scale ** 6) ** 2:
+        return False
+    norm = math.sqrt(norm)
+    for i in range(7):
+        v[i] /= norm
+    return True
+
+
 @njit(f'boolean[::1]({F3}, {F2})', cache=CACHE, nogil=True)
 def null_directions(jac, out):  # pragma: no cover (compiled)
     """Unit vectors spanning the null spaces of 6 x 7 Jacobians ``jac`` (M, 6, 7) into ``out``.
 
-    The null vector of a full-rank 6 x 7 matrix has the signed 6 x 6 minors as its entries
-    (the generalised cross product). Returns, per row, whether it was found: False where the
-    Jacobian is (nearly) singular, whose null space the caller takes from an SVD.
+    Each row's by :func:`null_vector7`. Returns, per row, whether it was found: False where
+    the Jacobian is (nearly) singular, whose null space the caller takes from an SVD.
     """
     m = jac.shape[0]
     ok = np.ones(m, dtype=np.bool_)
     minor = np.empty((6, 6))
     for k in range(m):
-        norm = 0.0
-        for i in range(7):
-            for r in range(6):
-                c2 = 0
-                for c in range(7):
-                    if c != i:
-                        minor[r, c2] = jac[k, r, c]
-                        c2 += 1
-            v = _det6(minor)
-            out[k, i] = -v if i % 2 else v
-            norm += out[k, i] * out[k, i]
-        scale = 0.0
-        for r in range(6):
-            for c in range(7):
-                scale = max(scale, abs(jac[k, r, c]))
-        # the minors scale as the sixth power of the entries: relative to that, too small
-        # means a rank below 6
-        if norm <= (1e-9 * scale ** 6) ** 2:
-            ok[k] = False
-            continue
-        norm = math.sqrt(norm)
-        for i in range(7):
-            out[k, i] /= norm
+        ok[k] = null_vector7(jac[k], minor, out[k])
     return ok

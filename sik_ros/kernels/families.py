@@ -24,7 +24,7 @@ import math
 from numba import njit
 import numpy as np
 
-from sik_ros.kernels.chain import _det6, place
+from sik_ros.kernels.chain import null_vector7, place
 from sik_ros.kernels.clock import monotonic
 from sik_ros.kernels.dls import goal_error, limited_step
 from sik_ros.kinematics.periodic import PER_TURN, TURN
@@ -128,32 +128,6 @@ def _at_limit(x, lower, upper, periodic):  # pragma: no cover (compiled)
     return False
 
 
-@njit(cache=True, nogil=True)
-def _null7(jac, minor, v):  # pragma: no cover (compiled)
-    """``v`` (7,): the unit null vector of a 6 x 7 Jacobian (signed minors); False if singular."""
-    norm = 0.0
-    scale = 0.0
-    for r in range(6):
-        for c in range(7):
-            scale = max(scale, abs(jac[r, c]))
-    for i in range(7):
-        for r in range(6):
-            c2 = 0
-            for c in range(7):
-                if c != i:
-                    minor[r, c2] = jac[r, c]
-                    c2 += 1
-        d = _det6(minor)
-        v[i] = -d if i % 2 else d
-        norm += v[i] * v[i]
-    if norm <= (1e-9 * scale ** 6) ** 2:
-        return False
-    norm = math.sqrt(norm)
-    for i in range(7):
-        v[i] /= norm
-    return True
-
-
 @njit('int64[::1](float64[:, :, ::1], float64[::1], float64[::1], boolean[::1], '
       'float64[:, ::1], float64[::1], float64[:, ::1], float64, int64, float64, float64, '
       'float64, float64, float64)', cache=True, nogil=True)
@@ -193,7 +167,7 @@ def trace_labels(frames, lower, upper, periodic, q, pos, rot, step, max_steps, l
                 if timed and monotonic() > deadline:
                     return _roots(parent)
                 place(frames, x, p, r, jac, True)
-                if not _null7(jac, minor, v):
+                if not null_vector7(jac, minor, v):
                     break
                 if first:
                     sign = way

@@ -93,6 +93,30 @@ def _insert(rows, keys, count, row, key):  # pragma: no cover (compiled)
     rows[j], keys[j] = row, key
 
 
+@njit(cache=CACHE, nogil=True)
+def margin_cost(q, lower, upper):  # pragma: no cover (compiled)
+    """The default ranking's cost of one configuration ``q`` (n,): closeness to the limits.
+
+    1 minus the smallest of the joints' margins to a limit, each over half its range (0 in
+    the middle of every range, 1 at a limit). The one formula:
+    :class:`~sik_ros.solver.objectives.JointLimitMargin` and :func:`exact_by_margin` call it.
+    """
+    margin = np.inf
+    for c in range(q.shape[0]):
+        half = (upper[c] - lower[c]) / 2
+        margin = min(margin, min(q[c] - lower[c], upper[c] - q[c]) / half)
+    return 1.0 - margin
+
+
+@njit('float64[::1](float64[:, ::1], float64[::1], float64[::1])', cache=CACHE, nogil=True)
+def margin_costs(q, lower, upper):  # pragma: no cover (compiled)
+    """(M,) :func:`margin_cost` of each row of ``q`` (M, n)."""
+    out = np.empty(q.shape[0])
+    for i in range(q.shape[0]):
+        out[i] = margin_cost(q[i], lower, upper)
+    return out
+
+
 @njit('Tuple((int64[::1], float64[::1]))(float64[:, ::1], float64[::1], float64[::1], '
       'float64, float64, float64, float64, float64[::1], float64[::1])', cache=CACHE, nogil=True)
 def exact_by_margin(q, perr, oerr, position_tolerance, orientation_tolerance, weight,
@@ -101,8 +125,8 @@ def exact_by_margin(q, perr, oerr, position_tolerance, orientation_tolerance, we
 
     Exact: ``perr`` and ``oerr`` within the tolerances. Taken by their goal error (``perr +
     weight * oerr``, ties in row order), a row within ``threshold`` [rad] of one taken before
-    is left out; the rest are ordered by their cost, 1 minus the smallest of the joints'
-    margins to a limit, each over half its range (ties in the previous order).
+    is left out; the rest are ordered by the default ranking's cost, :func:`margin_cost`
+    (ties in the previous order).
 
     Returns:
         the rows' indices (K,) and their costs (K,).
@@ -123,11 +147,6 @@ def exact_by_margin(q, perr, oerr, position_tolerance, orientation_tolerance, we
         if not keep[a]:
             continue
         i = rows[a]
-        margin = np.inf
-        for c in range(n):
-            half = (upper[c] - lower[c]) / 2
-            v = min(q[i, c] - lower[c], upper[c] - q[i, c]) / half
-            margin = min(margin, v)
-        _insert(out, cost, kept, i, 1.0 - margin)
+        _insert(out, cost, kept, i, margin_cost(q[i], lower, upper))
         kept += 1
     return out[:kept].copy(), cost[:kept].copy()

@@ -10,7 +10,6 @@ from pathlib import Path
 import time
 from typing import Callable, Dict, Optional, TYPE_CHECKING, Union
 
-import numpy as np
 import torch
 from torch.nn.parallel import DistributedDataParallel
 
@@ -22,9 +21,11 @@ from sik_ros.learning.checkpoints import normalizer_from_dict
 from sik_ros.learning.generated_data import GeneratedData
 from sik_ros.learning.models import anfis_forward, build_model, kl_normal, ModelConfig, TorchChain
 from sik_ros.learning.provenance import device_name, Provenance
+from sik_ros.learning.swarm import new_swarm, swarm_step
 from sik_ros.learning.train_config import (lr_at, SAMPLERS, TrainConfig,  # noqa: F401
                                            with_overrides)
 from sik_ros.learning.training_data import (data_summary, default_normalizer,  # noqa: F401
+                                            restore_streams, same_normalizer, stream_states,
                                             TrainData, turned_rot6, widened_state, widens)
 from sik_ros.tables.dataset import Dataset
 
@@ -266,25 +267,18 @@ class Trainer:
         """
         step = self._pso_step if self.model_cfg.kind == 'anfis' else self._gradient_step
         step()
-        self._synchronize()
+        distributed.synchronize(self.device)
         t0 = time.perf_counter()
         for _ in range(steps):
             step()
-        self._synchronize()
+        distributed.synchronize(self.device)
         return (time.perf_counter() - t0) / steps
-
-    def _synchronize(self) -> None:
-        """Wait for the device's queued work (a GPU's), so that a timer sees it done."""
-        if self.device.type == 'cuda':
-            torch.cuda.synchronize(self.device)
 
     def _stop(self, mine: bool) -> bool:
         """Whether to stop now: with several processes, as soon as any of them would."""
         if self.world_size == 1 or self.net is self.model:
             return mine
-        flag = torch.tensor([1.0 if mine else 0.0], device=self.device)
-        torch.distributed.all_reduce(flag, op=torch.distributed.ReduceOp.MAX)
-        return bool(flag.item() > 0)
+        return distributed.any_rank(mine, self.device)
 
     def _gradient_step(self) -> Dict[str, float]:
         """One optimiser step on a random batch; the losses it saw."""
@@ -308,49 +302,22 @@ class Trainer:
         self.opt.step()
         return {k: float(v.detach()) if torch.is_tensor(v) else float(v) for k, v in out.items()}
 
-    def _pso_state(self) -> Dict[str, torch.Tensor]:
-        """The swarm (created around the current parameters on first use)."""
-        state = getattr(self, '_pso', None)
-        if state is None:
-            flat = self.model.params_flat.detach()
-            n_par = self.cfg.pso_particles
-            spread = torch.ones_like(flat)
-            spread[3 * self.model_cfg.goal_dim * self.model_cfg.anfis_mfs:] = 1.0
-            pos = flat[None] + spread[None] * (
-                torch.rand(n_par, len(flat), generator=self.gen) * 2 - 1)
-            pos[0] = flat
-            state = {'pos': pos, 'vel': torch.zeros_like(pos), 'best': pos.clone(),
-                     'best_f': torch.full((n_par,), float('inf')), 'gbest': flat.clone(),
-                     'gbest_f': torch.tensor(float('inf'))}
-            self._pso = state
-        return state
-
     @torch.no_grad()
     def _pso_step(self) -> Dict[str, float]:
-        """One particle swarm step of an ANFIS; the best loss so far."""
-        state, gen = self._pso_state(), self.gen
-        pick = torch.randint(len(self.train_idx), (self.cfg.pso_batch,), generator=gen)
+        """One particle swarm step of an ANFIS (:mod:`sik_ros.learning.swarm`); its best loss."""
+        if getattr(self, '_pso', None) is None:  # created around the parameters on first use
+            self._pso = new_swarm(self.model.params_flat.detach(), self.cfg.pso_particles,
+                                  self.gen)
+        pick = torch.randint(len(self.train_idx), (self.cfg.pso_batch,), generator=self.gen)
         q, goal, _, _ = self._batch(self.train_idx[pick.to(self.device)])
-        x = self.norm.q_to_net(q)
-        g = self.norm.goal_to_net(goal)
-        # the swarm stays on the CPU (a few hundred numbers a particle); its losses are
-        # computed where the rows are
-        outputs = anfis_forward(self.model_cfg, state['pos'].to(self.device), g)
-        f = ((outputs - x[None]) ** 2).mean((1, 2)).cpu()
-        f = torch.nan_to_num(f, nan=float('inf'))
-        better = f < state['best_f']
-        state['best'][better] = state['pos'][better]
-        state['best_f'][better] = f[better]
-        i = int(torch.argmin(state['best_f']))
-        state['gbest'] = state['best'][i].clone()
-        state['gbest_f'] = state['best_f'][i].clone()
-        r1 = torch.rand(state['pos'].shape, generator=gen)
-        r2 = torch.rand(state['pos'].shape, generator=gen)
-        state['vel'] = (0.72 * state['vel'] + 1.49 * r1 * (state['best'] - state['pos'])
-                        + 1.49 * r2 * (state['gbest'][None] - state['pos']))
-        state['pos'] = (state['pos'] + state['vel']).clamp(-10.0, 10.0)
-        self.model.params_flat.copy_(state['gbest'])
-        return {'loss': float(state['gbest_f'])}
+        x, g = self.norm.q_to_net(q), self.norm.goal_to_net(goal)
+
+        def losses(pos: torch.Tensor) -> torch.Tensor:  # where the rows are, back on the CPU
+            out = anfis_forward(self.model_cfg, pos.to(self.device), g)
+            return ((out - x[None]) ** 2).mean((1, 2)).cpu()
+        best = swarm_step(self._pso, losses, self.gen)
+        self.model.params_flat.copy_(self._pso['gbest'])
+        return {'loss': best}
 
     # -- checkpoints -------------------------------------------------------------------------
 
@@ -364,11 +331,9 @@ class Trainer:
             'model_state': {k: v.detach().cpu() for k, v in self.model.state_dict().items()},
             'optimizer_state': self.opt.state_dict(),
             'step': self.step, 'elapsed_s': self.elapsed, 'history': list(self.history),
-            'rng': {'torch': torch.get_rng_state(), 'batches': self.gen.get_state()},
+            'rng': stream_states(self.gen, self.sample_gen),
             'versions': library_versions(), 'trained': self.provenance.record(self.step),
         }
-        if self.sample_gen is not self.gen:
-            ckpt['rng']['device_batches'] = self.sample_gen.get_state()
         if getattr(self, '_pso', None) is not None:
             ckpt['pso'] = {k: v.clone() for k, v in self._pso.items()}
         return ckpt
@@ -403,13 +368,9 @@ class Trainer:
         check_robot_manifest(f'--init {source}', self.robot.manifest(), ckpt['robot'])
         norm = normalizer_from_dict(ckpt['normalizer'])
         self.provenance.started_from(source, ckpt)
-        mine = np.concatenate([self.norm.lower, self.norm.upper, self.norm.position_center,
-                               [self.norm.position_scale]])
-        theirs = np.concatenate([norm.lower, norm.upper, norm.position_center,
-                                 [norm.position_scale]])
         # generated rows are made afresh where the model trains: they take the normaliser of
         # the weights (the networks' units); a dataset must be the one the weights knew
-        if not self.generated and not np.allclose(mine, theirs, rtol=1e-6, atol=1e-9):
+        if not self.generated and not same_normalizer(self.norm, norm):
             raise ArtifactMismatch(f'--init {source} normaliser (another dataset)',
                                    asdict(self.norm), ckpt['normalizer'])
         self.norm = norm  # bit for bit the one the weights were trained with
@@ -431,17 +392,8 @@ class Trainer:
         self.step = int(ckpt['step'])
         self.elapsed = float(ckpt['elapsed_s'])
         self.history = list(ckpt['history'])
-        torch.set_rng_state(ckpt['rng']['torch'])
-        self.gen.set_state(ckpt['rng']['batches'])
-        if self.sample_gen is not self.gen:
-            if 'device_batches' in ckpt['rng']:
-                self.sample_gen.set_state(ckpt['rng']['device_batches'])
-            else:  # a run resumed on a GPU: a stream of its own from here
-                self.sample_gen.manual_seed(self.cfg.seed + 2 + self.step)
-        if self.rank > 0:  # the checkpoint holds rank 0's stream: the others draw their own
-            self.gen.manual_seed(self.cfg.seed + 1 + 7919 * self.rank + self.step)
-            if self.sample_gen is not self.gen:
-                self.sample_gen.manual_seed(self.cfg.seed + 2 + 7919 * self.rank + self.step)
+        restore_streams(ckpt['rng'], self.gen, self.sample_gen, self.cfg.seed, self.rank,
+                        self.step)
         self.provenance = Provenance.from_checkpoint(ckpt)
         if 'pso' in ckpt:
             self._pso = {k: v.clone() for k, v in ckpt['pso'].items()}

@@ -175,3 +175,34 @@ def widened_state(fresh: Dict, old: Dict, old_cfg: ModelConfig, cfg: ModelConfig
             raise ArtifactMismatch(f'weights {key} of the smaller model', tuple(target.shape),
                                    tuple(value.shape))
     return out
+
+
+def same_normalizer(a, b) -> bool:
+    """Whether two normalisers scale alike (limits, position centre and scale, to 1e-6)."""
+    mine = np.concatenate([a.lower, a.upper, a.position_center, [a.position_scale]])
+    theirs = np.concatenate([b.lower, b.upper, b.position_center, [b.position_scale]])
+    return bool(np.allclose(mine, theirs, rtol=1e-6, atol=1e-9))
+
+
+def stream_states(gen: torch.Generator, sample_gen: torch.Generator) -> Dict:
+    """A trainer's random streams as a checkpoint keeps them (torch's, the batches')."""
+    out = {'torch': torch.get_rng_state(), 'batches': gen.get_state()}
+    if sample_gen is not gen:
+        out['device_batches'] = sample_gen.get_state()
+    return out
+
+
+def restore_streams(rng: Dict, gen: torch.Generator, sample_gen: torch.Generator, seed: int,
+                    rank: int, step: int) -> None:
+    """The streams of :func:`stream_states` set again, for ``rank`` at ``step``."""
+    torch.set_rng_state(rng['torch'])
+    gen.set_state(rng['batches'])
+    if sample_gen is not gen:
+        if 'device_batches' in rng:
+            sample_gen.set_state(rng['device_batches'])
+        else:  # a run resumed on a GPU: a stream of its own from here
+            sample_gen.manual_seed(seed + 2 + step)
+    if rank > 0:  # the checkpoint holds rank 0's stream: the others draw their own
+        gen.manual_seed(seed + 1 + 7919 * rank + step)
+        if sample_gen is not gen:
+            sample_gen.manual_seed(seed + 2 + 7919 * rank + step)

@@ -24,7 +24,7 @@ from sik_ros.solver.batch import Candidates
 from sik_ros.solver.codec import encode
 from sik_ros.solver.config import ORIENTATION_WEIGHT
 from sik_ros.solver.context import Context, Goal
-from sik_ros.solver.explore import unindexed
+from sik_ros.solver.explore import other_branches, unindexed
 from sik_ros.solver.families import number, same_solution
 from sik_ros.solver.ranking import assess
 from sik_ros.solver.refine import refine, Refined
@@ -51,6 +51,8 @@ def every_branch(ctx: Context, goal: Goal, seeds: SeedTable, num: int,
     cfg, robot = ctx.config, ctx.robot
     q = seeds.starts(goal.position, goal.quaternion, cfg.seed_starts, cfg.seed_neighbours)
     r = refine(ctx, q, goal, deadline, enough=enough)
+    if enough is None:  # every branch: starts for those the table's nearest rows missed
+        r = other_branches(ctx, goal, seeds, r, deadline)
     keep = np.empty(0, dtype=np.int64)
     if not robot.periodic.any():
         keep, cost = exact_by_margin(r.q, r.perr, r.oerr, cfg.position_tolerance,

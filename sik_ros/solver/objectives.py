@@ -10,6 +10,8 @@ from typing import Callable, List, Optional, Sequence
 import numpy as np
 
 from sik_ros.errors import InvalidArgument
+from sik_ros.kernels import as_arg
+from sik_ros.kernels.sets import margin_costs
 from sik_ros.kinematics.chain import chain_forward
 from sik_ros.kinematics.collision import CollisionChecker, Obstacle
 from sik_ros.kinematics.robot import Robot
@@ -77,16 +79,19 @@ class SeedDistance(Objective):
 
 
 class JointLimitMargin(Objective):
-    """Closeness to the joint limits: 1 - the smallest normalised margin (0 to 1)."""
+    """Closeness to the joint limits: 1 - the smallest normalised margin (0 to 1).
+
+    The default ranking without a seed, everywhere (:func:`sik_ros.solver.ranking.rank`, and
+    the lean path's :func:`~sik_ros.kernels.sets.exact_by_margin`): one compiled formula,
+    :func:`~sik_ros.kernels.sets.margin_cost`.
+    """
 
     def __init__(self, robot: Robot):
-        self.lower, self.upper = robot.lower, robot.upper
+        self.lower, self.upper = as_arg(robot.lower), as_arg(robot.upper)
 
     def __call__(self, q):
         """Cost in [0, 1]."""
-        half = (self.upper - self.lower) / 2
-        margin = np.minimum(q - self.lower, self.upper - q) / half
-        return 1.0 - margin.min(axis=1)
+        return margin_costs(as_arg(np.atleast_2d(q)), self.lower, self.upper)
 
 
 class ElbowHeight(Objective):

@@ -16,7 +16,6 @@
 5. Algorithm 2 when obstacles leave no free exact solution.
 """
 
-from dataclasses import dataclass
 import math
 from typing import List, Optional, Sequence, Tuple
 
@@ -28,23 +27,23 @@ from sik_ros.kinematics.periodic import nearest_turns
 from sik_ros.solver import families
 from sik_ros.solver.adjust import adjust_index, adjust_raw
 from sik_ros.solver.batch import Candidates
+from sik_ros.solver.call import Call, LEAN, make_call, REFINED, spare
 from sik_ros.solver.candidates import (oriented_postures, own_index, starting_postures,
                                        table_candidates)
 from sik_ros.solver.codec import decode
-from sik_ros.solver.config import (FAR_ITERATIONS, FREE_RESTARTS, FREE_ROUNDS, SolverConfig,
-                                   START_MERGE)
+from sik_ros.solver.config import FAR_ITERATIONS, FREE_RESTARTS, FREE_ROUNDS, START_MERGE
 from sik_ros.solver.context import Context, Goal, POSE, POSITION
-from sik_ros.solver.explore import (branch_starts, periodic_equivalents, restart, seed_starts,
-                                    unindexed, walk)
+from sik_ros.solver.explore import (branch_starts, other_branches, periodic_equivalents,
+                                    restart, seed_starts, unindexed, walk)
 from sik_ros.solver.isolated import every_branch
 from sik_ros.solver.objectives import Objective
 from sik_ros.solver.ranking import (assess, best_distinct, by_score, distinct_mask,
                                     from_solutions, merge, pose_score, rank)
 from sik_ros.solver.refine import errors, refine
 from sik_ros.solver.results import IKResult, Solution
+from sik_ros.solver.search import search, searchable
 from sik_ros.solver.single import (fill_indices, from_starts, oriented_count,
                                    single_starts, turns_centre)
-from sik_ros.tables.seed_table import SeedTable
 
 
 def initial_postures(ctx: Context, goal: Goal, num: int, q_seed: Optional[np.ndarray],
@@ -72,16 +71,6 @@ def initial_postures(ctx: Context, goal: Goal, num: int, q_seed: Optional[np.nda
         z = np.concatenate([np.full((1, z.shape[1]), np.nan), z])
     unknown = np.full(len(q), np.inf)
     return Candidates(q, z, unknown, np.zeros(len(q)), np.zeros(len(q), dtype=bool))
-
-
-def spare(cfg: SolverConfig, num: int) -> int:
-    """Distinct exact solutions found beyond the ``num`` asked for before the search stops.
-
-    ``early_stop_margin``, at most ``num - 1``: a single solution is the first exact one
-    found (as TRAC-IK's first answer); with the default margin of 2, two are the better two
-    of three. Only for the default ranking (no seed, obstacles or objective).
-    """
-    return min(cfg.early_stop_margin, num - 1)
 
 
 def distinct_postures(ctx: Context, c: Candidates, goal: Goal,
@@ -134,35 +123,6 @@ def seed_posture_first(ctx: Context, goal: Goal, own: Candidates, sols: List[Sol
     return (first + rest)[:num]
 
 
-@dataclass(frozen=True)
-class Call:
-    """One solve's request and what follows from it, handed to its stages.
-
-    Attributes:
-        goal, num, q_seed, obstacles, refined, objective, deadline, first_found: as
-            :func:`solve` takes them.
-        single: one solution from a seed with the default ranking (the seed refined first).
-        far: the goal is farther than ``reach_margin`` from every table cell (out of reach).
-        seeds: the seed table giving isolated pose solutions their starts, or None.
-        isolated: a reachable, refined pose goal of an arm with six joints or fewer.
-        one_per_family: at most one solution per posture family.
-    """
-
-    goal: Goal
-    num: int
-    q_seed: Optional[np.ndarray]
-    obstacles: Sequence[Obstacle]
-    refined: bool
-    objective: Optional[Objective]
-    deadline: Deadline
-    first_found: bool
-    single: bool
-    far: bool
-    seeds: Optional[SeedTable]
-    isolated: bool
-    one_per_family: bool = False
-
-
 def solve(ctx: Context, goal: Goal, num: int, q_seed: Optional[np.ndarray],
           obstacles: Sequence[Obstacle], refined: bool, objective: Optional[Objective],
           deadline: Deadline, first_found: bool = False,
@@ -170,36 +130,34 @@ def solve(ctx: Context, goal: Goal, num: int, q_seed: Optional[np.ndarray],
     """Ranked solutions for one checked goal (see the module's stages).
 
     ``one_per_family``: at most one solution per posture family (None: the config's
-    ``one_per_family``).
+    ``one_per_family``). The route (:func:`~sik_ros.solver.call.make_call`) is chosen once.
 
     With ``first_found`` (a path's starts) refinement stops at the first ``num`` distinct
     exact solutions even with a seed (then ranked by it): the seed's own row may be left
     unfinished (a path's starts follow the seed onto the goal on their own). Their posture
     indices are left unknown (NaN) unless obstacles need them (Algorithm 2).
     """
-    # one solution with a seed: the seed refined alone first; when that fails, the first exact
-    # solution of the other starts (the seed's own row and posture already tried), as without
-    # a seed, ranked by the seed
-    one = num == 1 and refined and objective is None and not first_found
-    single = one and q_seed is not None
-    starts = single_starts(ctx, goal, q_seed, obstacles) if one else None
-    if starts is not None and len(starts):
-        result = from_starts(ctx, goal, starts, q_seed, obstacles, deadline)
-        if result is not None:
-            return result
     call = make_call(ctx, goal, num, q_seed, obstacles, refined, objective, deadline,
-                     first_found, single, one_per_family)
+                     first_found, one_per_family)
+    if call.one:
+        # one solution: the seed refined alone first; when that fails, the first exact
+        # solution of the other starts (the seed's own row and posture already tried), as
+        # without a seed, ranked by the seed; then the route below
+        starts = single_starts(ctx, goal, q_seed, obstacles)
+        if starts is not None and len(starts):
+            result = from_starts(ctx, goal, starts, q_seed, obstacles, deadline)
+            if result is not None:
+                return result
     timed_out = False
     own = None
-    if lean(call):
-        # every branch, unless one is asked for
-        enough = early_stop(ctx.config, call) if num == 1 else None
-        result, c, timed_out = every_branch(ctx, goal, call.seeds, num, enough, deadline)
+    if call.route == LEAN:  # every branch, unless one is asked for
+        result, c, timed_out = every_branch(ctx, goal, call.seeds, num, call.enough,
+                                            deadline)
         if result is not None:
             return result
-        c, timed_out = more_starts(ctx, call, c, enough, timed_out)
-    elif refined:
-        c = initial_postures(ctx, goal, num, None if single else q_seed, refined,
+        c, timed_out = more_starts(ctx, call, c, timed_out)
+    elif call.route == REFINED:
+        c = initial_postures(ctx, goal, num, None if call.single else q_seed, refined,
                              seeded=call.seeds is not None)
         c, timed_out = refine_all(ctx, call, c)
     else:
@@ -211,7 +169,7 @@ def solve(ctx: Context, goal: Goal, num: int, q_seed: Optional[np.ndarray],
     c = distinct_postures(ctx, c, goal, q_seed)
     fam = family_roots(ctx, call, c)
     sols = rank(ctx, c, q_seed, obstacles, objective, limit=num, deadline=deadline,
-                families=fam)
+                families=fam, branches_first=call.isolated)
     if own is not None:
         sols = seed_posture_first(ctx, goal, own, sols, q_seed, obstacles, num, deadline)
     sols, fam, cut = free_rounds(ctx, call, c, sols, fam)
@@ -229,74 +187,34 @@ def family_roots(ctx: Context, call: Call, c: Candidates) -> Optional[np.ndarray
     return families.roots(ctx, c, call.goal, call.deadline)
 
 
-def make_call(ctx: Context, goal: Goal, num: int, q_seed: Optional[np.ndarray],
-              obstacles: Sequence[Obstacle], refined: bool, objective: Optional[Objective],
-              deadline: Deadline, first_found: bool, single: bool,
-              one_per_family: Optional[bool] = None) -> Call:
-    """The :class:`Call` of a request: whether the goal is out of reach, isolated, seeded."""
-    cfg = ctx.config
-    # a goal far from every position in the data is out of reach: answer quickly
-    far = not ctx.models[goal.kind].table.within(goal.position, cfg.reach_margin)
-    # isolated solutions (a pose, six joints or fewer): no self-motion to walk along, each
-    # branch needs a start of its own, from the seed table near the goal pose when the bundle
-    # has one, else drawn at random
-    isolated = goal.kind == POSE and not far and ctx.robot.dof <= 6 and refined
-    seeds = ctx.models[goal.kind].seeds if isolated and cfg.seed_starts > 0 else None
-    per_family = cfg.one_per_family if one_per_family is None else one_per_family
-    return Call(goal, num, q_seed, obstacles, refined, objective, deadline, first_found,
-                single, far, seeds, isolated, per_family)
-
-
-def lean(call: Call) -> bool:
-    """Whether a call takes :mod:`sik_ros.solver.isolated`'s lean path.
-
-    Isolated pose solutions with the seed table's starts, ranked by the default objective:
-    no seed, obstacles or objective, and not a path's starts.
-    """
-    return call.seeds is not None and call.q_seed is None and not call.obstacles and \
-        call.objective is None and not call.first_found
-
-
-def early_stop(cfg: SolverConfig, call: Call) -> Optional[int]:
-    """Distinct exact solutions after which refinement stops, or None (refine every start).
-
-    Ranked by the default objective, the first distinct exact solutions found are as good as
-    any: refinement stops once there are enough (with ``first_found`` also with a seed, the
-    few found then ranked by it).
-    """
-    if (call.q_seed is not None and not call.first_found and not call.single) or \
-            call.obstacles or call.objective is not None or cfg.early_stop_margin < 0:
-        return None
-    return call.num + (0 if call.first_found else spare(cfg, call.num))
-
-
 def refine_all(ctx: Context, call: Call, c: Candidates) -> Tuple[Candidates, bool]:
     """Stage 3: the starts refined, then restarts and the walk where they fall short.
 
     Returns:
         the refined candidates, and whether the deadline cut refinement short.
     """
-    cfg, goal, num, deadline = ctx.config, call.goal, call.num, call.deadline
+    cfg, goal, deadline = ctx.config, call.goal, call.deadline
     # decoded postures that nearly coincide would refine to the same solution
     c = c.take(distinct_mask(c.q, cfg.distinct_threshold * START_MERGE,
                              ctx.ignores_last(goal.kind)))
-    enough = early_stop(cfg, call)
     if call.seeds is not None:
         c = Candidates.concat(c, seed_starts(ctx, goal, call.seeds, cfg.seed_starts,
                                              c.z.shape[1]))
-        enough = enough if num == 1 else None  # every branch, unless one is asked for
     elif call.isolated and cfg.branch_restarts > 0:
         c = Candidates.concat(c, branch_starts(ctx, goal, cfg.branch_restarts, c.z.shape[1]))
-        enough = enough if num == 1 else None
     # starts from the seed table are far apart already: merging the few heading for one
     # solution saves less than it costs (docs/design.md, "Measured choices")
     r = refine(ctx, c.q, goal, deadline, FAR_ITERATIONS if call.far else None,
-               prune=call.seeds is None, enough=enough)
-    c = assess(r.q, c.z, r.perr, r.oerr, goal.kind, cfg)
-    return more_starts(ctx, call, c, enough, r.cut_short)
+               prune=call.seeds is None, enough=call.enough)
+    z = c.z
+    if call.seeds is not None and call.enough is None:  # every branch: starts for those missed
+        r = other_branches(ctx, goal, call.seeds, r, deadline)
+        z = np.concatenate([z, unindexed(r.q[len(z):], z.shape[1])])
+    c = assess(r.q, z, r.perr, r.oerr, goal.kind, cfg)
+    return more_starts(ctx, call, c, r.cut_short)
 
 
-def more_starts(ctx: Context, call: Call, c: Candidates, enough: Optional[int],
+def more_starts(ctx: Context, call: Call, c: Candidates,
                 timed_out: bool) -> Tuple[Candidates, bool]:
     """Stage 3 after the first refinement ``c``: restarts and the walk where it fell short.
 
@@ -307,27 +225,28 @@ def more_starts(ctx: Context, call: Call, c: Candidates, enough: Optional[int],
     if goal.kind == POSE and not call.far and not c.exact.any() and \
             not deadline.expired() and call.seeds is None and \
             oriented_count(cfg, num) < cfg.oriented_candidates:
-        c, cut = more_oriented(ctx, call, c, enough)
+        c, cut = more_oriented(ctx, call, c)
         timed_out = timed_out or cut
     if not call.far and not c.exact.any():
         c, cut = restart(ctx, c, goal, deadline)
         timed_out = timed_out or cut
     if goal.kind == POSE and not call.far and ctx.robot.dof > 6 and cfg.walk_rounds > 0:
         # the first exact ones are as good as any only with the default ranking
-        margin = spare(cfg, num) if enough is not None else cfg.early_stop_margin
+        margin = spare(cfg, num) if call.enough is not None else cfg.early_stop_margin
         c = walk(ctx, c, goal, deadline, num + max(margin, 0))
+    if num > 1 and not call.far and not call.first_found and searchable(ctx, goal):
+        c = search(ctx, c, goal, deadline)  # the pieces the limits part from those found
     return c, timed_out
 
 
-def more_oriented(ctx: Context, call: Call, c: Candidates,
-                  enough: Optional[int]) -> Tuple[Candidates, bool]:
+def more_oriented(ctx: Context, call: Call, c: Candidates) -> Tuple[Candidates, bool]:
     """``c`` and the oriented postures a call asking for few solutions left out, refined.
 
     The table ranks them by orientation, so the first ones are those already refined.
     """
     cfg, goal = ctx.config, call.goal
     q = oriented_postures(ctx, goal, cfg.oriented_candidates)[oriented_count(cfg, call.num):]
-    r = refine(ctx, q, goal, call.deadline, prune=True, enough=enough)
+    r = refine(ctx, q, goal, call.deadline, prune=True, enough=call.enough)
     more = assess(r.q, unindexed(q, c.z.shape[1]), r.perr, r.oerr, goal.kind, cfg)
     return Candidates.concat(c, more), r.cut_short
 
@@ -360,7 +279,7 @@ def free_rounds(ctx: Context, call: Call, c: Candidates, sols: List[Solution],
         c = distinct_postures(ctx, more, goal, call.q_seed)
         fam = family_roots(ctx, call, c)
         sols = rank(ctx, c, call.q_seed, call.obstacles, call.objective, limit=call.num,
-                    deadline=deadline, families=fam)
+                    deadline=deadline, families=fam, branches_first=call.isolated)
     return sols, fam, timed_out
 
 
@@ -386,7 +305,7 @@ def finish(ctx: Context, call: Call, sols: List[Solution], timed_out: bool,
                 c = from_solutions(sols)
                 fam = families.roots(ctx, c, goal, deadline)
                 sols = rank(ctx, c, call.q_seed, obstacles, call.objective, deadline=deadline,
-                            families=fam)
+                            families=fam, branches_first=call.isolated)
             sols = sols[:call.num]
     if fam is None and call.num == 1:  # one solution: its own family, the one known
         fam = [0] if sols and sols[0].converged else []

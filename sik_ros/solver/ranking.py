@@ -108,7 +108,8 @@ def rank(ctx: Context, c: Candidates, q_seed: Optional[np.ndarray],
          obstacles: Sequence[Obstacle], objective: Optional[Objective],
          limit: Optional[int] = None, deadline: Deadline = NO_DEADLINE,
          self_collision: Optional[np.ndarray] = None,
-         families: Optional[np.ndarray] = None) -> List[Solution]:
+         families: Optional[np.ndarray] = None,
+         branches_first: bool = False) -> List[Solution]:
     """Solutions ranked best first; with ``limit``, only the best ``limit`` of them.
 
     The order is lexicographic: tier (free and exact, free and inexact, colliding or
@@ -126,7 +127,11 @@ def rank(ctx: Context, c: Candidates, q_seed: Optional[np.ndarray],
     :func:`sik_ros.solver.families.roots`): within a tier the best of each family (by the
     order above, colliding ones last) ranks before every second solution of a family, so the
     first answers cover the families; each solution's ``family`` is its root (numbered later
-    by :func:`sik_ros.solver.families.number`).
+    by :func:`sik_ros.solver.families.number`). With ``branches_first`` (the isolated
+    solutions of a pose of an arm of six joints or fewer: its branches, as an analytic solver
+    gives them) the best of each family ranks before every second solution whatever its tier:
+    a branch that touches the arm itself still comes before a 2 pi equivalent of a free one,
+    in the colliding tier and reported so.
     """
     if len(c) == 0:
         return []
@@ -153,6 +158,8 @@ def rank(ctx: Context, c: Candidates, q_seed: Optional[np.ndarray],
 
     def order(colliding: np.ndarray) -> np.ndarray:
         tier = np.where(colliding, COLLIDING, np.where(inexact, FREE_INEXACT, FREE_EXACT))
+        if branches_first:
+            return np.lexsort((within, equivalent, tier, repeat, inexact))
         return np.lexsort((within, equivalent, repeat, inexact, tier))
 
     limit = len(c) if limit is None else limit

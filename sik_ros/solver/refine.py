@@ -86,12 +86,6 @@ def errors(ctx: Context, q: np.ndarray, goal: Goal) -> Tuple[np.ndarray, np.ndar
     return goal_errors(p, r, goal.position, goal.rotation)
 
 
-def dls_step(j: np.ndarray, err: np.ndarray, lam2: float, eye: np.ndarray) -> np.ndarray:
-    """Damped least squares steps J^T (J J^T + lambda^2 I)^-1 e for a batch."""
-    jjt = j @ j.transpose(0, 2, 1) + lam2 * eye
-    return (j.transpose(0, 2, 1) @ np.linalg.solve(jjt, err[..., None]))[..., 0]
-
-
 def refine(ctx: Context, q: np.ndarray, goal: Goal, deadline: Deadline = NO_DEADLINE,
            iterations: Optional[int] = None, prune: bool = False,
            enough: Optional[int] = None) -> Refined:

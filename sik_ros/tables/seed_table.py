@@ -37,6 +37,7 @@ from sik_ros.defaults import SEED_TABLE_ROWS
 from sik_ros.errors import ArtifactMismatch, CorruptArtifact, InvalidArgument
 from sik_ros.kernels.kdtree import KDTree
 from sik_ros.kernels.seeds import axis_key, table_starts
+from sik_ros.kinematics.branches import branch_signs
 from sik_ros.kinematics.chain import chain_forward
 from sik_ros.kinematics.periodic import TURN
 from sik_ros.kinematics.robot import Robot
@@ -70,6 +71,9 @@ class SeedTable:
     Attributes:
         q: the configurations (M, n) [rad], within the robot's limits.
         manifest: what the table was built from (robot, rows, dataset).
+        signs: the arm's branch signs (:mod:`sik_ros.kinematics.branches`; None above six
+            joints), and ``codes`` (M,): each row's branch code, whose rows
+            :meth:`branch_starts` looks up apart.
     """
 
     def __init__(self, robot: Robot, q: np.ndarray, manifest: Dict):
@@ -93,7 +97,8 @@ class SeedTable:
             p, quat = turned(p, quat, -azimuth)
             self._base_q = self.q.copy()
             self._base_q[:, 0] -= azimuth
-        self.tree = KDTree(np.concatenate([p, QUATERNION_SCALE * quat], axis=1), LEAF_SIZE)
+        keys = np.concatenate([p, QUATERNION_SCALE * quat], axis=1)
+        self.tree = KDTree(keys, LEAF_SIZE)
         order = self.tree.order
         if np.any(order != np.arange(len(order))):
             # the rows in the tree's leaf order (a table saved after this loads in it): a leaf's
@@ -101,7 +106,19 @@ class SeedTable:
             same = self._base_q is self.q  # no first axis: one array, kept one
             self.q = self.q[order]
             self._base_q = self.q if same else self._base_q[order]
+            keys = keys[order]
         self._base_q = np.ascontiguousarray(self._base_q)
+        # the rows of each branch code apart, in a tree of their own: starts on a branch that
+        # the nearest rows of the whole table leave out (kinematics.branches)
+        self.signs = branch_signs(robot) if robot.dof <= 6 else None
+        self.codes = None if self.signs is None else self.signs.codes(robot, self.q)
+        self._by_code = {}
+        if self.codes is not None:
+            for code in np.unique(self.codes):
+                rows = np.flatnonzero(self.codes == code)
+                tree = KDTree(keys[rows], LEAF_SIZE)
+                self._by_code[int(code)] = (tree, np.ascontiguousarray(
+                    self._base_q[rows][tree.order]))
 
     def __len__(self) -> int:
         """Number of configurations."""
@@ -119,7 +136,23 @@ class SeedTable:
                 first joints cannot take the goal's azimuth).
             neighbours: nearest configurations (by tip pose) the far-apart ones come from.
         """
-        k = min(neighbours, len(self.q))
+        return self._starts(self.tree, self._base_q, position, quaternion, count, neighbours)
+
+    def branch_starts(self, position: np.ndarray, quaternion: np.ndarray, code: int,
+                      count: int, neighbours: int = NEIGHBOURS) -> np.ndarray:
+        """As :meth:`starts`, from the rows of one branch code only (:attr:`codes`).
+
+        Rows (0, n) when the table holds none of that code (or has no branch signs).
+        """
+        if int(code) not in self._by_code:
+            return np.empty((0, self.q.shape[1]))
+        tree, base_q = self._by_code[int(code)]
+        return self._starts(tree, base_q, position, quaternion, count, neighbours)
+
+    def _starts(self, tree: KDTree, base_q: np.ndarray, position: np.ndarray,
+                quaternion: np.ndarray, count: int, neighbours: int) -> np.ndarray:
+        """:meth:`starts` from ``tree`` over the rows ``base_q`` (in its leaf order)."""
+        k = min(neighbours, len(base_q))
         if count < 1 or k < 1:
             return np.empty((0, self.q.shape[1]))
         key, azimuth = self.turned_key(position, quaternion)
@@ -131,14 +164,14 @@ class SeedTable:
         wanted = k
         share = (self._upper - self._lower) / TURN
         if self._axis is not None and share < 1.0:
-            wanted = min(len(self.q), math.ceil(1.25 * k / max(share, 1e-3)))
+            wanted = min(len(base_q), math.ceil(1.25 * k / max(share, 1e-3)))
         # a quaternion and its negative are one rotation (the table's have w >= 0): the other
         # sign's key is looked up too, where it can be nearer than the k-th row found (keys
         # with w near 0: every row is at least ``scale * w`` from it)
         other = np.concatenate([key[:3], -key[3:]])
         # far apart in joint space, an angle and its 2 pi equivalents alike; no two within
         # START_SPACING, which head for one solution (at least START_LEAST of them)
-        return table_starts(*self.tree.arrays(), self._base_q, key, other, azimuth,
+        return table_starts(*tree.arrays(), base_q, key, other, azimuth,
                             self._axis is not None, float(self._lower), float(self._upper),
                             int(k), int(wanted), LOOKUP_EPS, int(count), START_SPACING,
                             START_LEAST, SAME_DISTANCE)

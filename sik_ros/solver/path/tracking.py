@@ -12,7 +12,7 @@ from sik_ros.solver.config import TRACK_ITERATIONS
 from sik_ros.solver.context import Context, Goal
 from sik_ros.solver.path.edges import angular_speed, certified, on_segment
 from sik_ros.solver.path.rungs import Plan, Rung, Tracks
-from sik_ros.solver.refine import dls_step, Evaluation, follow
+from sik_ros.solver.refine import Evaluation, follow
 
 
 def chunk(plan: Plan, tracks: Tracks, i: int, m: int
@@ -81,10 +81,13 @@ def jacobian_change(ctx: Context, q: np.ndarray, ev: Evaluation,
     djac = ev.djac
     fresh = ~djac.any(axis=(1, 2))
     if fresh.any():
-        ahead = dls_step(ev.jac[fresh, :dims], first[fresh], cfg.damping ** 2, np.eye(dims))
+        # one damped least squares step (the kernels' one formula), within the limits
+        jac = as_arg(ev.jac[fresh])
+        ahead = np.empty((1, len(jac), q.shape[1]))
+        predict_rows(as_arg(q[fresh]), jac, np.zeros_like(jac), as_arg(first[fresh][None]),
+                     dims, cfg.damping ** 2, robot.lower, robot.upper, ahead)
         djac = djac.copy()
-        djac[fresh] = robot.jacobian_loop(np.clip(q[fresh] + ahead, robot.lower, robot.upper),
-                                          ctx.data)[2] - ev.jac[fresh]
+        djac[fresh] = robot.jacobian_loop(ahead[0], ctx.data)[2] - jac
     return djac
 
 

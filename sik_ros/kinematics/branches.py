@@ -1,0 +1,132 @@
+"""Branch signs: which of a pose's isolated solutions a configuration of an arm is on.
+
+An arm of six joints or fewer reaches a pose at isolated configurations, its *branches*
+(shoulder, elbow and wrist up or down: eight for a UR5). Two branches are parted by the
+configurations where the Jacobian loses rank, and those come in two kinds:
+
+- a joint whose angle alone makes the Jacobian singular, whatever the others (a UR5's elbow
+  stretched, ``q3 = 0``, and its wrist aligned, ``q5 = 0``): its *side*, the sign of
+  ``sin(q_j - c_j)``, is one branch sign;
+- the rest (a UR5's wrist centre on the first joint's axis): the sign of the Jacobian's
+  determinant (a 6 x 6 Jacobian), the product of every factor, is the last one.
+
+:func:`branch_signs` finds an arm's sign joints numerically (no joint is assumed: the
+Jacobian's smallest singular value at a grid of each joint's angles, the others drawn at
+random), and :meth:`BranchSigns.codes` gives each configuration its branch code, the signs as
+bits. On a UR5 the eight branches of a pose have eight codes (checked on random poses,
+``test_branches.py``); an arm whose branches share a code (a general 6R arm has up to 16
+solutions) still gets starts for every code.
+"""
+
+from dataclasses import dataclass
+import functools
+from typing import Tuple
+
+import numpy as np
+
+from sik_ros.kinematics.robot import Robot
+
+#: Angles of each joint tried as a singular angle (a grid over one turn).
+GRID = 72
+#: Random configurations at which a singular angle must make the Jacobian singular.
+SAMPLES = 8
+#: Smallest over largest singular value under which a Jacobian counts as singular.
+SINGULAR = 1e-6
+#: Configurations whose codes are computed at once (the Jacobians' memory).
+CHUNK = 50_000
+
+
+@dataclass(frozen=True)
+class BranchSigns:
+    """An arm's branch signs: its sign joints, and whether the determinant's sign counts.
+
+    Attributes:
+        joints: the joints whose angle alone makes the Jacobian singular.
+        centres: each one's singular angle [rad] (the other is half a turn on).
+        determinant: whether the sign of the (square) Jacobian's determinant is a sign.
+    """
+
+    joints: Tuple[int, ...]
+    centres: Tuple[float, ...]
+    determinant: bool
+
+    @property
+    def count(self) -> int:
+        """How many codes there are: two per sign."""
+        return 2 ** (len(self.joints) + int(self.determinant))
+
+    def codes(self, robot: Robot, q: np.ndarray) -> np.ndarray:
+        """(M,) int64: the branch code of each configuration ``q`` (M, n) [rad].
+
+        Bit k (k < len(joints)): the k-th sign joint on the side ``sin(q_j - c_j) > 0``; the
+        next bit: a positive determinant of the Jacobian.
+        """
+        q = np.atleast_2d(np.asarray(q, dtype=float))
+        out = np.zeros(len(q), dtype=np.int64)
+        for bit, (j, c) in enumerate(zip(self.joints, self.centres)):
+            out |= (np.sin(q[:, j] - c) > 0).astype(np.int64) << bit
+        if self.determinant:
+            bit = len(self.joints)
+            for start in range(0, len(q), CHUNK):
+                _, _, jac = robot.jacobian_batch(q[start:start + CHUNK])
+                out[start:start + CHUNK] |= (np.linalg.det(jac) > 0).astype(np.int64) << bit
+        return out
+
+
+def branch_signs(robot: Robot, seed: int = 0) -> BranchSigns:
+    """The branch signs of ``robot`` (an arm of six joints or fewer), found numerically.
+
+    A joint is a sign joint when, at some angle of a grid of :data:`GRID` over a turn, the
+    Jacobian is singular (:data:`SINGULAR`) at each of :data:`SAMPLES` random configurations
+    with that angle; the smallest such angle in ``[0, pi)`` is its centre. The determinant
+    counts for a 6 x 6 Jacobian.
+    """
+    rng = np.random.default_rng(seed)
+    q = rng.uniform(robot.lower, robot.upper, (SAMPLES, robot.dof))
+    joints, centres = [], []
+    for j in range(robot.dof):
+        for c in np.linspace(0.0, np.pi, GRID // 2, endpoint=False):
+            qc = q.copy()
+            qc[:, j] = c
+            _, _, jac = robot.jacobian_batch(qc)
+            s = np.linalg.svd(jac, compute_uv=False)
+            if np.all(s[:, -1] <= SINGULAR * s[:, 0]):
+                joints.append(j)
+                centres.append(float(c))
+                break
+    return BranchSigns(tuple(joints), tuple(centres), robot.dof == 6)
+
+
+def exact_flips(robot: Robot, seed: int = 0) -> Tuple[int, ...]:
+    """The joints ``a`` whose half-turn flip ``(q_a + pi, -q_a+1, q_a+2 + pi)`` keeps the tip.
+
+    Three consecutive joints whose axes meet in one point (a spherical shoulder or wrist,
+    such as the Panda's first three) reach every tip pose a second way: the first and third
+    turned by half a turn, the middle one mirrored. Checked at :data:`SAMPLES` random
+    configurations (tip poses equal to 1e-9), no arm assumed.
+    """
+    rng = np.random.default_rng(seed)
+    q = rng.uniform(robot.lower, robot.upper, (SAMPLES, robot.dof))
+    p, r = robot.fk_rot(q)
+    found = []
+    for a in range(robot.dof - 2):
+        flipped = flip(q, a)
+        p2, r2 = robot.fk_rot(flipped)
+        if np.allclose(p, p2, rtol=0, atol=1e-9) and np.allclose(r, r2, rtol=0, atol=1e-9):
+            found.append(a)
+    return tuple(found)
+
+
+@functools.lru_cache(maxsize=16)
+def robot_flips(robot: Robot) -> np.ndarray:
+    """:func:`exact_flips` of ``robot`` as int64, found once per arm."""
+    return np.array(exact_flips(robot), dtype=np.int64)
+
+
+def flip(q: np.ndarray, a: int) -> np.ndarray:
+    """Configurations (M, n) with joints ``a, a+1, a+2`` flipped (:func:`exact_flips`)."""
+    out = np.array(q, dtype=float)
+    out[:, a] += np.pi
+    out[:, a + 1] *= -1.0
+    out[:, a + 2] += np.pi
+    return out
