@@ -20,16 +20,23 @@ from sik_ros.errors import ArtifactMismatch, InvalidArgument, TrainingDiverged
 from sik_ros.learning import distributed
 from sik_ros.learning.checkpoints import normalizer_from_dict
 from sik_ros.learning.generated_data import GeneratedData
-from sik_ros.learning.models import anfis_forward, build_model, kl_normal, ModelConfig, TorchChain
+from sik_ros.learning.losses import cycle_terms, fk_error, orientation_error_deg
+from sik_ros.learning.models import build_model, kl_normal, ModelConfig, TorchChain
 from sik_ros.learning.provenance import device_name, Provenance
-from sik_ros.learning.train_config import (lr_at, SAMPLERS, TrainConfig,  # noqa: F401
-                                           with_overrides)
+from sik_ros.learning.swarm import new_swarm, swarm_step
+from sik_ros.learning.train_config import (kl_weight_at, lr_at, SAMPLERS,  # noqa: F401
+                                           TrainConfig, with_overrides)
 from sik_ros.learning.training_data import (data_summary, default_normalizer,  # noqa: F401
-                                            TrainData, turned_rot6, widened_state, widens)
+                                            TrainData)
+from sik_ros.learning.warm_start import (initial_state, makes_variational,
+                                         standardise_index)
 from sik_ros.tables.dataset import Dataset
 
 if TYPE_CHECKING:  # Pinocchio: a chain file's arm trains without it
     from sik_ros.kinematics.robot import Robot
+
+#: Training rows over which a PSIK started from a SIK model standardises its index.
+STANDARDISE_ROWS = 20_000
 
 
 class Trainer:
@@ -109,13 +116,9 @@ class Trainer:
         return q, goal, pos, rot6
 
     def _fk_error(self, x_hat: torch.Tensor, pos: torch.Tensor, rot6: torch.Tensor):
-        """The FK term of normalised joints against their goals."""
-        p_hat, r_hat = self.fk(self.norm.q_from_net(x_hat))
-        err = ((p_hat - pos) ** 2).sum(1).mean() / self.cfg.fk_scale ** 2
-        if self.model_cfg.goal == 'pose':
-            r6 = torch.cat([r_hat[:, :, 0], r_hat[:, :, 1]], 1)
-            err = err + self.cfg.rot_weight * ((r6 - rot6) ** 2).sum(1).mean()
-        return err
+        """The FK term of normalised joints against their goals (:func:`fk_error`)."""
+        return fk_error(self.fk, self.norm, self.cfg, self.model_cfg.goal == 'pose', x_hat,
+                        pos, rot6)
 
     def losses(self, idx: torch.Tensor = None, batch=None) -> Dict[str, torch.Tensor]:
         """The loss terms of a batch: dataset row indices, or ``(q, goal, pos, rot6)``."""
@@ -135,31 +138,18 @@ class Trainer:
         if self.cfg.fk_weight > 0:
             out['fk'] = self._fk_error(x_hat, pos, rot6)
         if sik and self.cfg.cycle_weight > 0:
-            # the table's use of the model: an index found at a nearby position decoded at the
-            # goal. Each index is decoded at its goal moved by about cycle_shift; the posture
-            # must re-encode to the same index there (so the decoder cannot ignore the index)
-            # and reach the moved goal (FK term)
-            shift = torch.randn(len(pos), 3, generator=self.sample_gen, device=self.device)
-            pos_other = pos + self.cfg.cycle_shift * shift
-            rot6_other = rot6
-            if self.model_cfg.goal == 'pose' and self.cfg.cycle_turn > 0:
-                rot6_other = turned_rot6(rot6, self.cfg.cycle_turn, self.sample_gen)
-            goal_other = torch.cat([pos_other, rot6_other], 1) \
-                if self.model_cfg.goal == 'pose' else pos_other
-            g_other = self.norm.goal_to_net(goal_other)
-            z = mu.detach()
-            x_other = self.model.decode(g_other, z)
-            z_back, _ = self.model.encode(g_other, x_other)
-            spread = z.var(dim=0).sum().clamp_min(1e-8)
-            out['cycle'] = ((z_back - z) ** 2).sum(1).mean() / spread
+            other = cycle_terms(self.model, self.norm, self.cfg, self.model_cfg.goal == 'pose',
+                                mu, pos, rot6, self.sample_gen)
+            out['cycle'] = other['cycle']
             if self.cfg.fk_weight > 0:
-                out['fk_other'] = self._fk_error(x_other, pos_other, rot6_other)
+                out['fk_other'] = self._fk_error(other['x_other'], other['pos_other'],
+                                                 other['rot6_other'])
         fk_weight = self.cfg.fk_weight if fk_on else 0.0
         total = out['recon'] + fk_weight * (out.get('fk', 0.0) + out.get('fk_other', 0.0))
         if 'cycle' in out:
             total = total + self.cfg.cycle_weight * out['cycle']
         if 'kl' in out:
-            total = total + self.cfg.kl_weight * out['kl']
+            total = total + kl_weight_at(self.cfg, self.step) * out['kl']
         out['loss'] = total
         return out
 
@@ -183,11 +173,7 @@ class Trainer:
             p_hat, r_hat = self.fk(q_hat)
             errs.append(torch.linalg.norm(p_hat - pos, dim=1))
             if self.model_cfg.goal == 'pose':
-                r = torch.stack([rot6[:, :3], rot6[:, 3:],
-                                 torch.linalg.cross(rot6[:, :3], rot6[:, 3:])], dim=2)
-                rel = r.transpose(1, 2) @ r_hat
-                cos = ((rel.diagonal(dim1=1, dim2=2).sum(1) - 1) / 2).clamp(-1, 1)
-                oerrs.append(torch.rad2deg(torch.arccos(cos)))
+                oerrs.append(orientation_error_deg(rot6, r_hat))
         self.model.train()
         err = torch.cat(errs)
         res = {'val_loss': sum(losses) / len(self.val_idx),
@@ -308,47 +294,16 @@ class Trainer:
         self.opt.step()
         return {k: float(v.detach()) if torch.is_tensor(v) else float(v) for k, v in out.items()}
 
-    def _pso_state(self) -> Dict[str, torch.Tensor]:
-        """The swarm (created around the current parameters on first use)."""
-        state = getattr(self, '_pso', None)
-        if state is None:
-            flat = self.model.params_flat.detach()
-            n_par = self.cfg.pso_particles
-            spread = torch.ones_like(flat)
-            spread[3 * self.model_cfg.goal_dim * self.model_cfg.anfis_mfs:] = 1.0
-            pos = flat[None] + spread[None] * (
-                torch.rand(n_par, len(flat), generator=self.gen) * 2 - 1)
-            pos[0] = flat
-            state = {'pos': pos, 'vel': torch.zeros_like(pos), 'best': pos.clone(),
-                     'best_f': torch.full((n_par,), float('inf')), 'gbest': flat.clone(),
-                     'gbest_f': torch.tensor(float('inf'))}
-            self._pso = state
-        return state
-
     @torch.no_grad()
     def _pso_step(self) -> Dict[str, float]:
-        """One particle swarm step of an ANFIS; the best loss so far."""
-        state, gen = self._pso_state(), self.gen
-        pick = torch.randint(len(self.train_idx), (self.cfg.pso_batch,), generator=gen)
+        """One particle swarm step of an ANFIS (:mod:`~sik_ros.learning.swarm`); its best loss."""
+        if getattr(self, '_pso', None) is None:
+            self._pso = new_swarm(self.model.params_flat.detach(), self.cfg.pso_particles,
+                                  self.gen)
+        pick = torch.randint(len(self.train_idx), (self.cfg.pso_batch,), generator=self.gen)
         q, goal, _, _ = self._batch(self.train_idx[pick.to(self.device)])
-        x = self.norm.q_to_net(q)
-        g = self.norm.goal_to_net(goal)
-        # the swarm stays on the CPU (a few hundred numbers a particle); its losses are
-        # computed where the rows are
-        outputs = anfis_forward(self.model_cfg, state['pos'].to(self.device), g)
-        f = ((outputs - x[None]) ** 2).mean((1, 2)).cpu()
-        f = torch.nan_to_num(f, nan=float('inf'))
-        better = f < state['best_f']
-        state['best'][better] = state['pos'][better]
-        state['best_f'][better] = f[better]
-        i = int(torch.argmin(state['best_f']))
-        state['gbest'] = state['best'][i].clone()
-        state['gbest_f'] = state['best_f'][i].clone()
-        r1 = torch.rand(state['pos'].shape, generator=gen)
-        r2 = torch.rand(state['pos'].shape, generator=gen)
-        state['vel'] = (0.72 * state['vel'] + 1.49 * r1 * (state['best'] - state['pos'])
-                        + 1.49 * r2 * (state['gbest'][None] - state['pos']))
-        state['pos'] = (state['pos'] + state['vel']).clamp(-10.0, 10.0)
+        state = swarm_step(self._pso, self.model_cfg, self.norm.goal_to_net(goal),
+                           self.norm.q_to_net(q), self.gen)
         self.model.params_flat.copy_(state['gbest'])
         return {'loss': float(state['gbest_f'])}
 
@@ -386,20 +341,14 @@ class Trainer:
     def initialise(self, ckpt: Dict, source: str) -> None:
         """Start from the weights of another checkpoint or exported model (a warm start).
 
-        The model config, the robot and the normaliser must match; the optimiser, the step
-        count and the schedule start afresh. A SIK model with a smaller posture index (fewer
-        learned elements, no branch code), or a SIK position model for a pose model, also
-        serves: its weights are copied in, the new inputs (index elements, orientation
-        entries) start at zero weight (the model starts as the old one) and the encoder's new
-        outputs at a tenth of their initial weights.
+        The robot and the normaliser must match; the optimiser, the step count and the
+        schedule start afresh. The model config must match too, or widen the checkpoint's
+        (a SIK model with a smaller posture index, or a SIK position model for a pose model:
+        :func:`~sik_ros.learning.warm_start.widened_state`), or be its PSIK (a SIK model of
+        the same layers: :func:`~sik_ros.learning.warm_start.variational_state`, its index
+        then standardised over training rows).
         """
-        found = ModelConfig.from_dict(ckpt['model_config'])
-        state = ckpt['model_state']
-        if found != self.model_cfg:
-            if not widens(found, self.model_cfg):
-                raise ArtifactMismatch(f'--init {source} model config', asdict(self.model_cfg),
-                                       ckpt['model_config'])
-            state = widened_state(self.model.state_dict(), state, found, self.model_cfg)
+        state = initial_state(self.model.state_dict(), ckpt, self.model_cfg, source)
         check_robot_manifest(f'--init {source}', self.robot.manifest(), ckpt['robot'])
         norm = normalizer_from_dict(ckpt['normalizer'])
         self.provenance.started_from(source, ckpt)
@@ -414,6 +363,9 @@ class Trainer:
                                    asdict(self.norm), ckpt['normalizer'])
         self.norm = norm  # bit for bit the one the weights were trained with
         self.model.load_state_dict(state)
+        if makes_variational(ModelConfig.from_dict(ckpt['model_config']), self.model_cfg):
+            q, goal, _, _ = self._batch(self.train_idx[:STANDARDISE_ROWS])
+            standardise_index(self.model, self.norm.goal_to_net(goal), self.norm.q_to_net(q))
 
     def restore(self, ckpt: Dict) -> None:
         """Continue from a checkpoint of the same model on the same robot and dataset."""
