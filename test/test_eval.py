@@ -70,6 +70,7 @@ def test_report_and_figures_are_written(report):
     for section in ('## 1.', '## 2.', '## 3.', '## 4.', '## 5.', '## 6.'):
         assert section in text
     assert 'PSIK: not provided' in text and 'ANFIS: not provided' in text
+    assert '### The indices of SIK and PSIK: range and interpolation' in text
 
 
 def test_tables_contain_numbers(report):
@@ -103,6 +104,29 @@ def test_radius_errors_match_fk_recomputation(report, tiny_bundle, baselines):
         fcn_err = position_errors(ik.robot, fcn.predict(targets), targets)
         assert float(row[header.index('FCN raw')]) == pytest.approx(
             100 * np.mean(fcn_err), abs=0.006)
+
+
+def test_index_properties_count_their_pairs_and_check_them_by_fk(tiny_bundle):
+    """The index study decodes as many pairs as asked at every target, errors by FK.
+
+    Its spread is the table's; a pair of one index twice has its midpoint on the endpoints:
+    the same error and no detour.
+    """
+    from sik_ros.eval.index_properties import index_properties, midpoints
+    from sik_ros.eval.studies import workspace_targets
+    ik = SelectiveIK.load(tiny_bundle)
+    targets, _ = workspace_targets(ik.robot, 4, seed=0)
+    props = index_properties(ik, targets, pairs=3)
+    assert props.targets == 4
+    assert sorted(props.pairs) == ['adjacent', 'random']
+    for m in props.pairs.values():
+        assert len(m.endpoint_err) == 24 and len(m.midpoint_err) == len(m.detour) == 12
+        assert np.all(np.isfinite(m.midpoint_err)) and np.all(m.detour >= 0)
+    z = np.asarray(ik.models['position'].table.indices, dtype=float)
+    np.testing.assert_allclose(props.std, z.std(0), rtol=1e-6)
+    same = midpoints(ik, targets[0], z[:2], z[:2])
+    np.testing.assert_allclose(same.midpoint_err, same.endpoint_err[:2], atol=1e-6)
+    assert np.all(same.detour == 0.0)
 
 
 def test_missing_folder_is_refused(tiny_bundle, tmp_path, capsys):

@@ -4,6 +4,7 @@ from typing import List
 
 import numpy as np
 
+from sik_ros.eval.index_properties import index_properties_lines
 from sik_ros.eval.markdown import fmt, table, verdict
 from sik_ros.eval.metrics import mean_cm
 from sik_ros.eval.obstacle import NoObstacleCase
@@ -85,6 +86,7 @@ def indices_section(res: Results) -> List[str]:
                   'method: a 7-d index can carry all seven joints, so the decoder can ignore the '
                   'goal; the bundled model keeps the paper\'s 4.']
         lines += ['', f'![latent study]({res.figures["latent_study"]})', '']
+    lines += index_properties_lines(res.index_props)
     if 'training_curves' in res.figures:
         lines += ['Training curves of the evaluated models (from their checkpoints):', '',
                   f'![training curves]({res.figures["training_curves"]})', '']

@@ -16,6 +16,7 @@ import torch
 from sik_ros.eval import plots
 from sik_ros.eval.baselines import Method, multi_solution, single_solution, TracIK
 from sik_ros.eval.histories import bundle_histories, latent_study, LatentRun, TrainedModel
+from sik_ros.eval.index_properties import index_properties, IndexProperties
 from sik_ros.eval.obstacle import NoObstacleCase, obstacle_study, ObstacleCase
 from sik_ros.eval.paper import LETTERS, NAMES, PAPER, RADII, VARIANTS
 from sik_ros.eval.studies import (distance_error_study, DistanceErrors, diversity_study,
@@ -27,6 +28,8 @@ from sik_ros.solver import SelectiveIK
 
 #: Radii of a ``--quick`` run [m].
 QUICK_RADII = (0.1, 0.3, 0.5, 0.7)
+#: Workspace targets at which pairs of indices are decoded with their midpoints.
+INDEX_TARGETS = 50
 
 
 class ProgressBar(Protocol):
@@ -122,6 +125,8 @@ class Results:
         histories: the bundle's training summaries, by goal kind.
         orientation: experiment 5 (None: the bundle has no pose model).
         obstacle: experiment 6.
+        index_props: experiment 4's index range and interpolation, per multi-solution solver
+            (:mod:`~sik_ros.eval.index_properties`).
         figures: ``{key: path relative to the report}`` of the PNG files drawn.
         date: when the run started (set by the caller).
         elapsed_s: how long it took [s] (set by the caller).
@@ -140,6 +145,7 @@ class Results:
     histories: Dict[str, TrainedModel]
     orientation: Optional[Orientation]
     obstacle: Optional[Union[ObstacleCase, NoObstacleCase]]
+    index_props: Dict[str, IndexProperties] = field(default_factory=dict)
     figures: Dict[str, str] = field(default_factory=dict)
     date: str = ''
     elapsed_s: float = 0.0
@@ -186,6 +192,8 @@ def run_evaluation(ik: SelectiveIK, baselines: Dict[str, Method], settings: Sett
     latent = latent_study(settings.latent_dir)
     sweep = element_sweep(ik)
     histories = bundle_histories(ik)
+    index_props = {name: index_properties(s, ws[:INDEX_TARGETS])
+                   for name, s in solvers.items() if 'position' in s.goals}
     step()
 
     bar.set_description('5 orientation')
@@ -197,7 +205,7 @@ def run_evaluation(ik: SelectiveIK, baselines: Dict[str, Method], settings: Sett
     step()
 
     res = Results(settings, machine, ws, spheres, distance, timing, note, diversity, latent,
-                  sweep, histories, orientation, obstacle)
+                  sweep, histories, orientation, obstacle, index_props)
     bar.set_description('figures')
     draw_figures(res, ik, baselines, fig_dir, step)
     return res
