@@ -129,6 +129,21 @@ def test_index_properties_count_their_pairs_and_check_them_by_fk(tiny_bundle):
     assert np.all(same.detour == 0.0)
 
 
+def test_shipped_baselines_load_and_a_damaged_one_is_refused(panda, baselines, tmp_path):
+    """A shipped folder serves its models; a file changed after shipping is refused by name."""
+    from sik_ros.eval.shipped import MANIFEST, ship_baselines
+    out = ship_baselines(tmp_path / 'shipped', {'fcn': baselines / 'fcn.pt'}, None,
+                         panda.manifest())
+    assert sorted(p.name for p in out.iterdir()) == sorted([MANIFEST, 'fcn.pt'])
+    found, missing = load_baselines(out, panda)
+    assert list(found) == ['fcn'] and missing['anfis'].startswith('not provided')
+    data = bytearray((out / 'fcn.pt').read_bytes())
+    data[-1] ^= 0xFF
+    (out / 'fcn.pt').write_bytes(bytes(data))
+    found, missing = load_baselines(out, panda)
+    assert 'fcn' not in found and 'does not match its sha256' in missing['fcn']
+
+
 def test_missing_folder_is_refused(tiny_bundle, tmp_path, capsys):
     """A --baselines folder that does not exist exits non-zero with a one-line reason."""
     rc = main(['--quick', '--bundle', str(tiny_bundle), '--out', str(tmp_path),
