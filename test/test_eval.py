@@ -71,6 +71,7 @@ def test_report_and_figures_are_written(report):
         assert section in text
     assert 'PSIK: not provided' in text and 'ANFIS: not provided' in text
     assert '### The indices of SIK and PSIK: range and interpolation' in text
+    assert '### Raw pose answers' in text
 
 
 def test_tables_contain_numbers(report):
@@ -142,6 +143,23 @@ def test_shipped_baselines_load_and_a_damaged_one_is_refused(panda, baselines, t
     (out / 'fcn.pt').write_bytes(bytes(data))
     found, missing = load_baselines(out, panda)
     assert 'fcn' not in found and 'does not match its sha256' in missing['fcn']
+
+
+def test_raw_pose_study_without_self_collision_leaves_the_solver_as_it_was(tiny_bundle):
+    """The paper's protocol is a copy that finds no self-collision; errors come from FK."""
+    from sik_ros.eval.raw_pose import raw_pose_study, without_self_collision
+    ik = SelectiveIK.load(tiny_bundle)
+    folded = np.zeros((1, ik.robot.dof))
+    folded[0, 3] = ik.robot.lower[3]  # elbow fully bent: the forearm meets the upper arm
+    assert ik.checker.self_collision(folded)[0]
+    paper = without_self_collision(ik)
+    assert not paper.checker.self_collision(folded)[0]
+    assert ik.checker.self_collision(folded)[0]
+    study = raw_pose_study(ik, targets=3)
+    assert sorted(study) == ['paper', 'shipped']
+    for r in study.values():
+        assert len(r.distance) == len(r.angle) == len(r.free) == 3
+        assert np.all(np.isfinite(r.distance)) and np.all((r.angle >= 0) & (r.angle <= np.pi))
 
 
 def test_missing_folder_is_refused(tiny_bundle, tmp_path, capsys):

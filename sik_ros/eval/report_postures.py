@@ -9,6 +9,7 @@ from sik_ros.eval.markdown import fmt, table, verdict
 from sik_ros.eval.metrics import mean_cm
 from sik_ros.eval.obstacle import NoObstacleCase
 from sik_ros.eval.paper import LETTERS, NAMES, PAPER
+from sik_ros.eval.raw_pose import raw_pose_lines
 from sik_ros.eval.run import Results
 from sik_ros.eval.studies import ORIENTED_POOL
 
@@ -154,7 +155,7 @@ def orientation_section(res: Results) -> List[str]:
                              '1 − cosine similarity', 4), '']
     if 'orientation' in res.figures:
         lines += [f'![orientation]({res.figures["orientation"]})', '']
-    return lines
+    return lines + raw_pose_lines(res.raw_pose, paper['distance_cm'])
 
 
 def obstacle_section(res: Results) -> List[str]:

@@ -19,6 +19,7 @@ from sik_ros.eval.histories import bundle_histories, latent_study, LatentRun, Tr
 from sik_ros.eval.index_properties import index_properties, IndexProperties
 from sik_ros.eval.obstacle import NoObstacleCase, obstacle_study, ObstacleCase
 from sik_ros.eval.paper import LETTERS, NAMES, PAPER, RADII, VARIANTS
+from sik_ros.eval.raw_pose import raw_pose_study, RawPose, TARGETS
 from sik_ros.eval.studies import (distance_error_study, DistanceErrors, diversity_study,
                                   DiversityTarget, element_sweep, Orientation,
                                   orientation_study, sphere_targets, SphereTargets, Sweep,
@@ -125,6 +126,8 @@ class Results:
         histories: the bundle's training summaries, by goal kind.
         orientation: experiment 5 (None: the bundle has no pose model).
         obstacle: experiment 6.
+        raw_pose: experiment 5's raw pose answers as shipped and the paper's way
+            (:mod:`~sik_ros.eval.raw_pose`; empty: no pose model).
         index_props: experiment 4's index range and interpolation, per multi-solution solver
             (:mod:`~sik_ros.eval.index_properties`).
         figures: ``{key: path relative to the report}`` of the PNG files drawn.
@@ -146,6 +149,7 @@ class Results:
     orientation: Optional[Orientation]
     obstacle: Optional[Union[ObstacleCase, NoObstacleCase]]
     index_props: Dict[str, IndexProperties] = field(default_factory=dict)
+    raw_pose: Dict[str, RawPose] = field(default_factory=dict)
     figures: Dict[str, str] = field(default_factory=dict)
     date: str = ''
     elapsed_s: float = 0.0
@@ -198,6 +202,7 @@ def run_evaluation(ik: SelectiveIK, baselines: Dict[str, Method], settings: Sett
 
     bar.set_description('5 orientation')
     orientation = orientation_study(ik) if 'pose' in ik.goals else None
+    raw_pose = raw_pose_study(ik, min(settings.targets, TARGETS)) if 'pose' in ik.goals else {}
     step()
 
     bar.set_description('6 obstacle')
@@ -205,7 +210,7 @@ def run_evaluation(ik: SelectiveIK, baselines: Dict[str, Method], settings: Sett
     step()
 
     res = Results(settings, machine, ws, spheres, distance, timing, note, diversity, latent,
-                  sweep, histories, orientation, obstacle, index_props)
+                  sweep, histories, orientation, obstacle, index_props, raw_pose)
     bar.set_description('figures')
     draw_figures(res, ik, baselines, fig_dir, step)
     return res
