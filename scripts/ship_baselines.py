@@ -28,8 +28,12 @@ def main(argv: Optional[List[str]] = None) -> int:
     p = Parser(prog='ship_baselines', description=__doc__.split('\n\n')[0])
     p.add_argument('--runs', default='runs', help='the runs folder (default: runs)')
     p.add_argument('--psik', help='PSIK checkpoint (default: RUNS/psik/last.pt)')
+    p.add_argument('--psik-bundle', help='a PSIK bundle already built (model and table, as '
+                   'this script builds it): shipped as it is, no table built')
     p.add_argument('--data', default='data/panda30', help='the 30-degree dataset')
     p.add_argument('--out', default='sik_ros/bundles/panda/baselines')
+    p.add_argument('--figure', help='also draw the shipped models\' training curves (their '
+                   'checkpoints\' histories) into this PNG')
     p.add_argument('--only', nargs='*', default=None,
                    help='baselines to ship (default: every one found)')
     args = p.parse_args(argv_or_default(argv))
@@ -38,6 +42,7 @@ def main(argv: Optional[List[str]] = None) -> int:
 
 def ship(args: argparse.Namespace) -> int:
     """Build PSIK's bundle in a temporary folder, then ship it with the other models."""
+    from sik_ros.artifacts import read_json
     from sik_ros.cli.index import main as index_main
     from sik_ros.eval.shipped import ship_baselines
     from sik_ros.learning.checkpoints import export_model, load_checkpoint
@@ -48,7 +53,10 @@ def ship(args: argparse.Namespace) -> int:
     psik = Path(args.psik) if args.psik else runs / 'psik' / 'last.pt'
     with tempfile.TemporaryDirectory(dir=runs) as tmp:
         bundle = None
-        if 'psik' in wanted and psik.is_file():
+        if 'psik' in wanted and args.psik_bundle:
+            bundle = Path(args.psik_bundle)
+            robot = read_json(bundle / 'bundle.json', 'PSIK bundle')['robot']
+        elif 'psik' in wanted and psik.is_file():
             ckpt = load_checkpoint(psik)
             model = export_model(ckpt, Path(tmp) / 'psik_position.pt')
             bundle = Path(tmp) / 'psik'
@@ -65,10 +73,25 @@ def ship(args: argparse.Namespace) -> int:
             print('ship_baselines: nothing to ship in', runs, file=sys.stderr)
             return 2
         out = ship_baselines(Path(args.out), models, bundle, robot, force=True)
+    if args.figure:
+        draw_curves(out, Path(args.figure))
     size = sum(f.stat().st_size for f in out.rglob('*') if f.is_file())
     print(f'shipped {sorted(models) + (["psik"] if bundle else [])} to {out} '
           f'({size / 1e6:.1f} MB)')
     return 0
+
+
+def draw_curves(folder: Path, path: Path) -> Path:
+    """Validation distance and loss against step of every model shipped in ``folder``."""
+    from sik_ros.eval import plots
+    from sik_ros.eval.baselines import BASELINE_FILES
+    from sik_ros.eval.paper import NAMES
+    from sik_ros.learning.checkpoints import load_checkpoint
+    files = {name: folder / f for name, f in BASELINE_FILES.items()}
+    files['psik'] = folder / 'psik' / 'sik_position.pt'
+    histories = {NAMES[name]: load_checkpoint(f).get('history', [])
+                 for name, f in files.items() if f.is_file()}
+    return plots.training_curves(histories, path)
 
 
 if __name__ == '__main__':
