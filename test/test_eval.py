@@ -162,6 +162,17 @@ def test_raw_pose_study_without_self_collision_leaves_the_solver_as_it_was(tiny_
         assert np.all(np.isfinite(r.distance)) and np.all((r.angle >= 0) & (r.angle <= np.pi))
 
 
+def test_the_baselines_shipped_with_the_panda_bundle_load(panda):
+    """Every baseline shipped in the repository matches its manifest and loads for the Panda."""
+    from sik_ros.eval.shipped import check_shipped
+    folder = Path(__file__).resolve().parents[1] / 'sik_ros' / 'bundles' / 'panda' / 'baselines'
+    assert check_shipped(folder) == {}
+    found, missing = load_baselines(folder, panda)
+    assert sorted(found) == ['anfis', 'fcn', 'fcn_uni', 'psik'] and missing == {}
+    assert isinstance(found['psik'], SelectiveIK)
+    assert not isinstance(found['psik'].models['position'].table, PriorTable)
+
+
 def test_missing_folder_is_refused(tiny_bundle, tmp_path, capsys):
     """A --baselines folder that does not exist exits non-zero with a one-line reason."""
     rc = main(['--quick', '--bundle', str(tiny_bundle), '--out', str(tmp_path),
