@@ -13,7 +13,7 @@ PYTEST_ARGS ?=
 
 export VENV PYTHON
 
-.PHONY: setup run test test-fast lint bench docs-tables clean distclean help
+.PHONY: setup run test test-fast lint bench docs-tables paper clean distclean help
 
 help:
 	@echo "make setup   create $(VENV), install the pinned requirements, build sik_interfaces"
@@ -23,6 +23,7 @@ help:
 	@echo "make lint    flake8 and pydocstyle only"
 	@echo "make bench   every benchmark (about an hour), then the tables of docs/benchmarks.md"
 	@echo "make docs-tables  the tables of docs/benchmarks.md and README.md from docs/results/"
+	@echo "make paper   docs/results.md: the paper's experiments on the bundled models and baselines"
 	@echo "make clean   remove build products and caches (keeps the venv)"
 	@echo "make distclean  also remove the venv"
 
@@ -46,6 +47,13 @@ bench: setup
 
 docs-tables:
 	$(PY) bench/render.py
+
+# the bundled SIK models against the shipped baselines (sik_ros/bundles/panda/baselines); the
+# latent-size study joins when its models are there (scripts/latent_study.sh: runs/latent)
+PAPER_BASELINES ?= sik_ros/bundles/panda/baselines
+paper: setup
+	$(RUN_ENV) $(PY) -m sik_ros.cli.eval --out docs --baselines $(PAPER_BASELINES) \
+	  $(if $(wildcard runs/latent/latent_*.pt),--latent-study runs/latent) --quiet
 
 clean:
 	rm -rf build install log $(VENV)/.sik-build *.egg-info .pytest_cache

@@ -96,8 +96,11 @@ def test_layout(built):
     bundle = REPO / 'sik_ros' / 'bundles' / 'panda'
     installed = (ws / 'install' / 'sik_ros' / 'lib' / PYTHON_DIR / 'site-packages' / 'sik_ros'
                  / 'bundles' / 'panda')
-    for path in bundle.iterdir():
-        assert (installed / path.name).read_bytes() == path.read_bytes(), path.name
+    files = [p for p in bundle.rglob('*') if p.is_file()]
+    assert any(p.parent != bundle for p in files)  # the shipped baselines' folder too
+    for path in files:
+        rel = path.relative_to(bundle)
+        assert (installed / rel).read_bytes() == path.read_bytes(), rel
     # the build compiled the installed copy's kernels into their cache
     assert list((installed.parent.parent / 'kernels' / '__pycache__').glob('*.nbi'))
     for tool in ('sik-build', 'sik-solve', 'sik-view'):

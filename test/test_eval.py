@@ -70,6 +70,8 @@ def test_report_and_figures_are_written(report):
     for section in ('## 1.', '## 2.', '## 3.', '## 4.', '## 5.', '## 6.'):
         assert section in text
     assert 'PSIK: not provided' in text and 'ANFIS: not provided' in text
+    assert '### The indices of SIK and PSIK: range and interpolation' in text
+    assert '### Raw pose answers' in text
 
 
 def test_tables_contain_numbers(report):
@@ -103,6 +105,72 @@ def test_radius_errors_match_fk_recomputation(report, tiny_bundle, baselines):
         fcn_err = position_errors(ik.robot, fcn.predict(targets), targets)
         assert float(row[header.index('FCN raw')]) == pytest.approx(
             100 * np.mean(fcn_err), abs=0.006)
+
+
+def test_index_properties_count_their_pairs_and_check_them_by_fk(tiny_bundle):
+    """The index study decodes as many pairs as asked at every target, errors by FK.
+
+    Its spread is the table's; a pair of one index twice has its midpoint on the endpoints:
+    the same error and no detour.
+    """
+    from sik_ros.eval.index_properties import index_properties, midpoints
+    from sik_ros.eval.studies import workspace_targets
+    ik = SelectiveIK.load(tiny_bundle)
+    targets, _ = workspace_targets(ik.robot, 4, seed=0)
+    props = index_properties(ik, targets, pairs=3)
+    assert props.targets == 4
+    assert sorted(props.pairs) == ['adjacent', 'random']
+    for m in props.pairs.values():
+        assert len(m.endpoint_err) == 24 and len(m.midpoint_err) == len(m.detour) == 12
+        assert np.all(np.isfinite(m.midpoint_err)) and np.all(m.detour >= 0)
+    z = np.asarray(ik.models['position'].table.indices, dtype=float)
+    np.testing.assert_allclose(props.std, z.std(0), rtol=1e-6)
+    same = midpoints(ik, targets[0], z[:2], z[:2])
+    np.testing.assert_allclose(same.midpoint_err, same.endpoint_err[:2], atol=1e-6)
+    assert np.all(same.detour == 0.0)
+
+
+def test_shipped_baselines_load_and_a_damaged_one_is_refused(panda, baselines, tmp_path):
+    """A shipped folder serves its models; a file changed after shipping is refused by name."""
+    from sik_ros.eval.shipped import MANIFEST, ship_baselines
+    out = ship_baselines(tmp_path / 'shipped', {'fcn': baselines / 'fcn.pt'}, None,
+                         panda.manifest())
+    assert sorted(p.name for p in out.iterdir()) == sorted([MANIFEST, 'fcn.pt'])
+    found, missing = load_baselines(out, panda)
+    assert list(found) == ['fcn'] and missing['anfis'].startswith('not provided')
+    data = bytearray((out / 'fcn.pt').read_bytes())
+    data[-1] ^= 0xFF
+    (out / 'fcn.pt').write_bytes(bytes(data))
+    found, missing = load_baselines(out, panda)
+    assert 'fcn' not in found and 'does not match its sha256' in missing['fcn']
+
+
+def test_raw_pose_study_without_self_collision_leaves_the_solver_as_it_was(tiny_bundle):
+    """The paper's protocol is a copy that finds no self-collision; errors come from FK."""
+    from sik_ros.eval.raw_pose import raw_pose_study, without_self_collision
+    ik = SelectiveIK.load(tiny_bundle)
+    folded = np.zeros((1, ik.robot.dof))
+    folded[0, 3] = ik.robot.lower[3]  # elbow fully bent: the forearm meets the upper arm
+    assert ik.checker.self_collision(folded)[0]
+    paper = without_self_collision(ik)
+    assert not paper.checker.self_collision(folded)[0]
+    assert ik.checker.self_collision(folded)[0]
+    study = raw_pose_study(ik, targets=3)
+    assert sorted(study) == ['paper', 'shipped']
+    for r in study.values():
+        assert len(r.distance) == len(r.angle) == len(r.free) == 3
+        assert np.all(np.isfinite(r.distance)) and np.all((r.angle >= 0) & (r.angle <= np.pi))
+
+
+def test_the_baselines_shipped_with_the_panda_bundle_load(panda):
+    """Every baseline shipped in the repository matches its manifest and loads for the Panda."""
+    from sik_ros.eval.shipped import check_shipped
+    folder = Path(__file__).resolve().parents[1] / 'sik_ros' / 'bundles' / 'panda' / 'baselines'
+    assert check_shipped(folder) == {}
+    found, missing = load_baselines(folder, panda)
+    assert sorted(found) == ['anfis', 'fcn', 'fcn_uni', 'psik'] and missing == {}
+    assert isinstance(found['psik'], SelectiveIK)
+    assert not isinstance(found['psik'].models['position'].table, PriorTable)
 
 
 def test_missing_folder_is_refused(tiny_bundle, tmp_path, capsys):

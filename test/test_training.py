@@ -309,6 +309,44 @@ def test_a_pose_model_starts_from_a_position_model_as_that_model(panda, uniform_
             load_checkpoint(tmp_path / 'b.pt'), 'b.pt')
 
 
+def test_a_psik_starts_from_a_sik_model_with_a_standardised_index(panda, uniform_small,
+                                                                  tmp_path):
+    """--init of a PSIK from a SIK model: the same postures, an index of zero mean, unit spread.
+
+    The encoder's means are SIK's indices standardised over the training rows, the decoder
+    gives SIK's posture for each row's own index, the log-variance starts at its small value,
+    and the KL weight rises over ``kl_anneal`` steps.
+    """
+    from sik_ros.learning.training import kl_weight_at
+    from sik_ros.learning.warm_start import PSIK_LOGVAR_START
+    a = trainer(panda, uniform_small, tmp_path / 'a', steps=20)
+    a.run()
+    export_model(a.checkpoint(), tmp_path / 'a.pt')
+    psik = ModelConfig(kind='psik', encoder=PRESETS['tiny'][0], decoder=PRESETS['tiny'][1])
+    b = trainer(panda, uniform_small, tmp_path / 'b', model=psik, steps=20, kl_anneal=10)
+    b.initialise(load_checkpoint(tmp_path / 'a.pt'), 'a.pt')
+    q, goal, _, _ = b._batch(b.train_idx[:2000])
+    g, x = b.norm.goal_to_net(goal), b.norm.q_to_net(q)
+    with torch.no_grad():
+        z_sik, _ = a.model.encode(g, x)
+        mu, logvar = b.model.encode(g, x)
+        np.testing.assert_allclose(b.model.decode(g, mu).numpy(),
+                                   a.model.decode(g, z_sik).numpy(), rtol=1e-4, atol=1e-4)
+    assert mu.shape == z_sik.shape == (2000, 4)
+    np.testing.assert_allclose(mu.mean(0).numpy(), 0.0, atol=0.1)
+    np.testing.assert_allclose(mu.std(0).numpy(), 1.0, atol=0.1)
+    np.testing.assert_allclose(logvar.numpy(), PSIK_LOGVAR_START, atol=1e-6)
+    weights = [kl_weight_at(b.cfg, s) for s in (0, 4, 9, 15)]
+    assert weights == pytest.approx([1e-4, 5e-4, 1e-3, 1e-3])
+    b.run()
+    assert b.step == 20 and np.isfinite(b.history[-1]['val_dist_mean_m'])
+    with pytest.raises(ArtifactMismatch, match='model config'):
+        wide = ModelConfig(kind='psik', latent_dim=2, encoder=PRESETS['tiny'][0],
+                           decoder=PRESETS['tiny'][1])
+        trainer(panda, uniform_small, tmp_path / 'c', model=wide).initialise(
+            load_checkpoint(tmp_path / 'a.pt'), 'a.pt')
+
+
 def test_a_run_stopped_by_time_ends_with_its_validation(panda, uniform_small, tmp_path):
     """A run stopped between validations (max_time) still reports validation figures."""
     t = trainer(panda, uniform_small, tmp_path, steps=60, eval_every=30)

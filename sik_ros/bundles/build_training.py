@@ -3,7 +3,7 @@
 The position model trains for the whole training time on one core. The pose model starts on
 the other core once :data:`POSE_START` of that time has passed, from the position model's
 checkpoint of that moment (its posture index of the whole self-motion; the orientation inputs
-at zero weight, :func:`sik_ros.learning.training_data.widened_state`), and is fine-tuned for the
+at zero weight, :func:`sik_ros.learning.warm_start.widened_state`), and is fine-tuned for the
 rest of the time with the FK term, the orientation weighed up and the cycle term
 (:data:`POSE_RECIPE`, the bundled Panda pose model's recipe; docs/training.md). Each run has
 one thread: on a shared machine two threads of one run are slower than one (a step waits for

@@ -53,6 +53,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument('--rot-weight', type=float,
                    help='weight of the orientation part of the FK term (pose goals)')
     p.add_argument('--kl-weight', type=float, help='KL weight (PSIK)')
+    p.add_argument('--kl-anneal', type=int, help='PSIK: steps over which the KL weight rises '
+                   'linearly from 0 to --kl-weight (default: 0, the full weight at once)')
     p.add_argument('--sampler', choices=('dataset', 'uniform'),
                    help='batches from the dataset rows (default) or drawn afresh every step '
                    '(uniform joint angles, torch FK)')
@@ -63,8 +65,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help='pose goals: the cycle term also turns the goal orientation by about '
                    'this angle [rad]')
     p.add_argument('--init', help='start from the weights of this checkpoint or model file '
-                   '(same model config, robot and dataset normaliser; or a smaller index, or '
-                   'a position model for a pose model)')
+                   '(same model config, robot and dataset normaliser; or a smaller index, '
+                   'a position model for a pose model, or a SIK model for its PSIK)')
     p.add_argument('--uni-position', action='store_true',
                    help='one row per distinct position (the paper\'s uni-position dataset)')
     p.add_argument('--eval-every', type=int)
@@ -198,7 +200,7 @@ def run_configs(args: argparse.Namespace, out: Path):
     train_cfg = with_overrides(
         TrainConfig(), steps=args.steps, batch_size=args.batch_size, lr=args.lr,
         fk_weight=args.fk_weight, fk_start=args.fk_start, kl_weight=args.kl_weight,
-        rot_weight=args.rot_weight,
+        kl_anneal=args.kl_anneal, rot_weight=args.rot_weight,
         eval_every=args.eval_every, checkpoint_every=args.checkpoint_every,
         seed=args.seed, threads=args.threads, device=args.device,
         uni_position=args.uni_position or None, bf16=args.bf16,

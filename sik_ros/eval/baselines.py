@@ -14,6 +14,7 @@ import torch
 
 from sik_ros.artifacts import check_robot_manifest
 from sik_ros.errors import ArtifactMismatch, CorruptArtifact
+from sik_ros.eval.shipped import check_shipped
 from sik_ros.kinematics.robot import Robot
 from sik_ros.learning.checkpoints import load_checkpoint, model_from_checkpoint
 from sik_ros.learning.models import make_goal, ModelConfig, Normalizer
@@ -103,14 +104,23 @@ def load_baselines(directory: Optional[Path],
 
     ``psik/`` (a bundle with its own table) is preferred over ``psik.pt`` (see
     :func:`psik_solver`); ``fcn.pt``, ``fcn_uni.pt`` and ``anfis.pt`` are :class:`Baseline`
-    models.
+    models. A folder with ``baselines.json`` (shipped, :mod:`~sik_ros.eval.shipped`) has its
+    files checked against it first.
+
+    Raises:
+        CorruptArtifact: the folder's ``baselines.json`` is unreadable.
 
     Returns:
         ``({name: SelectiveIK or Baseline}, {name: reason it is absent})``.
     """
     found: Dict[str, Method] = {}
     missing: Dict[str, str] = {}
+    # a shipped folder's manifest: files that do not match it are refused, not evaluated
+    damaged = {} if directory is None else check_shipped(Path(directory))
     for name, fname in BASELINE_FILES.items():
+        if name in damaged:
+            missing[name] = f'refused: {damaged[name]}'
+            continue
         path = None if directory is None else Path(directory) / fname
         if name == 'psik' and directory is not None and (Path(directory) / 'psik').is_dir():
             found[name] = SelectiveIK.load(Path(directory) / 'psik')

@@ -4,10 +4,12 @@ from typing import List
 
 import numpy as np
 
+from sik_ros.eval.index_properties import index_properties_lines
 from sik_ros.eval.markdown import fmt, table, verdict
 from sik_ros.eval.metrics import mean_cm
 from sik_ros.eval.obstacle import NoObstacleCase
 from sik_ros.eval.paper import LETTERS, NAMES, PAPER
+from sik_ros.eval.raw_pose import raw_pose_lines
 from sik_ros.eval.run import Results
 from sik_ros.eval.studies import ORIENTED_POOL
 
@@ -85,6 +87,7 @@ def indices_section(res: Results) -> List[str]:
                   'method: a 7-d index can carry all seven joints, so the decoder can ignore the '
                   'goal; the bundled model keeps the paper\'s 4.']
         lines += ['', f'![latent study]({res.figures["latent_study"]})', '']
+    lines += index_properties_lines(res.index_props)
     if 'training_curves' in res.figures:
         lines += ['Training curves of the evaluated models (from their checkpoints):', '',
                   f'![training curves]({res.figures["training_curves"]})', '']
@@ -152,7 +155,7 @@ def orientation_section(res: Results) -> List[str]:
                              '1 − cosine similarity', 4), '']
     if 'orientation' in res.figures:
         lines += [f'![orientation]({res.figures["orientation"]})', '']
-    return lines
+    return lines + raw_pose_lines(res.raw_pose, paper['distance_cm'])
 
 
 def obstacle_section(res: Results) -> List[str]:

@@ -16,8 +16,10 @@ import torch
 from sik_ros.eval import plots
 from sik_ros.eval.baselines import Method, multi_solution, single_solution, TracIK
 from sik_ros.eval.histories import bundle_histories, latent_study, LatentRun, TrainedModel
+from sik_ros.eval.index_properties import index_properties, IndexProperties
 from sik_ros.eval.obstacle import NoObstacleCase, obstacle_study, ObstacleCase
 from sik_ros.eval.paper import LETTERS, NAMES, PAPER, RADII, VARIANTS
+from sik_ros.eval.raw_pose import raw_pose_study, RawPose, TARGETS
 from sik_ros.eval.studies import (distance_error_study, DistanceErrors, diversity_study,
                                   DiversityTarget, element_sweep, Orientation,
                                   orientation_study, sphere_targets, SphereTargets, Sweep,
@@ -27,6 +29,8 @@ from sik_ros.solver import SelectiveIK
 
 #: Radii of a ``--quick`` run [m].
 QUICK_RADII = (0.1, 0.3, 0.5, 0.7)
+#: Workspace targets at which pairs of indices are decoded with their midpoints.
+INDEX_TARGETS = 50
 
 
 class ProgressBar(Protocol):
@@ -122,6 +126,10 @@ class Results:
         histories: the bundle's training summaries, by goal kind.
         orientation: experiment 5 (None: the bundle has no pose model).
         obstacle: experiment 6.
+        raw_pose: experiment 5's raw pose answers as shipped and the paper's way
+            (:mod:`~sik_ros.eval.raw_pose`; empty: no pose model).
+        index_props: experiment 4's index range and interpolation, per multi-solution solver
+            (:mod:`~sik_ros.eval.index_properties`).
         figures: ``{key: path relative to the report}`` of the PNG files drawn.
         date: when the run started (set by the caller).
         elapsed_s: how long it took [s] (set by the caller).
@@ -140,6 +148,8 @@ class Results:
     histories: Dict[str, TrainedModel]
     orientation: Optional[Orientation]
     obstacle: Optional[Union[ObstacleCase, NoObstacleCase]]
+    index_props: Dict[str, IndexProperties] = field(default_factory=dict)
+    raw_pose: Dict[str, RawPose] = field(default_factory=dict)
     figures: Dict[str, str] = field(default_factory=dict)
     date: str = ''
     elapsed_s: float = 0.0
@@ -186,10 +196,13 @@ def run_evaluation(ik: SelectiveIK, baselines: Dict[str, Method], settings: Sett
     latent = latent_study(settings.latent_dir)
     sweep = element_sweep(ik)
     histories = bundle_histories(ik)
+    index_props = {name: index_properties(s, ws[:INDEX_TARGETS])
+                   for name, s in solvers.items() if 'position' in s.goals}
     step()
 
     bar.set_description('5 orientation')
     orientation = orientation_study(ik) if 'pose' in ik.goals else None
+    raw_pose = raw_pose_study(ik, min(settings.targets, TARGETS)) if 'pose' in ik.goals else {}
     step()
 
     bar.set_description('6 obstacle')
@@ -197,7 +210,7 @@ def run_evaluation(ik: SelectiveIK, baselines: Dict[str, Method], settings: Sett
     step()
 
     res = Results(settings, machine, ws, spheres, distance, timing, note, diversity, latent,
-                  sweep, histories, orientation, obstacle)
+                  sweep, histories, orientation, obstacle, index_props, raw_pose)
     bar.set_description('figures')
     draw_figures(res, ik, baselines, fig_dir, step)
     return res

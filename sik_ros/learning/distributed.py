@@ -31,19 +31,6 @@ def init(device: str) -> Tuple[int, int]:
     return rank, size
 
 
-def any_rank(flag: bool, device: torch.device) -> bool:
-    """Whether ``flag`` holds on any of the processes (each calls this in turn)."""
-    value = torch.tensor([1.0 if flag else 0.0], device=device)
-    dist.all_reduce(value, op=dist.ReduceOp.MAX)
-    return bool(value.item() > 0)
-
-
-def synchronize(device: torch.device) -> None:
-    """Wait for the device's queued work (a GPU's), so that a timer sees it done."""
-    if device.type == 'cuda':
-        torch.cuda.synchronize(device)
-
-
 def finish() -> None:
     """Leave the process group (after a last barrier)."""
     if dist.is_initialized():

@@ -1,23 +1,30 @@
-"""Particle swarm optimisation of an ANFIS's parameters (the paper's ANFIS baseline).
+"""Particle swarm optimisation of an ANFIS's parameters (the paper's trainer for ANFIS).
 
-The swarm is a dict of tensors on the CPU (a few hundred numbers a particle), saved in
-checkpoints as it is: positions and velocities, each particle's best and the swarm's best with
-their losses. The trainer (:mod:`sik_ros.learning.training`) computes the particles' losses
-where its rows are and copies the swarm's best into the model after each step.
+The swarm is a dict of tensors (positions, velocities, each particle's best and the best of
+all), saved in checkpoints as it is; :func:`swarm_step` moves it one step against a batch.
 """
 
-from typing import Callable, Dict
+from typing import Dict
 
 import torch
 
-#: Inertia and the pulls towards a particle's own best and the swarm's best (the usual
-#: constriction values), and the bound of every parameter.
-INERTIA, OWN, SWARM, BOUND = 0.72, 1.49, 1.49, 10.0
+from sik_ros.learning.models import anfis_forward, ModelConfig
+
+#: Inertia and the pulls towards a particle's best and the swarm's best (the usual
+#: constriction values).
+INERTIA, PULL_OWN, PULL_BEST = 0.72, 1.49, 1.49
+#: Parameters stay within +-this (normalised units).
+BOUND = 10.0
 
 
-def new_swarm(flat: torch.Tensor, particles: int,
-              gen: torch.Generator) -> Dict[str, torch.Tensor]:
-    """A swarm of ``particles`` around the parameters ``flat`` (the first one at them)."""
+def new_swarm(flat: torch.Tensor, particles: int, gen: torch.Generator) -> Dict[str, torch.Tensor]:
+    """A swarm of ``particles`` around the parameters ``flat`` (one particle on them).
+
+    Args:
+        flat: the model's parameters as one vector.
+        particles: swarm size.
+        gen: the random stream (CPU).
+    """
     pos = flat[None] + (torch.rand(particles, len(flat), generator=gen) * 2 - 1)
     pos[0] = flat
     return {'pos': pos, 'vel': torch.zeros_like(pos), 'best': pos.clone(),
@@ -25,13 +32,23 @@ def new_swarm(flat: torch.Tensor, particles: int,
             'gbest_f': torch.tensor(float('inf'))}
 
 
-def swarm_step(state: Dict[str, torch.Tensor], losses: Callable[[torch.Tensor], torch.Tensor],
-               gen: torch.Generator) -> float:
-    """One step of the swarm ``state`` (in place); the best loss so far.
+@torch.no_grad()
+def swarm_step(state: Dict[str, torch.Tensor], cfg: ModelConfig, goal: torch.Tensor,
+               x: torch.Tensor, gen: torch.Generator) -> Dict[str, torch.Tensor]:
+    """One step of the swarm on a batch; the swarm is updated in place and returned.
 
-    ``losses``: the particles' positions (P, k) to their losses (P,) on the CPU (NaN: worst).
+    Args:
+        state: the swarm (:func:`new_swarm`), on the CPU.
+        cfg: the ANFIS's config.
+        goal: normalised goals of the batch (N, goal entries), where the rows are.
+        x: normalised joints of the batch (N, dof), the targets.
+        gen: the random stream (CPU).
     """
-    f = torch.nan_to_num(losses(state['pos']), nan=float('inf'))
+    # the swarm stays on the CPU (a few hundred numbers a particle); its losses are
+    # computed where the rows are
+    outputs = anfis_forward(cfg, state['pos'].to(goal.device), goal)
+    f = ((outputs - x[None]) ** 2).mean((1, 2)).cpu()
+    f = torch.nan_to_num(f, nan=float('inf'))
     better = f < state['best_f']
     state['best'][better] = state['pos'][better]
     state['best_f'][better] = f[better]
@@ -40,7 +57,7 @@ def swarm_step(state: Dict[str, torch.Tensor], losses: Callable[[torch.Tensor], 
     state['gbest_f'] = state['best_f'][i].clone()
     r1 = torch.rand(state['pos'].shape, generator=gen)
     r2 = torch.rand(state['pos'].shape, generator=gen)
-    state['vel'] = (INERTIA * state['vel'] + OWN * r1 * (state['best'] - state['pos'])
-                    + SWARM * r2 * (state['gbest'][None] - state['pos']))
+    state['vel'] = (INERTIA * state['vel'] + PULL_OWN * r1 * (state['best'] - state['pos'])
+                    + PULL_BEST * r2 * (state['gbest'][None] - state['pos']))
     state['pos'] = (state['pos'] + state['vel']).clamp(-BOUND, BOUND)
-    return float(state['gbest_f'])
+    return state

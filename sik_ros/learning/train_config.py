@@ -24,6 +24,9 @@ class TrainConfig:
         fk_scale: distance that counts as one unit in the FK term [m].
         rot_weight: weight of the orientation part of the FK term (pose goals).
         kl_weight: weight of the KL term (PSIK).
+        kl_anneal: steps over which the KL weight rises linearly from 0 to ``kl_weight``
+            (0: the full weight from the first step); a PSIK started from a SIK model first
+            fits with little KL pull, then its indices are drawn towards the prior.
         val_rows: rows held out for validation.
         eval_every: steps between validations.
         checkpoint_every: steps between checkpoints.
@@ -62,6 +65,7 @@ class TrainConfig:
     fk_scale: float = 0.05
     rot_weight: float = 1.0
     kl_weight: float = 1e-3
+    kl_anneal: int = 0
     val_rows: int = 20_000
     eval_every: int = 1000
     checkpoint_every: int = 2000
@@ -85,6 +89,8 @@ class TrainConfig:
                 raise InvalidArgument(f'{name} must be at least 1; got {getattr(self, name)}')
         if not (self.lr > 0 and math.isfinite(self.lr)):
             raise InvalidArgument(f'lr must be a positive number; got {self.lr}')
+        if self.kl_anneal < 0:
+            raise InvalidArgument(f'kl_anneal must be 0 or more steps; got {self.kl_anneal}')
         if self.sampler not in SAMPLERS:
             raise InvalidArgument(f'sampler must be one of {", ".join(SAMPLERS)}; '
                                   f'got {self.sampler!r}')
@@ -103,6 +109,13 @@ def lr_at(cfg: TrainConfig, step: int) -> float:
         return cfg.lr * (step + 1) / cfg.warmup
     t = min(1.0, (step - cfg.warmup) / max(1, cfg.steps - cfg.warmup))
     return cfg.lr_min + 0.5 * (cfg.lr - cfg.lr_min) * (1 + math.cos(math.pi * t))
+
+
+def kl_weight_at(cfg: TrainConfig, step: int) -> float:
+    """Weight of the KL term at a step: rising linearly over ``kl_anneal`` steps."""
+    if cfg.kl_anneal <= 0:
+        return cfg.kl_weight
+    return cfg.kl_weight * min(1.0, (step + 1) / cfg.kl_anneal)
 
 
 def with_overrides(cfg: TrainConfig, **kw) -> TrainConfig:

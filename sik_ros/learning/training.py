@@ -10,6 +10,7 @@ from pathlib import Path
 import time
 from typing import Callable, Dict, Optional, TYPE_CHECKING, Union
 
+import numpy as np
 import torch
 from torch.nn.parallel import DistributedDataParallel
 
@@ -19,18 +20,23 @@ from sik_ros.errors import ArtifactMismatch, InvalidArgument, TrainingDiverged
 from sik_ros.learning import distributed
 from sik_ros.learning.checkpoints import normalizer_from_dict
 from sik_ros.learning.generated_data import GeneratedData
-from sik_ros.learning.models import anfis_forward, build_model, kl_normal, ModelConfig, TorchChain
+from sik_ros.learning.losses import cycle_terms, fk_error, orientation_error_deg
+from sik_ros.learning.models import build_model, kl_normal, ModelConfig, TorchChain
 from sik_ros.learning.provenance import device_name, Provenance
 from sik_ros.learning.swarm import new_swarm, swarm_step
-from sik_ros.learning.train_config import (lr_at, SAMPLERS, TrainConfig,  # noqa: F401
-                                           with_overrides)
+from sik_ros.learning.train_config import (kl_weight_at, lr_at, SAMPLERS,  # noqa: F401
+                                           TrainConfig, with_overrides)
 from sik_ros.learning.training_data import (data_summary, default_normalizer,  # noqa: F401
-                                            restore_streams, same_normalizer, stream_states,
-                                            TrainData, turned_rot6, widened_state, widens)
+                                            TrainData)
+from sik_ros.learning.warm_start import (initial_state, makes_variational,
+                                         standardise_index)
 from sik_ros.tables.dataset import Dataset
 
 if TYPE_CHECKING:  # Pinocchio: a chain file's arm trains without it
     from sik_ros.kinematics.robot import Robot
+
+#: Training rows over which a PSIK started from a SIK model standardises its index.
+STANDARDISE_ROWS = 20_000
 
 
 class Trainer:
@@ -110,13 +116,9 @@ class Trainer:
         return q, goal, pos, rot6
 
     def _fk_error(self, x_hat: torch.Tensor, pos: torch.Tensor, rot6: torch.Tensor):
-        """The FK term of normalised joints against their goals."""
-        p_hat, r_hat = self.fk(self.norm.q_from_net(x_hat))
-        err = ((p_hat - pos) ** 2).sum(1).mean() / self.cfg.fk_scale ** 2
-        if self.model_cfg.goal == 'pose':
-            r6 = torch.cat([r_hat[:, :, 0], r_hat[:, :, 1]], 1)
-            err = err + self.cfg.rot_weight * ((r6 - rot6) ** 2).sum(1).mean()
-        return err
+        """The FK term of normalised joints against their goals (:func:`fk_error`)."""
+        return fk_error(self.fk, self.norm, self.cfg, self.model_cfg.goal == 'pose', x_hat,
+                        pos, rot6)
 
     def losses(self, idx: torch.Tensor = None, batch=None) -> Dict[str, torch.Tensor]:
         """The loss terms of a batch: dataset row indices, or ``(q, goal, pos, rot6)``."""
@@ -136,31 +138,18 @@ class Trainer:
         if self.cfg.fk_weight > 0:
             out['fk'] = self._fk_error(x_hat, pos, rot6)
         if sik and self.cfg.cycle_weight > 0:
-            # the table's use of the model: an index found at a nearby position decoded at the
-            # goal. Each index is decoded at its goal moved by about cycle_shift; the posture
-            # must re-encode to the same index there (so the decoder cannot ignore the index)
-            # and reach the moved goal (FK term)
-            shift = torch.randn(len(pos), 3, generator=self.sample_gen, device=self.device)
-            pos_other = pos + self.cfg.cycle_shift * shift
-            rot6_other = rot6
-            if self.model_cfg.goal == 'pose' and self.cfg.cycle_turn > 0:
-                rot6_other = turned_rot6(rot6, self.cfg.cycle_turn, self.sample_gen)
-            goal_other = torch.cat([pos_other, rot6_other], 1) \
-                if self.model_cfg.goal == 'pose' else pos_other
-            g_other = self.norm.goal_to_net(goal_other)
-            z = mu.detach()
-            x_other = self.model.decode(g_other, z)
-            z_back, _ = self.model.encode(g_other, x_other)
-            spread = z.var(dim=0).sum().clamp_min(1e-8)
-            out['cycle'] = ((z_back - z) ** 2).sum(1).mean() / spread
+            other = cycle_terms(self.model, self.norm, self.cfg, self.model_cfg.goal == 'pose',
+                                mu, pos, rot6, self.sample_gen)
+            out['cycle'] = other['cycle']
             if self.cfg.fk_weight > 0:
-                out['fk_other'] = self._fk_error(x_other, pos_other, rot6_other)
+                out['fk_other'] = self._fk_error(other['x_other'], other['pos_other'],
+                                                 other['rot6_other'])
         fk_weight = self.cfg.fk_weight if fk_on else 0.0
         total = out['recon'] + fk_weight * (out.get('fk', 0.0) + out.get('fk_other', 0.0))
         if 'cycle' in out:
             total = total + self.cfg.cycle_weight * out['cycle']
         if 'kl' in out:
-            total = total + self.cfg.kl_weight * out['kl']
+            total = total + kl_weight_at(self.cfg, self.step) * out['kl']
         out['loss'] = total
         return out
 
@@ -184,11 +173,7 @@ class Trainer:
             p_hat, r_hat = self.fk(q_hat)
             errs.append(torch.linalg.norm(p_hat - pos, dim=1))
             if self.model_cfg.goal == 'pose':
-                r = torch.stack([rot6[:, :3], rot6[:, 3:],
-                                 torch.linalg.cross(rot6[:, :3], rot6[:, 3:])], dim=2)
-                rel = r.transpose(1, 2) @ r_hat
-                cos = ((rel.diagonal(dim1=1, dim2=2).sum(1) - 1) / 2).clamp(-1, 1)
-                oerrs.append(torch.rad2deg(torch.arccos(cos)))
+                oerrs.append(orientation_error_deg(rot6, r_hat))
         self.model.train()
         err = torch.cat(errs)
         res = {'val_loss': sum(losses) / len(self.val_idx),
@@ -267,18 +252,25 @@ class Trainer:
         """
         step = self._pso_step if self.model_cfg.kind == 'anfis' else self._gradient_step
         step()
-        distributed.synchronize(self.device)
+        self._synchronize()
         t0 = time.perf_counter()
         for _ in range(steps):
             step()
-        distributed.synchronize(self.device)
+        self._synchronize()
         return (time.perf_counter() - t0) / steps
+
+    def _synchronize(self) -> None:
+        """Wait for the device's queued work (a GPU's), so that a timer sees it done."""
+        if self.device.type == 'cuda':
+            torch.cuda.synchronize(self.device)
 
     def _stop(self, mine: bool) -> bool:
         """Whether to stop now: with several processes, as soon as any of them would."""
         if self.world_size == 1 or self.net is self.model:
             return mine
-        return distributed.any_rank(mine, self.device)
+        flag = torch.tensor([1.0 if mine else 0.0], device=self.device)
+        torch.distributed.all_reduce(flag, op=torch.distributed.ReduceOp.MAX)
+        return bool(flag.item() > 0)
 
     def _gradient_step(self) -> Dict[str, float]:
         """One optimiser step on a random batch; the losses it saw."""
@@ -304,20 +296,16 @@ class Trainer:
 
     @torch.no_grad()
     def _pso_step(self) -> Dict[str, float]:
-        """One particle swarm step of an ANFIS (:mod:`sik_ros.learning.swarm`); its best loss."""
-        if getattr(self, '_pso', None) is None:  # created around the parameters on first use
+        """One particle swarm step of an ANFIS (:mod:`~sik_ros.learning.swarm`); its best loss."""
+        if getattr(self, '_pso', None) is None:
             self._pso = new_swarm(self.model.params_flat.detach(), self.cfg.pso_particles,
                                   self.gen)
         pick = torch.randint(len(self.train_idx), (self.cfg.pso_batch,), generator=self.gen)
         q, goal, _, _ = self._batch(self.train_idx[pick.to(self.device)])
-        x, g = self.norm.q_to_net(q), self.norm.goal_to_net(goal)
-
-        def losses(pos: torch.Tensor) -> torch.Tensor:  # where the rows are, back on the CPU
-            out = anfis_forward(self.model_cfg, pos.to(self.device), g)
-            return ((out - x[None]) ** 2).mean((1, 2)).cpu()
-        best = swarm_step(self._pso, losses, self.gen)
-        self.model.params_flat.copy_(self._pso['gbest'])
-        return {'loss': best}
+        state = swarm_step(self._pso, self.model_cfg, self.norm.goal_to_net(goal),
+                           self.norm.q_to_net(q), self.gen)
+        self.model.params_flat.copy_(state['gbest'])
+        return {'loss': float(state['gbest_f'])}
 
     # -- checkpoints -------------------------------------------------------------------------
 
@@ -331,9 +319,11 @@ class Trainer:
             'model_state': {k: v.detach().cpu() for k, v in self.model.state_dict().items()},
             'optimizer_state': self.opt.state_dict(),
             'step': self.step, 'elapsed_s': self.elapsed, 'history': list(self.history),
-            'rng': stream_states(self.gen, self.sample_gen),
+            'rng': {'torch': torch.get_rng_state(), 'batches': self.gen.get_state()},
             'versions': library_versions(), 'trained': self.provenance.record(self.step),
         }
+        if self.sample_gen is not self.gen:
+            ckpt['rng']['device_batches'] = self.sample_gen.get_state()
         if getattr(self, '_pso', None) is not None:
             ckpt['pso'] = {k: v.clone() for k, v in self._pso.items()}
         return ckpt
@@ -351,30 +341,31 @@ class Trainer:
     def initialise(self, ckpt: Dict, source: str) -> None:
         """Start from the weights of another checkpoint or exported model (a warm start).
 
-        The model config, the robot and the normaliser must match; the optimiser, the step
-        count and the schedule start afresh. A SIK model with a smaller posture index (fewer
-        learned elements, no branch code), or a SIK position model for a pose model, also
-        serves: its weights are copied in, the new inputs (index elements, orientation
-        entries) start at zero weight (the model starts as the old one) and the encoder's new
-        outputs at a tenth of their initial weights.
+        The robot and the normaliser must match; the optimiser, the step count and the
+        schedule start afresh. The model config must match too, or widen the checkpoint's
+        (a SIK model with a smaller posture index, or a SIK position model for a pose model:
+        :func:`~sik_ros.learning.warm_start.widened_state`), or be its PSIK (a SIK model of
+        the same layers: :func:`~sik_ros.learning.warm_start.variational_state`, its index
+        then standardised over training rows).
         """
-        found = ModelConfig.from_dict(ckpt['model_config'])
-        state = ckpt['model_state']
-        if found != self.model_cfg:
-            if not widens(found, self.model_cfg):
-                raise ArtifactMismatch(f'--init {source} model config', asdict(self.model_cfg),
-                                       ckpt['model_config'])
-            state = widened_state(self.model.state_dict(), state, found, self.model_cfg)
+        state = initial_state(self.model.state_dict(), ckpt, self.model_cfg, source)
         check_robot_manifest(f'--init {source}', self.robot.manifest(), ckpt['robot'])
         norm = normalizer_from_dict(ckpt['normalizer'])
         self.provenance.started_from(source, ckpt)
+        mine = np.concatenate([self.norm.lower, self.norm.upper, self.norm.position_center,
+                               [self.norm.position_scale]])
+        theirs = np.concatenate([norm.lower, norm.upper, norm.position_center,
+                                 [norm.position_scale]])
         # generated rows are made afresh where the model trains: they take the normaliser of
         # the weights (the networks' units); a dataset must be the one the weights knew
-        if not self.generated and not same_normalizer(self.norm, norm):
+        if not self.generated and not np.allclose(mine, theirs, rtol=1e-6, atol=1e-9):
             raise ArtifactMismatch(f'--init {source} normaliser (another dataset)',
                                    asdict(self.norm), ckpt['normalizer'])
         self.norm = norm  # bit for bit the one the weights were trained with
         self.model.load_state_dict(state)
+        if makes_variational(ModelConfig.from_dict(ckpt['model_config']), self.model_cfg):
+            q, goal, _, _ = self._batch(self.train_idx[:STANDARDISE_ROWS])
+            standardise_index(self.model, self.norm.goal_to_net(goal), self.norm.q_to_net(q))
 
     def restore(self, ckpt: Dict) -> None:
         """Continue from a checkpoint of the same model on the same robot and dataset."""
@@ -392,8 +383,17 @@ class Trainer:
         self.step = int(ckpt['step'])
         self.elapsed = float(ckpt['elapsed_s'])
         self.history = list(ckpt['history'])
-        restore_streams(ckpt['rng'], self.gen, self.sample_gen, self.cfg.seed, self.rank,
-                        self.step)
+        torch.set_rng_state(ckpt['rng']['torch'])
+        self.gen.set_state(ckpt['rng']['batches'])
+        if self.sample_gen is not self.gen:
+            if 'device_batches' in ckpt['rng']:
+                self.sample_gen.set_state(ckpt['rng']['device_batches'])
+            else:  # a run resumed on a GPU: a stream of its own from here
+                self.sample_gen.manual_seed(self.cfg.seed + 2 + self.step)
+        if self.rank > 0:  # the checkpoint holds rank 0's stream: the others draw their own
+            self.gen.manual_seed(self.cfg.seed + 1 + 7919 * self.rank + self.step)
+            if self.sample_gen is not self.gen:
+                self.sample_gen.manual_seed(self.cfg.seed + 2 + 7919 * self.rank + self.step)
         self.provenance = Provenance.from_checkpoint(ckpt)
         if 'pso' in ckpt:
             self._pso = {k: v.clone() for k, v in ckpt['pso'].items()}

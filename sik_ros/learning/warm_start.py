@@ -1,0 +1,174 @@
+"""Warm starts: a model that starts from another model's weights (``sik-train --init``).
+
+Three starts besides the same model's weights: a SIK model with a wider posture index from a
+smaller one, a pose model from a position model (:func:`widened_state`: the new inputs start at
+zero weight, so the new model computes what the old one did), and a PSIK model from a SIK
+model of the same layers (:func:`variational_state`: the encoder's index becomes the mean, a
+log-variance head is added at a small variance, and :func:`standardise_index` rescales the
+index to zero mean and unit spread over the training rows so that the KL term starts near its
+floor).
+"""
+
+from dataclasses import asdict, replace
+from typing import Dict
+
+import numpy as np
+import torch
+
+from sik_ros.errors import ArtifactMismatch
+from sik_ros.learning.models import ModelConfig
+
+#: Log-variance [log of normalised index units squared] a PSIK started from SIK begins with:
+#: a standard deviation of 0.05, small beside the index's unit spread, so the first steps'
+#: sampled indices decode as the SIK model's do.
+PSIK_LOGVAR_START = -6.0
+
+
+def widens(old: ModelConfig, new: ModelConfig) -> bool:
+    """Whether ``new`` widens ``old``: a wider posture index, or a pose goal for a position one.
+
+    A wider index has more learned elements or more branch bits (the old ones first); a pose
+    model may start from a position model (its orientation inputs start at zero weight).
+    """
+    goals = new.goal == old.goal or (old.goal, new.goal) == ('position', 'pose')
+    same = replace(new, goal=old.goal, latent_dim=old.latent_dim, branches=old.branches) == old
+    return (same and goals and old.kind == 'sik' and new.latent_dim >= old.latent_dim
+            and tuple(new.branches[:len(old.branches)]) == tuple(old.branches))
+
+
+def makes_variational(old: ModelConfig, new: ModelConfig) -> bool:
+    """Whether ``new`` is the PSIK of SIK model ``old``: the same goal, index and layers."""
+    return old.kind == 'sik' and new.kind == 'psik' and replace(new, kind='sik') == old
+
+
+def first_layer_columns(old_cfg: ModelConfig, cfg: ModelConfig, part: str) -> np.ndarray:
+    """Where each input of ``old_cfg``'s first ``part`` layer goes in ``cfg``'s (widened) one.
+
+    The goal's entries keep their places (a position goal is a pose goal's first three); the
+    encoder's joints and the decoder's learned index and branch bits follow the wider goal,
+    the bits after the wider learned part.
+
+    Args:
+        old_cfg: the smaller model's config.
+        cfg: the widened model's config (:func:`widens`).
+        part: ``encoder`` or ``decoder``.
+
+    Returns:
+        The new column of each old input column, (old inputs,) integers.
+    """
+    og, ng = old_cfg.goal_dim, cfg.goal_dim
+    goal = np.arange(og)
+    if part == 'encoder':
+        return np.concatenate([goal, ng + np.arange(cfg.dof)])
+    learned = ng + np.arange(old_cfg.latent_dim)
+    bits = ng + cfg.latent_dim + np.arange(len(old_cfg.branches))
+    return np.concatenate([goal, learned, bits])
+
+
+def _last_encoder_layer(state: Dict) -> str:
+    """The key prefix of the encoder's output layer in a state dict (``encoder.N.``)."""
+    return 'encoder.%d.' % max(int(k.split('.')[1]) for k in state if k.startswith('encoder.'))
+
+
+def widened_state(fresh: Dict, old: Dict, old_cfg: ModelConfig, cfg: ModelConfig) -> Dict:
+    """``old`` weights in a widened model (``fresh``: its initial state dict; :func:`widens`).
+
+    The first layers keep the old inputs' columns (:func:`first_layer_columns`); the new
+    inputs' columns (orientation entries, learned elements, bits) are zero, so the widened
+    model computes what the old one did. The encoder's last layer keeps its old outputs; new
+    outputs take a tenth of their initial weights.
+    """
+    out = {k: v.clone() for k, v in fresh.items()}
+    enc_last = _last_encoder_layer(old)
+    for key, value in old.items():
+        target = out[key]
+        if key in ('encoder.0.weight', 'decoder.0.weight'):
+            w = torch.zeros_like(target)
+            cols = torch.as_tensor(first_layer_columns(old_cfg, cfg, key.split('.')[0]))
+            if len(cols) != value.shape[1]:
+                raise ArtifactMismatch(f'weights {key} of the smaller model',
+                                       (target.shape[0], len(cols)), tuple(value.shape))
+            w[:, cols] = value
+            out[key] = w
+        elif target.shape == value.shape:
+            out[key] = value.clone()
+        elif key.startswith(enc_last):
+            w = target * 0.1
+            w[:value.shape[0]] = value
+            out[key] = w
+        else:
+            raise ArtifactMismatch(f'weights {key} of the smaller model', tuple(target.shape),
+                                   tuple(value.shape))
+    return out
+
+
+def variational_state(old: Dict, latent_dim: int,
+                      logvar: float = PSIK_LOGVAR_START) -> Dict:
+    """A SIK model's weights as a PSIK's (:func:`makes_variational`).
+
+    The encoder's output layer keeps SIK's index as the mean and gains a log-variance head:
+    zero weights and a bias of ``logvar``, a variance the same at every input.
+    """
+    out = {k: v.clone() for k, v in old.items()}
+    enc_last = _last_encoder_layer(old)
+    w, b = old[enc_last + 'weight'], old[enc_last + 'bias']
+    if w.shape[0] != latent_dim:
+        raise ArtifactMismatch('index size of the SIK model', latent_dim, w.shape[0])
+    out[enc_last + 'weight'] = torch.cat([w, torch.zeros_like(w)], 0)
+    out[enc_last + 'bias'] = torch.cat([b, torch.full_like(b, logvar)], 0)
+    return out
+
+
+@torch.no_grad()
+def standardise_index(model: torch.nn.Module, goal: torch.Tensor,
+                      x: torch.Tensor) -> Dict[str, np.ndarray]:
+    """Rescale a PSIK model's index to zero mean and unit spread per element, in place.
+
+    The mean ``m`` and standard deviation ``s`` of the encoder's means over the given rows are
+    folded into the encoder's output layer (the mean becomes ``(mu - m) / s``) and the
+    decoder's first layer (its index columns take ``s`` and its bias the effect of ``m``): the
+    decoder's output for each row's own mean is unchanged, up to rounding.
+
+    Args:
+        model: a PSIK model (:class:`~sik_ros.learning.models.SIK`, variational).
+        goal: normalised goals (N, goal entries).
+        x: normalised joints (N, dof).
+
+    Returns:
+        ``{'mean': m, 'std': s}`` of the index before, per element.
+    """
+    mu, _ = model.encode(goal, x)
+    m, s = mu.mean(0), mu.std(0).clamp_min(1e-6)
+    k = len(m)
+    enc = model.encoder[-1]
+    enc.weight[:k] /= s[:, None]
+    enc.bias[:k] = (enc.bias[:k] - m) / s
+    dec = model.decoder[0]
+    cols = slice(goal.shape[1], goal.shape[1] + k)
+    dec.bias += dec.weight[:, cols] @ m
+    dec.weight[:, cols] *= s[None, :]
+    return {'mean': m.numpy(), 'std': s.numpy()}
+
+
+def initial_state(fresh: Dict, ckpt: Dict, cfg: ModelConfig, source: str) -> Dict:
+    """The state dict a model of ``cfg`` starts from, given another model's checkpoint.
+
+    Args:
+        fresh: the new model's initial state dict.
+        ckpt: the checkpoint (or exported model) to start from.
+        cfg: the new model's config.
+        source: where the checkpoint came from (for messages).
+
+    Raises:
+        ArtifactMismatch: a model neither the same, nor widened (:func:`widens`), nor made
+            variational (:func:`makes_variational`).
+    """
+    found = ModelConfig.from_dict(ckpt['model_config'])
+    state = ckpt['model_state']
+    if found == cfg:
+        return state
+    if makes_variational(found, cfg):
+        return variational_state(state, cfg.latent_dim)
+    if widens(found, cfg):
+        return widened_state(fresh, state, found, cfg)
+    raise ArtifactMismatch(f'--init {source} model config', asdict(cfg), ckpt['model_config'])
