@@ -22,8 +22,6 @@ from typing import Optional
 from builtin_interfaces.msg import Time
 from geometry_msgs.msg import PoseStamped
 import numpy as np
-import rclpy
-from rclpy.exceptions import InvalidHandle
 from rclpy.executors import (ExternalShutdownException, ShutdownException,
                              SingleThreadedExecutor)
 from std_msgs.msg import Float64MultiArray, Header
@@ -33,6 +31,7 @@ from sik_interfaces.msg import IKSolutionArray
 from sik_interfaces.srv import SolveIK
 from sik_ros.ros import conversions as conv
 from sik_ros.ros.ik_service import solution_msgs
+from sik_ros.ros.side_node import side_node, take_newest
 from sik_ros.serving.stream import LatestGoal, max_joint_step, ServoState
 
 R = SolveIK.Response
@@ -71,9 +70,7 @@ class GoalStream:
         self.commands = 0
         # The subscription is a node of its own, spun by the answering thread: a goal is taken
         # and answered on one thread, with no executor turn of the services' between them.
-        self._node = rclpy.create_node(f'{node.get_name()}_goal_stream',
-                                       namespace=node.get_namespace(), context=node.context,
-                                       start_parameter_services=False)
+        self._node = side_node(node, 'goal_stream')
         self._sub = self._node.create_subscription(
             PoseStamped, node.resolve_topic_name('~/goal'), self._on_goal, GOAL_QUEUE)
         self._executor = SingleThreadedExecutor(context=node.context)
@@ -94,16 +91,10 @@ class GoalStream:
         Returns:
             Whether there was a goal.
         """
-        arrived, skipped = time.monotonic(), -1 if msg is None else 0
-        try:
-            with self._sub.handle:
-                while True:
-                    taken = self._sub.handle.take_message(PoseStamped, False)
-                    if taken is None:
-                        break
-                    msg, skipped = taken[0], skipped + 1
-        except InvalidHandle:  # destroyed while shutting down: the goal in hand still counts
-            pass
+        arrived = time.monotonic()
+        newest, _, count = take_newest(self._sub, PoseStamped)
+        skipped = count if msg is not None else count - 1
+        msg = newest if newest is not None else msg
         if msg is None:
             return False
         self.mailbox.put((msg, arrived), skipped)
@@ -155,9 +146,9 @@ class GoalStream:
         arm.check_frame(msg.header.frame_id, 'goal')
         position, orientation = conv.goal_from_pose(msg.pose, p.goal_use_orientation)
         if p.use_joint_states:
-            _, received = node.joint_states.latest()
+            state, received = node.joint_states.latest()
             if received is not None and received > servo.measured_at:
-                servo.measured(node.state_seed(), received)  # newer than the one in use
+                servo.measured(node.seed_from_state(state), received)  # newer than the one in use
         seed = servo.seed()
         result = node.solvers.solve(position, orientation, p.goal_num_solutions, seed=seed,
                                     refine=p.refine, timeout=p.goal_timeout)

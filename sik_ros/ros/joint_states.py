@@ -11,10 +11,10 @@ import threading
 import time
 from typing import Optional, Tuple
 
-import rclpy
-from rclpy.exceptions import InvalidHandle
 from rclpy.qos import qos_profile_sensor_data
 from sensor_msgs.msg import JointState
+
+from sik_ros.ros.side_node import side_node, take_newest
 
 
 class JointStateTap:
@@ -27,9 +27,7 @@ class JointStateTap:
             node: the node whose ``joint_states`` topic (as it resolves it) is read.
         """
         self._topic = node.resolve_topic_name('joint_states')
-        self._node = rclpy.create_node(f'{node.get_name()}_joint_states',
-                                       namespace=node.get_namespace(), context=node.context,
-                                       start_parameter_services=False)
+        self._node = side_node(node, 'joint_states')
         self._sub = None
         self._lock = threading.Lock()
         self._msg: Optional[JointState] = None
@@ -51,18 +49,11 @@ class JointStateTap:
             sub = self._sub
             if sub is None:
                 return None, None
-            try:
-                with sub.handle:
-                    while True:
-                        taken = sub.handle.take_message(JointState, False)
-                        if taken is None:
-                            break
-                        msg, info = taken
-                        stamp = info.get('received_timestamp') if isinstance(info, dict) else None
-                        self._msg = msg
-                        self._received = stamp * 1e-9 if stamp else time.time()
-            except InvalidHandle:  # destroyed while shutting down
-                pass
+            msg, info, _ = take_newest(sub, JointState)
+            if msg is not None:
+                stamp = info.get('received_timestamp') if isinstance(info, dict) else None
+                self._msg = msg
+                self._received = stamp * 1e-9 if stamp else time.time()
             return self._msg, self._received
 
     def close(self) -> None:

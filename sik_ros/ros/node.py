@@ -27,6 +27,7 @@ from rclpy.exceptions import InvalidParameterValueException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from sensor_msgs.msg import JointState
 from std_msgs.msg import Header, String
 from visualization_msgs.msg import MarkerArray
 
@@ -300,7 +301,10 @@ class SikNode(Node):
 
     def state_seed(self) -> Optional[np.ndarray]:
         """Return the latest ``joint_states`` as a seed (clipped to the limits), or None."""
-        msg, _ = self.joint_states.latest()
+        return self.seed_from_state(self.joint_states.latest()[0])
+
+    def seed_from_state(self, msg: Optional[JointState]) -> Optional[np.ndarray]:
+        """A ``joint_states`` message as a seed (clipped to the limits), or None if unusable."""
         if msg is None:
             return None
         try:
