@@ -50,14 +50,17 @@ def launch_node(model_dir: Optional[str] = None, params: Sequence[str] = (),
     """Start ``python -m sik_ros.ros.run`` with ``config/panda.yaml`` and ``-p`` overrides.
 
     Args:
-        model_dir: a bundle directory (None: the bundled model).
+        model_dir: a bundle directory (None: the bundled model); its own base and tip frames
+            are served (the file's Panda frames are overridden).
         params: extra ``name:=value`` parameter overrides.
         env: the process environment (see :func:`ros_env`).
         **popen: passed to :class:`subprocess.Popen` (e.g. ``stdout``).
     """
     cmd = [sys.executable, '-m', 'sik_ros.ros.run', '--ros-args', '--params-file',
            str(params_file())]
-    overrides = ([f'model_dir:={model_dir}'] if model_dir else []) + list(params)
+    # config/panda.yaml names the Panda's frames: another bundle serves its own
+    bundle = [f'model_dir:={model_dir}', "base_frame:=''", "tip_frame:=''"] if model_dir else []
+    overrides = bundle + list(params)
     for item in overrides:
         cmd += ['-p', item]
     return subprocess.Popen(cmd, env=env, **popen)
