@@ -71,6 +71,8 @@ class BuildConfig:
         batch_size: samples per training step (:data:`BUILD_BATCH` by device).
         check_targets: targets per goal kind of the self-check.
         seed: seed of the sampler, the training and the self-check.
+        cores: training processes at once: 2, the position and the pose model side by side;
+            1, one after the other (a build in the background of a node, on one core).
     """
 
     time: float = 1800.0
@@ -81,6 +83,7 @@ class BuildConfig:
     batch_size: int = 2048
     check_targets: int = 200
     seed: int = 0
+    cores: int = 2
 
     def __post_init__(self):
         """Validate the fields."""
@@ -94,3 +97,5 @@ class BuildConfig:
             raise InvalidArgument(f'--preset must be one of {sorted(PRESETS)}')
         if self.device not in ('cpu', 'cuda'):
             raise InvalidArgument(f'--device must be cpu or cuda; got {self.device!r}')
+        if self.cores not in (1, 2):
+            raise InvalidArgument(f'--cores must be 1 or 2; got {self.cores!r}')

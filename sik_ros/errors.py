@@ -91,3 +91,7 @@ class SolverTimeout(SolverUnavailable):
 
 class SolverCrashed(SikError):
     """A solver process died while it served a request (it is being replaced)."""
+
+
+class ModelNotReady(SikError):
+    """A request that needs the learned model (raw answers) before the arm has one."""

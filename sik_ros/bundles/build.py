@@ -18,10 +18,15 @@ reboot) continues where it stopped:
    (:class:`Check`), this module does not import it.
 
 The work directory (``<out>.build`` by default) holds the dataset and the runs; delete it once
-the bundle is built.
+the bundle is built. It also holds ``progress.json`` (the stage, the share of the whole build done
+and the time left, rewritten as the build goes), which a node building its arm in the background
+shows on ``/diagnostics``. A finished bundle gets ``checksums.json`` last
+(:func:`~sik_ros.bundles.cache.write_checksums`) and its chain's cache key in ``bundle.json``, so
+that it can be copied into a node's cache (:mod:`sik_ros.bundles.cache`).
 """
 
 from dataclasses import asdict
+import os
 from pathlib import Path
 import time
 from typing import Callable, Dict, Optional
@@ -30,8 +35,10 @@ from sik_ros.artifacts import atomic_directory, read_json, write_json_atomic
 from sik_ros.bundles.build_training import (GOALS, history, latent_dims,  # noqa: F401 (API)
                                             plan_training, run_training, Say, training_summary)
 from sik_ros.bundles.bundle import build_bundle, read_bundle_manifest
+from sik_ros.bundles.cache import CHECKSUMS, write_checksums
 from sik_ros.defaults import BuildConfig  # noqa: F401 (part of this module's API)
 from sik_ros.errors import ArtifactMismatch, InvalidArgument
+from sik_ros.kinematics.arm_description import chain_key
 from sik_ros.kinematics.robot import Robot
 from sik_ros.tables.dataset import collect, Dataset, finest_interval, MAX_ROWS
 
@@ -39,6 +46,8 @@ from sik_ros.tables.dataset import collect, Dataset, finest_interval, MAX_ROWS
 #: The self-check stage: (the bundle, its robot, the build's settings, the reporter) -> the
 #: figures stored in ``bundle.json`` under ``self_check``.
 Check = Callable[[Path, Robot, BuildConfig, Say], Dict]
+#: Each stage's share of a build's time, for the progress it reports (train: the rest).
+STAGE_SHARES = {'collect': 0.05, 'index': 0.08, 'check': 0.04}
 
 
 class Builder:
@@ -72,6 +81,21 @@ class Builder:
         self.work.mkdir(parents=True, exist_ok=True)
         write_json_atomic(self.state_file, state)
 
+    def report(self, stage: str, within: float = 0.0) -> None:
+        """Write ``progress.json``: the stage, the whole build's share done, the time left [s].
+
+        ``within``: the share of ``stage`` done [0-1].
+        """
+        order = ('collect', 'train', 'index', 'check', 'done')
+        train = 1.0 - sum(STAGE_SHARES.values())
+        shares = dict(STAGE_SHARES, train=train, done=0.0)
+        done = sum(shares[s] for s in order[:order.index(stage)]) + shares[stage] * within
+        done = min(max(done, 0.0), 1.0)
+        left = 0.0 if stage == 'done' else max(self.cfg.time * (1.0 - done), 0.0)
+        write_json_atomic(self.work / 'progress.json', {
+            'stage': stage, 'percent': round(100.0 * done, 1), 'seconds_left': round(left),
+            'time': time.time(), 'pid': os.getpid()})
+
     # -- stages ----------------------------------------------------------------------------
 
     def run(self) -> Dict:
@@ -91,14 +115,21 @@ class Builder:
         self.work.mkdir(parents=True, exist_ok=True)
         write_json_atomic(self.state_file, state)
         if 'collect' not in state['done']:
+            self.report('collect')
             self._done(state, 'collect', self.collect())
         if 'train' not in state['done']:
             spent = time.perf_counter() - t0
+            self.report('train')
             self._done(state, 'train', self.train(self.train_seconds(spent)))
         if 'bundle' not in state['done']:
+            self.report('index')
             self._done(state, 'bundle', self.bundle())
+        self.report('check')
         check = state['done'].get('check') or self.self_check()
         self._done(state, 'check', check)
+        if not (self.out / CHECKSUMS).is_file():
+            write_checksums(self.out)
+        self.report('done', 1.0)
         self.say(f'bundle {self.out} ready in {time.perf_counter() - t0:.0f} s '
                  f'(work files in {self.work})')
         return check
@@ -137,7 +168,8 @@ class Builder:
         else:
             plan = plan_training(self.robot, self.cfg, self.work, seconds, self.say)
             write_json_atomic(plan_file, plan)
-        run_training(self.robot, self.work, plan, self.bars)
+        run_training(self.robot, self.work, plan, self.bars,
+                     lambda trained: self.report('train', trained / max(plan['seconds'], 1.0)))
         info = training_summary(self.work, plan)
         for goal in GOALS:
             hist = history(self.work / f'run_{goal}' / 'model.pt')
@@ -168,6 +200,7 @@ class Builder:
             manifest = read_bundle_manifest(tmp)
             manifest['training'] = training_summary(
                 self.work, read_json(self.work / 'train_plan.json', 'training plan'))
+            manifest['chain_key'] = chain_key(self.robot)
             write_json_atomic(tmp / 'bundle.json', manifest)
         size = sum(f.stat().st_size for f in self.out.iterdir())
         self.say(f'bundle {self.out}: {size / 1e6:.1f} MB')

@@ -19,7 +19,7 @@ import time
 from typing import Callable, Dict, Optional
 
 from sik_ros.defaults import BuildConfig
-from sik_ros.errors import InvalidArgument
+from sik_ros.errors import InvalidArgument, SikError
 from sik_ros.kinematics.robot import Robot
 from sik_ros.kinematics.robots import robot_from_manifest
 from sik_ros.learning.models import ModelConfig, PRESETS
@@ -93,11 +93,14 @@ def plan_training(robot: Robot, cfg: BuildConfig, work: Path, seconds: float,
     from sik_ros.learning.training import Trainer
     ds = Dataset.load(work / 'dataset', robot)
     rows = len(ds)
-    plan = {'seconds': seconds, 'pose_start': POSE_START * seconds, 'configs': {}}
+    plan = {'seconds': seconds, 'pose_start': POSE_START * seconds, 'configs': {},
+            'cores': cfg.cores}
     for goal, model in model_configs(robot, cfg.preset).items():
         probe = replace(train_config(cfg, goal, 100, rows), val_rows=min(1000, rows // 10))
         per_step = Trainer(robot, ds, model, probe, work / 'probe').seconds_per_step()
         share = seconds - (plan['pose_start'] if goal == 'pose' else 0.0)
+        if goal == 'position' and cfg.cores == 1:  # one after the other
+            share = plan['pose_start']
         steps = max(50, int(0.95 * share / per_step))
         train = train_config(cfg, goal, steps, rows)
         plan['configs'][goal] = {'model': asdict(model), 'train': asdict(train),
@@ -149,11 +152,14 @@ def pose_start_snapshot(work: Path) -> bool:
     return True
 
 
-def run_training(robot: Robot, work: Path, plan: Dict, bars: bool = True) -> None:
+def run_training(robot: Robot, work: Path, plan: Dict, bars: bool = True,
+                 progress: Optional[Callable[[float], None]] = None) -> None:
     """Both models' runs: the position model's at once, the pose model's at its start.
 
     A resumed build starts a pose run begun before at once, else when the position model has
-    trained ``pose_start`` seconds in all (or has finished).
+    trained ``pose_start`` seconds in all (or has finished); on one core (the plan's
+    ``cores``), once the position model has finished. ``progress`` is called about once a
+    second with the seconds trained so far (both runs' time, from their checkpoints).
 
     Raises:
         InvalidArgument: a run stopped without its model file.
@@ -162,8 +168,9 @@ def run_training(robot: Robot, work: Path, plan: Dict, bars: bool = True) -> Non
     ctx = multiprocessing.get_context('spawn')
     procs: Dict[str, multiprocessing.Process] = {}
     done = {g: (work / f'run_{g}' / 'model.pt').exists() for g in GOALS}
-    pose_at = _pose_wait(work, plan)
+    pose_at = _pose_wait(work, plan) if plan.get('cores', 2) == 2 else float('inf')
     t0 = time.perf_counter()
+    before = _trained_seconds(work)
     with tqdm(total=round(plan['seconds']), desc='train position+pose', unit='s',
               disable=not bars) as bar:
         try:
@@ -181,6 +188,8 @@ def run_training(robot: Robot, work: Path, plan: Dict, bars: bool = True) -> Non
                     break
                 time.sleep(1.0)
                 bar.update(min(round(time.perf_counter() - t0), bar.total) - bar.n)
+                if progress is not None:
+                    progress(before + time.perf_counter() - t0)
         except KeyboardInterrupt:
             for p in procs.values():
                 p.join(30)
@@ -189,6 +198,19 @@ def run_training(robot: Robot, work: Path, plan: Dict, bars: bool = True) -> Non
     if failed:
         raise InvalidArgument(f'training of the {failed} model(s) stopped early; rerun to '
                               f'continue from the checkpoints in {work}')
+
+
+def _trained_seconds(work: Path) -> float:
+    """Seconds both runs have trained so far, by their last checkpoints (0 for none)."""
+    total = 0.0
+    for goal in GOALS:
+        last = work / f'run_{goal}' / 'last.pt'
+        if last.exists():
+            try:
+                total += history(last)['elapsed_s']
+            except (SikError, OSError):  # being replaced: counted at the next call
+                pass
+    return total
 
 
 def _pose_wait(work: Path, plan: Dict) -> float:

@@ -93,8 +93,15 @@ def read_bundle_manifest(path: Path) -> Dict:
     return manifest
 
 
-def load_bundle(bundle: Union[str, Path]) -> Tuple[Path, Robot, Dict[str, GoalModel]]:
+def load_bundle(bundle: Union[str, Path], robot: Optional[Robot] = None
+                ) -> Tuple[Path, Robot, Dict[str, GoalModel]]:
     """The directory, robot and per-goal models of a bundle, every file checked.
+
+    Args:
+        bundle: a bundle directory or the name of a bundled one.
+        robot: the arm, when the caller has it already (an arm from robot_description): the
+            bundle must have been made for it (same name, URDF content, frames and joints;
+            the URDF file it names need not exist here). None: the arm the bundle names.
 
     Raises:
         CorruptArtifact: a missing or damaged file.
@@ -103,7 +110,10 @@ def load_bundle(bundle: Union[str, Path]) -> Tuple[Path, Robot, Dict[str, GoalMo
     path = resolve_bundle(bundle)
     manifest = read_bundle_manifest(path)
     rm = manifest['robot']
-    robot = robot_from_manifest(rm, f'bundle {path}')
+    if robot is None:
+        robot = robot_from_manifest(rm, f'bundle {path}')
+    else:
+        check_robot_manifest(f'bundle {path}', robot.manifest(), rm)
     models = {}
     for goal, files in manifest['models'].items():
         ckpt = load_checkpoint(path / files['model'])

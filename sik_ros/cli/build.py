@@ -47,6 +47,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument('--check-targets', type=int, default=d.check_targets,
                    help='targets per goal kind of the final self-check')
     p.add_argument('--seed', type=int, default=d.seed)
+    p.add_argument('--cores', type=int, choices=(1, 2), default=d.cores,
+                   help='training processes at once: 2, the position and pose models side by '
+                   'side; 1, one after the other (a build beside other work)')
     p.add_argument('--quiet', action='store_true', help='no progress bars')
     return p
 
@@ -60,6 +63,8 @@ def main(argv: Optional[List[str]] = None) -> int:
 
     def body() -> int:
         from sik_ros.bundles.build import Builder
+        from sik_ros.bundles.cache import cache_root
+        from sik_ros.kinematics.arm_description import chain_key
         from sik_ros.kinematics.robots import load_robot, package_dirs
         urdf = args.urdf
         if urdf is not None and (is_xacro_file(urdf) or args.xacro_arg):
@@ -70,10 +75,12 @@ def main(argv: Optional[List[str]] = None) -> int:
         robot = load_robot(args.robot or 'panda', urdf, args.base, args.tip)
         periodic = [n for n, p in zip(robot.joint_names, robot.periodic) if p]
         print(f'robot {robot.name}: {robot.dof} joints {robot.joint_names}, base '
-              f'{robot.base_frame}, tip {robot.tip_frame}; periodic: {periodic or "none"}')
+              f'{robot.base_frame}, tip {robot.tip_frame}; periodic: {periodic or "none"}; '
+              f'cache key {chain_key(robot)} (sik_node serves the bundle copied to '
+              f'{cache_root() / chain_key(robot) / "bundle"})')
         cfg = BuildConfig(args.time, args.sampler, args.rows, args.preset, args.device,
                           args.batch_size or BUILD_BATCH[args.device], args.check_targets,
-                          args.seed)
+                          args.seed, args.cores)
         report = Builder(robot, args.out, cfg, self_check, args.work,
                          bars=not args.quiet).run()
         print(json.dumps({'bundle': args.out, 'self_check': report}))

@@ -21,8 +21,8 @@ from visualization_msgs.msg import Marker, MarkerArray
 
 from sik_interfaces.msg import IKSolution, IKSolutionArray
 from sik_interfaces.srv import SolveIK
-from sik_ros.errors import (InvalidArgument, InvalidFrame, InvalidGoal, InvalidSeed, SikError,
-                            SolverCrashed, SolverUnavailable)
+from sik_ros.errors import (InvalidArgument, InvalidFrame, InvalidGoal, InvalidSeed,
+                            ModelNotReady, SikError, SolverCrashed, SolverUnavailable)
 from sik_ros.kinematics.chain import chain_forward
 from sik_ros.kinematics.collision import BOX, CYLINDER, Obstacle, SPHERE
 from sik_ros.solver import Solution
@@ -37,6 +37,8 @@ ERROR_NAMES: Dict[int, str] = {
     SolveIK.Response.TIMEOUT: 'TIMEOUT',
     SolveIK.Response.ROBOT_MISMATCH: 'ROBOT_MISMATCH',
     SolveIK.Response.JOINT_JUMP: 'JOINT_JUMP',
+    SolveIK.Response.NO_ROBOT: 'NO_ROBOT',
+    SolveIK.Response.MODEL_NOT_READY: 'MODEL_NOT_READY',
     SolveIK.Response.INTERNAL_ERROR: 'INTERNAL_ERROR',
 }
 
@@ -56,8 +58,11 @@ def error_code_for(exc: SikError) -> int:
     """Return the SolveIK code of a library error.
 
     INVALID_SEED for seeds, INVALID_FRAME for frames, TIMEOUT when no solver was free in
-    time, INTERNAL_ERROR for a solver process that died, else INVALID_GOAL (bad input).
+    time, INTERNAL_ERROR for a solver process that died, MODEL_NOT_READY for raw answers
+    before the arm's learned model, else INVALID_GOAL (bad input).
     """
+    if isinstance(exc, ModelNotReady):
+        return SolveIK.Response.MODEL_NOT_READY
     if isinstance(exc, InvalidSeed):
         return SolveIK.Response.INVALID_SEED
     if isinstance(exc, InvalidFrame):

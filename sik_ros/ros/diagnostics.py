@@ -135,6 +135,9 @@ class NodeDiagnostics:
             levels.append((WARN, state))
         if node.mismatch:
             levels.append((ERROR, 'the bundle does not fit the robot_description'))
+        if node.no_robot:
+            levels.append((ERROR if node.no_robot.startswith('robot_description') else WARN,
+                           node.no_robot))
         health = node.solvers.health() if node.solvers is not None else None
         if health is None:
             processes = (f'none ({node.workers} solver threads)' if ik is not None
@@ -154,7 +157,8 @@ class NodeDiagnostics:
         level = max((lv for lv, _ in levels), default=OK)
         message = '; '.join(m for _, m in levels) or 'serving'
         values = [
-            ('bundle', str(ik.bundle) if ik is not None else '(none loaded)'),
+            ('bundle', '(none loaded)' if ik is None else str(ik.bundle) if ik.learned
+             else '(table of configurations)'),
             ('state', state),
             ('requests', str(figures.total)),
             ('requests per second', f'{figures.rate:.3f}'),
@@ -165,6 +169,8 @@ class NodeDiagnostics:
             ('solver processes', processes),
             ('robot_description', self.description_check()),
         ]
+        if node.follower is not None:
+            values += node.follower.values()
         stream = node.goal_stream
         if stream is not None:
             servo = stream.servo
@@ -182,6 +188,8 @@ class NodeDiagnostics:
         node = self.node
         if node.mismatch:
             return node.mismatch
+        if node.follower is not None:
+            return node.no_robot or 'served'
         if not (node.params.robot_description or node.robot_description_seen):
             return 'not given'
         return 'matches the bundle' if node.ik is not None else 'not checked (no bundle)'

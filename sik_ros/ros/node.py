@@ -18,6 +18,7 @@ callback hands its request to :class:`~sik_ros.ros.guard.RequestGuard` with a ha
 from dataclasses import fields, replace
 import gc
 import logging
+import threading
 from typing import List, Optional
 
 import numpy as np
@@ -35,6 +36,7 @@ from sik_interfaces.srv import SolveIK, SolvePath
 from sik_ros.errors import SikError
 from sik_ros.kinematics.robots import chain_differences
 from sik_ros.ros import conversions as conv
+from sik_ros.ros.arm_follower import ArmFollower
 from sik_ros.ros.diagnostics import NodeDiagnostics
 from sik_ros.ros.goal_stream import GoalStream
 from sik_ros.ros.guard import RequestGuard
@@ -44,7 +46,7 @@ from sik_ros.ros.params import declarations, NodeParams, validate
 from sik_ros.ros.path_service import path_markers, solve_path_request
 from sik_ros.serving.pool import single_threaded
 from sik_ros.serving.solvers import make_solvers, Solver
-from sik_ros.solver import SelectiveIK
+from sik_ros.solver import SelectiveIK, SolverConfig
 
 NODE_NAME = 'sik_node'
 #: Depth of the services' request queues. ROS 2's default for services keeps the last 10
@@ -56,6 +58,11 @@ SERVICE_QUEUE = 256
 WORKERS = 4
 #: Longest time the main thread waits in the executor before it checks for signals [s].
 SPIN_PERIOD = 0.1
+#: Seconds solvers replaced by others (a learned model swapped in) keep serving the requests
+#: they had before they are closed.
+RETIRE_AFTER = 10.0
+#: Period of the check on the background learning [s].
+LEARNING_POLL = 1.0
 Response = SolveIK.Response
 
 
@@ -92,8 +99,15 @@ class SikNode(Node):
         #: why requests are refused: the robot_description topic's chain differs from the bundle's
         self._mismatch: Optional[str] = None
         self._description: Optional[str] = None
+        #: why no arm is served (an arm from robot_description not yet, or not, servable)
+        self._no_robot: Optional[str] = None
+        p = self._params
+        #: the arm of robot_description, when no bundle is named (robot and model_dir empty)
+        self.follower = None if (p.robot or p.model_dir) else ArmFollower(
+            self, p, self.get_logger().info, self.get_logger().error)
         self.guard = RequestGuard(self.get_logger())
         self.guard.refusals.append(self._mismatch_refusal)
+        self.guard.refusals.append(self._no_robot_refusal)
         self.diagnostics = NodeDiagnostics(self)
         self.goal_stream: Optional[GoalStream] = None
         if not managed:
@@ -113,17 +127,20 @@ class SikNode(Node):
         reason = validate(self._params)
         if reason is not None:
             raise StartupError(f'bad parameters: {reason}')
+        if self.follower is not None:
+            text = self._params.robot_description
+            if text:
+                self.follower.take(text, 'parameter')
+            else:
+                self.refuse('waiting for robot_description (the parameter is empty: listening '
+                            f'on {self.resolve_topic_name("robot_description")})')
+                self.get_logger().info(self._no_robot)
+            return
         ik = self._load(self._params)
         try:
-            solvers = make_solvers(ik, self._params.solver_processes, self.workers + 1,
-                                   self._log)
+            self.install(ik, self._params.solver_processes)
         except SikError as exc:
             raise StartupError(f'cannot start the solver processes: {exc}') from exc
-        self.get_logger().info(f'solvers warmed up in {solvers.warm_up_seconds:.2f} s')
-        self._ik, self.solvers = ik, solvers
-        self.arm = Arm(ik.robot.base_frame, list(ik.joint_names))
-        if self.goal_stream is not None:
-            self.goal_stream.reset(ik.robot.velocity_limits)
         if self._description is not None:
             self._check_description(self._description)
         self.get_logger().info(
@@ -132,8 +149,52 @@ class SikNode(Node):
             f'{ik.robot.tip_frame}), {self.workers} executor threads, '
             f'{self._params.solver_processes} solver processes')
 
+    def install(self, ik: SelectiveIK, processes: int) -> None:
+        """Serve ``ik`` from now on, with ``processes`` solver processes (0: threads).
+
+        Solvers it replaces (a learned model swapped in) finish the requests they hold and
+        are closed :data:`RETIRE_AFTER` seconds later.
+
+        Raises:
+            SikError: the solver processes cannot start (nothing changes then).
+        """
+        solvers = make_solvers(ik, processes, self.workers + 1, self._log)
+        self.get_logger().info(f'solvers warmed up in {solvers.warm_up_seconds:.2f} s')
+        old = self.solvers
+        self._ik, self.solvers = ik, solvers
+        self.arm = Arm(ik.robot.base_frame, list(ik.joint_names))
+        if self.goal_stream is not None:
+            self.goal_stream.reset(ik.robot.velocity_limits)
+        self._no_robot = None
+        if old is not None:
+            timer = threading.Timer(RETIRE_AFTER, old.close)
+            timer.daemon = True
+            timer.start()
+
+    def refuse(self, reason: Optional[str]) -> None:
+        """Answer every request ``NO_ROBOT`` with ``reason`` (None: serve again)."""
+        self._no_robot = reason
+
+    def solver_config(self) -> SolverConfig:
+        """The solver settings of the parameters in force."""
+        return SolverConfig(**solver_settings(self._params))
+
+    def _no_robot_refusal(self):
+        return None if self._no_robot is None else (Response.NO_ROBOT, self._no_robot)
+
+    @property
+    def no_robot(self) -> Optional[str]:
+        """Why no arm is served (requests refused ``NO_ROBOT``), or None."""
+        return self._no_robot
+
+    def _poll_learning(self) -> None:
+        if self.follower is not None and not self.closing:
+            self.follower.poll()
+
     def stop(self) -> None:
         """Stop the solvers and let go of the bundle (its models are freed)."""
+        if self.follower is not None:
+            self.follower.close()
         solvers, self.solvers = self.solvers, None
         self._ik, self.arm, self._mismatch = None, None, None
         if self.goal_stream is not None:
@@ -158,6 +219,8 @@ class SikNode(Node):
                              reliability=ReliabilityPolicy.RELIABLE)
         self.create_subscription(String, 'robot_description', self._on_robot_description,
                                  latched, callback_group=group)
+        if self.follower is not None:
+            self.create_timer(LEARNING_POLL, self._poll_learning, callback_group=group)
 
     def _log(self, level: int, message: str) -> None:
         """Log at a :mod:`logging` level (the solver pool's reports).
@@ -240,6 +303,9 @@ class SikNode(Node):
             return str(exc)
 
     def _on_robot_description(self, msg: String) -> None:
+        if self.follower is not None:
+            self.follower.take(msg.data, 'topic')
+            return
         self._description = msg.data
         if self._ik is not None:
             self._check_description(msg.data)
@@ -371,6 +437,9 @@ class SikNode(Node):
         diagnostics = getattr(self, 'diagnostics', None)
         if diagnostics is not None:
             diagnostics.log_summary()
+        follower = getattr(self, 'follower', None)
+        if follower is not None:
+            follower.close()
         solvers = getattr(self, 'solvers', None)
         if solvers is not None:
             solvers.close()

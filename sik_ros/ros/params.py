@@ -80,8 +80,10 @@ COMMAND_FORMATS = ('none', 'float64_multi_array', 'joint_trajectory')
 
 #: Every node parameter, in declaration order (the order of :class:`NodeParams`' fields).
 SPECS: Tuple[ParamSpec, ...] = (
-    ParamSpec('robot', str, 'panda',
-              'bundled model to load when model_dir is empty (read-only)',
+    ParamSpec('robot', str, '',
+              'bundled model to load when model_dir is empty (e.g. panda); empty with '
+              'model_dir empty: the arm of robot_description (the parameter, else the '
+              'robot_description topic) between base_frame and tip_frame (read-only)',
               read_only=True),
     ParamSpec('model_dir', str, '',
               'bundle directory to load; empty: the bundled model of `robot` (read-only)',
@@ -161,10 +163,29 @@ SPECS: Tuple[ParamSpec, ...] = (
               '(new ones are answered TIMEOUT) [s]; (0, 60]',
               min=0.0, max=60.0, min_open=True, unit='s'),
     ParamSpec('robot_description', str, '',
-              'the robot\'s URDF (as robot_state_publisher holds it); when set, or when the '
-              'robot_description topic publishes one, a bundle whose chain differs from it is '
-              'refused (read-only)',
+              'the robot\'s URDF (as robot_state_publisher holds it). With robot and '
+              'model_dir empty, the node serves its chain base_frame -> tip_frame (empty: it '
+              'waits for the robot_description topic, and follows it); with a bundle named, '
+              'a bundle whose chain differs from it is refused (read-only)',
               read_only=True),
+    ParamSpec('learning', bool, True,
+              'an arm from robot_description: learn its model in the background (one core, '
+              'low priority) and serve it when ready, cached per arm; false: the table of '
+              'configurations only (a cached model is still served) (read-only)',
+              read_only=True),
+    ParamSpec('learning_time', float, 1800.0,
+              'the background build\'s budget [s] (sik-build --time); [30, 86400]',
+              min=30.0, max=86400.0, unit='s', read_only=True),
+    ParamSpec('learning_rows', int, 3_000_000,
+              'configurations the background build collects (sik-build --rows); '
+              '10000..20000000', min=10_000, max=20_000_000, read_only=True),
+    ParamSpec('cache_dir', str, '',
+              'folder of the per-arm cache (an arm\'s entry: <cache_dir>/sik_ros/...); empty: '
+              '$XDG_CACHE_HOME, else ~/.cache (read-only)',
+              read_only=True),
+    ParamSpec('sweep_time', float, 3.0,
+              'time the table of configurations of a new arm may take [s]; [0.2, 60]',
+              min=0.2, max=60.0, unit='s', read_only=True),
     ParamSpec('lifecycle', bool, False,
               'a managed node (rclpy LifecycleNode): it starts unconfigured, loads the bundle '
               'on configure and serves only while active (otherwise requests are answered '
@@ -240,8 +261,10 @@ def validate(p: 'NodeParams') -> Optional[str]:
     lower bounds, non-finite values) and, again, the ranges of :data:`SPECS` (rclpy checks those
     one parameter at a time), so that a whole set of values is checked at once.
     """
-    if not p.robot and not p.model_dir:
-        return 'robot and model_dir are both empty: name a bundled model or a bundle directory'
+    if not p.robot and not p.model_dir and p.robot_description and not (
+            p.base_frame and p.tip_frame):
+        return ('an arm from robot_description needs base_frame and tip_frame (the chain to '
+                'serve)')
     if p.command_format not in COMMAND_FORMATS:
         return (f'command_format must be one of {", ".join(COMMAND_FORMATS)}; '
                 f'got {p.command_format!r}')

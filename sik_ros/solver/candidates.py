@@ -44,7 +44,7 @@ def table_candidates(ctx: Context, goal: Goal, q_seed: Optional[np.ndarray],
     table = ctx.models[goal.kind].table
     if count <= 0:  # none from the table: only the seed's own index (its posture kept)
         return own_index(ctx, goal, q_seed)
-    mcfg = ctx.models[goal.kind].model.cfg
+    mcfg = getattr(ctx.models[goal.kind].model, 'cfg', None)  # None: no learned model
     line = getattr(mcfg, 'latent_dim', table.indices.shape[1]) == 1
     if goal.kind != POSITION and not line and table.orientations is not None:
         # a pose model's index of more than one element holds the posture of a whole

@@ -94,8 +94,13 @@ def goal_net(ctx: Context, goal: Goal, rows: int) -> torch.Tensor:
 
 
 def decode(ctx: Context, goal: Goal, z: np.ndarray) -> np.ndarray:
-    """Joint solutions (M, n) [rad] decoded from posture indices (M, latent), clipped."""
+    """Joint solutions (M, n) [rad] decoded from posture indices (M, latent), clipped.
+
+    With no learned model (:mod:`~sik_ros.bundles.sweep_models`) an index is a configuration.
+    """
     gm = ctx.models[goal.kind]
+    if gm.model is None:
+        return np.clip(np.asarray(z, dtype=np.float64), ctx.robot.lower, ctx.robot.upper)
     twins = _twins(gm.model)
     z = np.asarray(z, dtype=np.float32)
     if len(z) == 0:
@@ -112,8 +117,10 @@ def decode(ctx: Context, goal: Goal, z: np.ndarray) -> np.ndarray:
 
 
 def encode(ctx: Context, goal: Goal, q: np.ndarray) -> np.ndarray:
-    """Posture indices (M, latent) of configurations (M, n) for a goal."""
+    """Posture indices (M, latent) of configurations (M, n) for a goal (no model: ``q``)."""
     gm = ctx.models[goal.kind]
+    if gm.model is None:
+        return np.array(q, dtype=np.float64)
     twins = _twins(gm.model)
     if twins is None:
         with torch.no_grad():

@@ -15,7 +15,7 @@ import numpy as np
 
 from sik_ros.bundles.bundle import GoalModel, load_bundle
 from sik_ros.deadline import Deadline
-from sik_ros.errors import InvalidArgument
+from sik_ros.errors import InvalidArgument, ModelNotReady
 from sik_ros.kinematics.collision import CollisionChecker, Obstacle
 from sik_ros.kinematics.robot import Robot
 from sik_ros.solver import path as _path, pipeline
@@ -141,6 +141,11 @@ class SelectiveIK:
         return list(self.robot.joint_names)
 
     @property
+    def learned(self) -> bool:
+        """Whether a learned model answers (False: a table of configurations alone)."""
+        return all(gm.model is not None for gm in self.models.values())
+
+    @property
     def goals(self) -> List[str]:
         """Goal kinds this bundle answers (``position``, ``pose``)."""
         return sorted(self.models)
@@ -177,6 +182,8 @@ class SelectiveIK:
 
         Raises:
             InvalidGoal, InvalidSeed, InvalidArgument: bad input (see docs/interfaces.md).
+            ModelNotReady: ``refine`` False with no learned model (a table of
+                configurations, :mod:`~sik_ros.bundles.sweep_models`).
         """
         t0 = time.perf_counter()
         goal = check_goal(position, orientation, self.goals)
@@ -185,6 +192,10 @@ class SelectiveIK:
         obstacles = check_obstacles(obstacles, self.config.max_obstacles)
         objective = check_objective(objective)
         refine = flag(refine, 'refine')
+        if not refine and not self.learned:
+            raise ModelNotReady('raw answers (refine=False) are the learned model\'s, and this '
+                                'arm has none yet (its table of configurations answers '
+                                'refined requests)')
         timeout = seconds(timeout, 'timeout')
         per_family = None if one_per_family is None else flag(one_per_family,
                                                               'one_per_family')

@@ -1,0 +1,123 @@
+"""An arm served from its robot_description: checked, keyed, its solver ready in seconds.
+
+:func:`prepare_arm` checks a description and two frames before anything is written (bad input
+leaves the cache untouched), keys the chain and writes its cache entry's URDF;
+:func:`first_solver` gives the solver that answers at once: the learned bundle of the entry when
+it is there and intact, else the arm's table of collected configurations
+(:mod:`~sik_ros.bundles.sweep_models`), which answers exactly with no training.
+"""
+
+from dataclasses import dataclass, field
+from pathlib import Path
+import tempfile
+from typing import Callable, List, Optional, Tuple
+
+from sik_ros.bundles.bundle import load_bundle
+from sik_ros.bundles.cache import ArmEntry, cache_root
+from sik_ros.bundles.sweep_models import sweep_models
+from sik_ros.errors import SikError
+from sik_ros.kinematics.arm_description import (arm_files, arm_robot, chain_key, check_chain,
+                                                Description, read_description)
+from sik_ros.kinematics.robot import Robot
+from sik_ros.solver import SelectiveIK, SolverConfig
+
+#: Seconds the table of configurations may take by default.
+SWEEP_SECONDS = 3.0
+
+
+@dataclass
+class Arm:
+    """An arm from a robot_description.
+
+    Attributes:
+        robot: the chain, loaded from the entry's URDF.
+        key: the chain's cache key.
+        entry: its cache entry.
+        missing_meshes: collision meshes not found here (those parts have no geometry).
+        notes: what the loading found worth a line on the log.
+    """
+
+    robot: Robot
+    key: str
+    entry: ArmEntry
+    missing_meshes: List[str] = field(default_factory=list)
+    notes: List[str] = field(default_factory=list)
+
+
+def prepare_arm(text: str, base: str, tip: str, cache: Optional[str] = None) -> Arm:
+    """Check a description and its chain, key it, and write its cache entry's URDF.
+
+    Everything is checked on a copy in a temporary folder first: a description or chain that
+    cannot be served writes nothing to the cache.
+
+    Args:
+        text: the URDF (or xacro) text.
+        base: the base frame.
+        tip: the tip frame.
+        cache: the cache's base folder (None or empty: ``$XDG_CACHE_HOME``, ``~/.cache``).
+
+    Raises:
+        SikError: the description or the chain cannot be served (one line saying why).
+    """
+    desc = read_description(text)
+    check_chain(desc, base, tip)
+    with tempfile.TemporaryDirectory(prefix='sik_arm_') as tmp:
+        urdf, missing = arm_files(desc, Path(tmp))
+        key = chain_key(arm_robot(desc, urdf, base, tip))
+    entry = ArmEntry(cache_root(cache), key)
+    notes = []
+    robot = _entry_robot(desc, entry, key, base, tip, notes)
+    if robot is None:
+        entry.path.mkdir(parents=True, exist_ok=True)
+        arm_files(desc, entry.path)
+        robot = arm_robot(desc, entry.urdf, base, tip)
+    return Arm(robot, key, entry, missing, notes)
+
+
+def _entry_robot(desc: Description, entry: ArmEntry, key: str, base: str, tip: str,
+                 notes: List[str]) -> Optional[Robot]:
+    """The robot of the entry's URDF already there, when it has the same chain (else None)."""
+    if not entry.urdf.is_file():
+        return None
+    try:
+        robot = arm_robot(read_description(entry.urdf.read_text()), entry.urdf, base, tip)
+    except (SikError, OSError):
+        robot = None
+    if robot is not None and chain_key(robot) == key:
+        return robot
+    notes.append(f'cache entry {entry.path}: its URDF did not match its key; written again')
+    return None
+
+
+def load_learned(arm: Arm, config: SolverConfig) -> Optional[SelectiveIK]:
+    """The entry's learned bundle as a solver, when finished and intact; None otherwise.
+
+    A bundle that fails its checksums or its checks on load is set aside (never loaded again).
+    """
+    bundle = arm.entry.checked_bundle()
+    if bundle is None:
+        return None
+    try:
+        path, robot, models = load_bundle(bundle, arm.robot)
+    except SikError as exc:
+        arm.notes.append(f'cached bundle {bundle} set aside: {exc}')
+        arm.entry.set_aside(str(exc))
+        return None
+    return SelectiveIK(robot, models, config, path)
+
+
+def first_solver(arm: Arm, config: SolverConfig, seconds: float = SWEEP_SECONDS,
+                 say: Callable[[str], None] = print) -> Tuple[SelectiveIK, bool]:
+    """The solver that answers first, and whether it is the learned one.
+
+    The learned bundle of the entry when it is there; else the arm's table of configurations
+    (``seconds`` of sweep and table).
+    """
+    learned = load_learned(arm, config)
+    if learned is not None:
+        return learned, True
+    models = sweep_models(arm.robot, seconds)
+    table = models['position'].table
+    say(f'table of configurations: {len(table.indices):,} configurations in {len(table):,} '
+        f'cells (no learned model yet)')
+    return SelectiveIK(arm.robot, models, config), False
