@@ -21,7 +21,7 @@ from sik_ros.solver.config import PathDefaults, SolverConfig
 REPO = Path(__file__).resolve().parents[1]
 #: The node's parameters: name, type, default (base and tip frames default to the bundle's).
 EXPECTED = [
-    ('robot', str, 'panda'), ('model_dir', str, ''), ('base_frame', str, ''),
+    ('robot', str, ''), ('model_dir', str, ''), ('base_frame', str, ''),
     ('tip_frame', str, ''), ('num_solutions', int, 16),
     ('max_solutions_cap', int, 64), ('position_tolerance', float, 1e-4),
     ('orientation_tolerance', float, 1e-3), ('one_per_family', bool, False),
@@ -33,10 +33,13 @@ EXPECTED = [
     ('goal_marker_rate', float, 10.0), ('command_format', str, 'none'),
     ('command_topic', str, '~/command'), ('solver_processes', int, 0),
     ('max_obstacles', int, 256), ('max_waypoints', int, 2000), ('shutdown_grace', float, 1.0),
-    ('robot_description', str, ''),
+    ('robot_description', str, ''), ('learning', bool, True),
+    ('learning_time', float, 1800.0), ('learning_rows', int, 3_000_000), ('cache_dir', str, ''),
+    ('sweep_time', float, 3.0),
     ('lifecycle', bool, False)]
 READ_ONLY = {'robot', 'model_dir', 'base_frame', 'tip_frame', 'solver_processes',
-             'robot_description', 'lifecycle', 'command_format', 'command_topic'}
+             'robot_description', 'lifecycle', 'command_format', 'command_topic', 'learning',
+             'learning_time', 'learning_rows', 'cache_dir', 'sweep_time'}
 
 
 def yaml_parameters():
@@ -158,7 +161,9 @@ def test_panda_yaml_values_are_valid():
 # -- validate -----------------------------------------------------------------------------------
 
 @pytest.mark.parametrize('changes, message', [
-    ({'robot': '', 'model_dir': ''}, 'robot and model_dir are both empty'),
+    ({'robot': '', 'model_dir': '', 'robot_description': '<robot name="a"/>'},
+     'an arm from robot_description needs base_frame and tip_frame'),
+    ({'learning_time': 10.0}, 'learning_time must be in [30, 86400] s; got 10.0'),
     ({'solver_processes': 17}, 'solver_processes must be in 0..16; got 17'),
     ({'max_solutions_cap': 0}, 'max_solutions_cap must be in 1..1024; got 0'),
     ({'num_solutions': 65}, 'num_solutions must be in 1..max_solutions_cap (64); got 65'),
@@ -177,6 +182,7 @@ def test_validate_rejects_with_a_reason(changes, message):
 def test_validate_accepts_edges():
     """Closed upper bounds and a model_dir instead of robot are fine."""
     for changes in ({'robot': '', 'model_dir': '/some/bundle'}, {'timeout': 60.0},
+                    {'robot': '', 'model_dir': ''},  # the robot_description topic's arm
                     {'num_solutions': 3, 'max_solutions_cap': 3}, {'solver_processes': 16},
                     {'orientation_tolerance': math.pi}, {'position_tolerance': 0.1}):
         assert validate(dataclasses.replace(NodeParams(), **changes)) is None, changes
