@@ -1,0 +1,241 @@
+r"""From robot_description to exact answers: sik_node on arms it has never seen, then restarted.
+
+For each arm (an example-robot-data URDF, or a tree of two UR5 arms with one arm's frames), a
+node is started with only ``robot_description``, ``base_frame`` and ``tip_frame`` (and an empty
+cache folder) and timed over ROS 2 from its start to:
+
+- ``first exact``: the first SUCCESS answer to a reachable pose goal (polled every 20 ms);
+- ``learned``: the learned model swapped in (``/diagnostics``: model ``learned``), the
+  background build given ``--learning-time`` seconds and ``--learning-rows`` configurations;
+- on a restart with the same cache: ``restart exact`` (the first SUCCESS answer) and
+  ``restart learned`` (the node's log says it serves the learned bundle, from its start).
+
+In each phase (the table of configurations, the learned model) the same targets (FK of random
+configurations, seeded) are asked over ROS, 16 solutions each, pose and position goals:
+success, distinct exact solutions (median, p10) and round-trip time (median). While the model
+trains, ``~/solve_ik``'s p50 is compared with the build running and paused (SIGSTOP on its
+process group), block by block (A B A B), on one-solution pose goals: the build's cost to the
+service.
+
+    python bench/first_answer.py --arms panda,ur5,xarm7,kinova,so100,z1,tree \
+        --json docs/results/first_answer.json
+"""
+
+import argparse
+import json
+import os
+from pathlib import Path
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+
+os.environ.setdefault('OMP_NUM_THREADS', '1')
+
+import numpy as np  # noqa: E402
+import rclpy  # noqa: E402
+import yaml  # noqa: E402
+
+from sik_ros.kinematics.robots import KNOWN_FRAMES, load_robot  # noqa: E402
+from sik_ros.ros import launch  # noqa: E402
+from sik_ros.ros.client import pose_request, SolveIKClient  # noqa: E402
+from sik_ros.solver.ranking import distinct_mask  # noqa: E402
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / 'test'))
+from arm_urdfs import erd_share, erd_text, two_arm_text  # noqa: E402,I100 (test/arm_urdfs.py)
+from report import add_json_argument, write_json  # noqa: E402 (bench/report.py)
+
+#: Frames of the arms whose own choice is not the inferred one (else inferred as sik-build does).
+FRAMES = dict(KNOWN_FRAMES, tree=('left_base_link', 'left_tool0'))
+
+
+def arm_source(name: str):
+    """The description text, the frames and a Robot of the chain, for an arm name."""
+    if name == 'tree':
+        text = two_arm_text()
+        with tempfile.NamedTemporaryFile('w', suffix='.urdf', delete=False) as f:
+            f.write(text)
+        robot = load_robot('', f.name, *FRAMES['tree'])
+        return text, FRAMES['tree'], robot
+    robot = load_robot(name, None, *FRAMES.get(name, (None, None)))
+    return erd_text(name), (robot.base_frame, robot.tip_frame), robot
+
+
+def start(args, env, text, frames, cache, log):
+    """The node, with a parameter file of only the arm's parameters."""
+    values = {'robot_description': text, 'base_frame': frames[0], 'tip_frame': frames[1],
+              'cache_dir': str(cache), 'learning_time': args.learning_time,
+              'learning_rows': args.learning_rows}
+    params = Path(cache).parent / f'params_{time.monotonic_ns()}.yaml'
+    params.write_text(yaml.safe_dump({'/**': {'ros__parameters': values}}))
+    return subprocess.Popen([sys.executable, '-m', 'sik_ros.ros.run', '--ros-args',
+                             '--params-file', str(params)], env=env, stdout=log,
+                            stderr=subprocess.STDOUT)
+
+
+def first_exact(client, goal, started, timeout=120.0):
+    """Seconds from ``started`` to the first SUCCESS answer to ``goal`` (None: none came)."""
+    while time.monotonic() - started < timeout:
+        if not client.wait_for_service(0.02):
+            continue
+        answer = client.call(pose_request(*goal, max_solutions=1), timeout=5.0)
+        if answer is not None and answer.error_code == 1:
+            return time.monotonic() - started
+        time.sleep(0.02)
+    return None
+
+
+def phase(client, robot, targets):
+    """Success, distinct exact solutions and round-trip times of 16-solution calls, per goal."""
+    out = {}
+    for kind in ('pose', 'position'):
+        ok, distinct, times = 0, [], []
+        for p, quat in targets:
+            t0 = time.perf_counter()
+            answer = client.call(pose_request(p, quat if kind == 'pose' else None, 16),
+                                 timeout=10.0)
+            times.append(time.perf_counter() - t0)
+            good = answer is not None and answer.error_code == 1
+            ok += good
+            q = np.array([s.joint_state.position for s in answer.solutions]) if good else []
+            distinct.append(int(distinct_mask(q, 0.5, False).sum()) if len(q) else 0)
+        out[kind] = {'targets': len(targets), 'success': ok / len(targets),
+                     'distinct_median': float(np.median(distinct)),
+                     'distinct_p10': float(np.percentile(distinct, 10)),
+                     'time_median_ms': 1e3 * float(np.median(times))}
+    return out
+
+
+def build_pid(cache):
+    """The background build's process (its group's leader), or None."""
+    for progress in Path(cache).rglob('build/progress.json'):
+        try:
+            pid = int(json.loads(progress.read_text())['pid'])
+            os.kill(pid, 0)
+            return pid
+        except (OSError, ValueError, KeyError):
+            return None
+    return None
+
+
+def training_cost(client, targets, cache, blocks=6, per_block=15):
+    """p50 [ms] of one-solution pose calls with the build running and paused, A B A B.
+
+    Measured once the build trains (its progress says ``train``), in the build's longest stage.
+    """
+    deadline = time.monotonic() + 120
+    while time.monotonic() < deadline and not any(
+            '"train"' in p.read_text() for p in Path(cache).rglob('build/progress.json')):
+        time.sleep(0.2)
+    running, paused = [], []
+    for b in range(2 * blocks):
+        pid = build_pid(cache)
+        if pid is None:
+            break
+        stop = b % 2 == 1
+        if stop:
+            os.killpg(pid, signal.SIGSTOP)
+        try:
+            for p, quat in targets[:per_block]:
+                t0 = time.perf_counter()
+                client.call(pose_request(p, quat, 1), timeout=10.0)
+                (paused if stop else running).append(time.perf_counter() - t0)
+        finally:
+            if stop:
+                os.killpg(pid, signal.SIGCONT)
+    if not running or not paused:
+        return None
+    r, s = 1e3 * float(np.median(running)), 1e3 * float(np.median(paused))
+    return {'running_p50_ms': r, 'paused_p50_ms': s, 'ratio': r / s, 'calls': len(running)}
+
+
+def log_seconds(log: Path, words: str, started_wall: float):
+    """Seconds from the start to the node's first log line holding ``words`` (None if none)."""
+    for line in log.read_text(errors='replace').splitlines():
+        if words in line and line.startswith('[INFO] ['):
+            return float(line.split('[')[2].split(']')[0]) - started_wall
+    return None
+
+
+def bench_arm(args, name, env, folder):
+    """One arm's figures (see the module)."""
+    text, frames, robot = arm_source(name)
+    cache = folder / name / 'cache'
+    cache.mkdir(parents=True)
+    rng = np.random.default_rng(args.seed)
+    q = rng.uniform(robot.lower, robot.upper, (args.targets, robot.dof))
+    targets = [tuple(map(tuple, robot.fk(qi))) for qi in q]
+    log = folder / name / 'node.log'
+    row = {'arm': name, 'joints': robot.dof, 'frames': list(frames)}
+    with SolveIKClient() as client, open(log, 'wb') as out:
+        started = time.monotonic()
+        proc = start(args, env, text, frames, cache, out)
+        try:
+            row['first_exact_s'] = first_exact(client, targets[0], started)
+            row['table'] = phase(client, robot, targets)
+            row['training_cost'] = training_cost(client, targets, cache)
+            deadline = started + args.learning_time * 3 + 120
+            while time.monotonic() < deadline and \
+                    'learned model swapped in' not in log.read_text(errors='replace'):
+                time.sleep(0.5)
+            if 'learned model swapped in' in log.read_text(errors='replace'):
+                row['learned_s'] = time.monotonic() - started
+                row['learned'] = phase(client, robot, targets)
+        finally:
+            launch.stop_node(proc)
+    restart_log = folder / name / 'restart.log'
+    with SolveIKClient() as client, open(restart_log, 'wb') as out:
+        wall, started = time.time(), time.monotonic()
+        proc = start(args, env, text, frames, cache, out)
+        try:
+            row['restart_exact_s'] = first_exact(client, targets[0], started)
+        finally:
+            launch.stop_node(proc)
+    row['restart_learned_s'] = log_seconds(restart_log, 'from its learned bundle', wall)
+    return row
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
+    parser.add_argument('--arms', default='panda,ur5,xarm7,kinova,so100,z1,tree')
+    parser.add_argument('--targets', type=int, default=50)
+    parser.add_argument('--learning-time', type=float, default=120.0)
+    parser.add_argument('--learning-rows', type=int, default=300_000)
+    parser.add_argument('--seed', type=int, default=11)
+    add_json_argument(parser)
+    args = parser.parse_args()
+    env = dict(launch.ros_env(), ROS_PACKAGE_PATH=erd_share())
+    os.environ['ROS_PACKAGE_PATH'] = env['ROS_PACKAGE_PATH']
+    rclpy.init()
+    rows = []
+    with tempfile.TemporaryDirectory(prefix='sik_first_answer_') as tmp:
+        for name in args.arms.split(','):
+            row = bench_arm(args, name, env, Path(tmp))
+            rows.append(row)
+            print(json.dumps(row), flush=True)
+    rclpy.try_shutdown()
+    print('| arm | joints | first exact [s] | learned [s] | restart exact [s] | restart '
+          'learned [s] | pose: success, distinct (p10), ms table / learned | p50 while '
+          'training / paused [ms] |')
+    for r in rows:
+        t, lrn, c = r.get('table', {}).get('pose', {}), r.get('learned', {}).get('pose', {}), \
+            r.get('training_cost') or {}
+        print(f'| {r["arm"]} | {r["joints"]} | {r.get("first_exact_s") or float("nan"):.2f} | '
+              f'{r.get("learned_s") or float("nan"):.0f} | '
+              f'{r.get("restart_exact_s") or float("nan"):.2f} | '
+              f'{r.get("restart_learned_s") or float("nan"):.2f} | '
+              f'{100 * t.get("success", 0):.0f} %, {t.get("distinct_median", 0):.0f} '
+              f'({t.get("distinct_p10", 0):.0f}), {t.get("time_median_ms", 0):.2f} / '
+              f'{100 * lrn.get("success", 0):.0f} %, {lrn.get("distinct_median", 0):.0f} '
+              f'({lrn.get("distinct_p10", 0):.0f}), {lrn.get("time_median_ms", 0):.2f} | '
+              f'{c.get("running_p50_ms", float("nan")):.2f} / '
+              f'{c.get("paused_p50_ms", float("nan")):.2f} |')
+    write_json(args.json, 'first_answer', {'arms': rows, 'settings': {
+        'learning_time_s': args.learning_time, 'learning_rows': args.learning_rows,
+        'targets': args.targets, 'seed': args.seed}})
+
+
+if __name__ == '__main__':
+    main()
