@@ -44,8 +44,9 @@ from sik_ros.solver.ranking import distinct_mask  # noqa: E402
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / 'test'))
-from arm_urdfs import erd_share, erd_text, two_arm_text  # noqa: E402,I100 (test/arm_urdfs.py)
-from report import add_json_argument, write_json  # noqa: E402 (bench/report.py)
+from report import add_json_argument, write_json  # noqa: E402,I100 (bench/report.py)
+
+from arm_urdfs import erd_share, erd_text, two_arm_text  # noqa: E402,I100,I202 (test/)
 
 #: Frames of the arms whose own choice is not the inferred one (else inferred as sik-build does).
 FRAMES = dict(KNOWN_FRAMES, tree=('left_base_link', 'left_tool0'))

@@ -1,4 +1,4 @@
-"""URDF texts for the tests of arms from robot_description: example-robot-data arms, trees, bad ones."""
+"""URDF texts for the tests of arms from robot_description: example-robot-data, trees, bad ones."""
 
 from pathlib import Path
 import re
@@ -17,7 +17,7 @@ def erd_share() -> str:
 
 
 def chain_text(joints: int, name: str = 'snake', kind: str = 'revolute') -> str:
-    """A serial chain of ``joints`` joints of ``kind`` from ``base`` to ``tip`` (boxes as links)."""
+    """A serial chain of ``joints`` joints of ``kind`` from ``base`` to ``tip`` (box links)."""
     links = ['<link name="base"/>'] + [
         f'<link name="l{i}"><collision><geometry><box size="0.04 0.04 0.1"/></geometry>'
         f'</collision></link>' for i in range(joints)] + ['<link name="tip"/>']

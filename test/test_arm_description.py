@@ -53,7 +53,7 @@ BAD = {
 
 @pytest.mark.parametrize('case', sorted(BAD))
 def test_bad_descriptions_are_refused_and_write_nothing(case, tmp_path):
-    """Each bad description or chain raises a SikError naming the problem; the cache stays empty."""
+    """Each bad description or chain raises a SikError naming it; the cache stays empty."""
     text, base, tip, words = BAD[case]
     text = erd_text('ur5') if text is None else text
     with pytest.raises(SikError) as err:

@@ -115,7 +115,7 @@ def arm_env(graph):
 
 
 def test_topic_arm_answers_learns_and_follows(arm_env, tmp_path):
-    """No description: NO_ROBOT; bad one: refused, nothing cached; UR5: exact, learned, followed."""
+    """No description: NO_ROBOT; a bad one: refused, none cached; UR5: exact, learned, followed."""
     env, node = arm_env
     ur5 = load_robot('ur5', None, *FRAMES)
     cache = tmp_path / 'cache'

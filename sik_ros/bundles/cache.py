@@ -111,7 +111,7 @@ class ArmEntry:
         return self.bundle
 
     def set_aside(self, reason: str) -> Path:
-        """Rename a damaged bundle out of the way (never loaded again), with the reason beside it."""
+        """Rename a damaged bundle out of the way (never loaded again), its reason beside it."""
         aside = self.path / f'bundle.damaged-{time.strftime("%Y%m%dT%H%M%S")}-{os.getpid()}'
         os.replace(self.bundle, aside)
         (aside.parent / f'{aside.name}.reason.txt').write_text(reason + '\n')

@@ -190,7 +190,7 @@ class NodeDiagnostics:
             return node.mismatch
         if node.follower is not None:
             return node.no_robot or 'served'
-        if not (node.params.robot_description or node.robot_description_seen):
+        if not (node.params.robot_description or node.description_check.description):
             return 'not given'
         return 'matches the bundle' if node.ik is not None else 'not checked (no bundle)'
 

@@ -12,12 +12,18 @@ whose best solution is farther from the seed than ``goal_max_joint_step`` in any
 the joint velocity limits times the goal period away from the last command
 (:class:`~sik_ros.serving.stream.ServoState`). Markers are drawn at most ``goal_marker_rate``
 times a second.
+
+The stream takes a narrow :class:`StreamPort` of its node (solvers, parameters, the seed,
+publishing markers, the guard and the clock), not the node; one clock, the node's ROS clock,
+stamps the goals' arrival and times the servo (``joint_states`` arrival times are system time,
+the same clock unless ``use_sim_time``).
 """
 
+from dataclasses import dataclass
 import math
 import threading
 import time
-from typing import Optional
+from typing import Any, Callable, Optional, Tuple
 
 from builtin_interfaces.msg import Time
 from geometry_msgs.msg import PoseStamped
@@ -30,7 +36,7 @@ from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 from sik_interfaces.msg import IKSolutionArray
 from sik_interfaces.srv import SolveIK
 from sik_ros.ros import conversions as conv
-from sik_ros.ros.ik_service import solution_msgs
+from sik_ros.ros.ik_service import Arm, checked_goal, solution_msgs
 from sik_ros.ros.side_node import side_node, take_newest
 from sik_ros.serving.stream import LatestGoal, max_joint_step, ServoState
 
@@ -47,25 +53,56 @@ def _stamp_seconds(stamp: Time) -> float:
     return stamp.sec + stamp.nanosec * 1e-9
 
 
-class GoalStream:
-    """The ``~/goal`` subscription and the thread that answers it, for one :class:`SikNode`."""
+@dataclass(frozen=True)
+class StreamPort:
+    """What the goal stream uses of its node.
 
-    def __init__(self, node) -> None:
+    Attributes:
+        params: the parameters in force.
+        arm: the served arm (joint names, base frame), or None.
+        solvers: where to solve, or None.
+        measured: the latest ``joint_states`` as a seed (clipped to the limits) and when it
+            arrived [s]; Nones for none.
+        answer: the node's request guard (``RequestGuard.answer``): refusals, codes, counts.
+        closing: whether the node is shutting down.
+        markers: draws solutions on ``~/markers`` when someone listens
+            (``markers(solutions, header, position, orientation)``); returns whether it did.
+        clock: the node's clock [s] (ROS time).
+        logger: the node's logger.
+    """
+
+    params: Callable[[], Any]
+    arm: Callable[[], Optional[Arm]]
+    solvers: Callable[[], Any]
+    measured: Callable[[], Tuple[Optional[np.ndarray], Optional[float]]]
+    answer: Callable[..., Any]
+    closing: Callable[[], bool]
+    markers: Callable[..., bool]
+    clock: Callable[[], float]
+    logger: Any
+
+
+class GoalStream:
+    """The ``~/goal`` subscription and the thread that answers it, for one node."""
+
+    def __init__(self, node, port: StreamPort) -> None:
         """Subscribe to ``~/goal`` and start the answering thread.
 
         Args:
-            node: the :class:`~sik_ros.ros.node.SikNode` (its solvers, parameters and guard).
+            node: the ROS node the topics belong to (publishers and the subscription only).
+            port: what the answers use of the node.
         """
-        self.node = node
+        self.port = port
         self.mailbox: LatestGoal = LatestGoal()
         self.servo: Optional[ServoState] = None
         self._answers_pub = node.create_publisher(IKSolutionArray, '~/solutions', 10)
         self._command_pub = None
-        self._format = node.params.command_format
+        params = port.params()
+        self._format = params.command_format
         if self._format != 'none':
             kind = (Float64MultiArray if self._format == 'float64_multi_array'
                     else JointTrajectory)
-            self._command_pub = node.create_publisher(kind, node.params.command_topic, 10)
+            self._command_pub = node.create_publisher(kind, params.command_topic, 10)
         self._last_markers = -math.inf
         self.commands = 0
         # The subscription is a node of its own, spun by the answering thread: a goal is taken
@@ -91,7 +128,7 @@ class GoalStream:
         Returns:
             Whether there was a goal.
         """
-        arrived = time.monotonic()
+        arrived = self.port.clock()
         newest, _, count = take_newest(self._sub, PoseStamped)
         skipped = count if msg is not None else count - 1
         msg = newest if newest is not None else msg
@@ -103,7 +140,7 @@ class GoalStream:
     def reset(self, velocity_limits: Optional[np.ndarray]) -> None:
         """Start a new stream (a bundle loaded: its velocity limits; None: unloaded)."""
         self.servo = (None if velocity_limits is None
-                      else ServoState(velocity_limits, clock=time.time))
+                      else ServoState(velocity_limits, clock=self.port.clock))
 
     # -- the answering thread ---------------------------------------------------------------------
 
@@ -121,16 +158,16 @@ class GoalStream:
             try:
                 self._answer(msg, arrived, replaced)
             except Exception as exc:  # the stream goes on whatever one answer does
-                self.node.get_logger().error(
+                self.port.logger.error(
                     f'goal: answering failed: {type(exc).__name__}: {exc}',
                     throttle_duration_sec=5.0)
 
     def _answer(self, msg: PoseStamped, arrived: float, replaced: int) -> None:
-        node = self.node
+        port = self.port
         out = IKSolutionArray(header=msg.header, goals_replaced=replaced, joint_step=-1.0)
-        response = node.guard.answer('goal', SolveIK.Response(),
-                                     lambda r: self._solve(msg, arrived, out))
-        if node.closing:
+        response = port.answer('goal', SolveIK.Response(),
+                               lambda r: self._solve(msg, arrived, out))
+        if port.closing():
             return
         out.error_code, out.message = response.error_code, response.message
         if response.error_code not in (R.SUCCESS, R.JOINT_JUMP):
@@ -139,19 +176,18 @@ class GoalStream:
 
     def _solve(self, msg: PoseStamped, arrived: float, out: IKSolutionArray):
         """Solve one goal into ``out``; its code and message (raises on bad input)."""
-        node = self.node
-        p, arm, servo = node.params, node.arm, self.servo
-        if servo is None or arm is None:
+        port = self.port
+        p, arm, servo, solvers = port.params(), port.arm(), self.servo, port.solvers()
+        if servo is None or arm is None or solvers is None:
             return R.TIMEOUT, 'sik_node has no bundle loaded'
-        arm.check_frame(msg.header.frame_id, 'goal')
-        position, orientation = conv.goal_from_pose(msg.pose, p.goal_use_orientation)
+        position, orientation = checked_goal(arm, msg, p.goal_use_orientation, 'goal')
         if p.use_joint_states:
-            state, received = node.joint_states.latest()
+            state, received = port.measured()
             if received is not None and received > servo.measured_at:
-                servo.measured(node.seed_from_state(state), received)  # newer than the one in use
+                servo.measured(state, received)  # newer than the one in use
         seed = servo.seed()
-        result = node.solvers.solve(position, orientation, p.goal_num_solutions, seed=seed,
-                                    refine=p.refine, timeout=p.goal_timeout)
+        result = solvers.solve(position, orientation, p.goal_num_solutions, seed=seed,
+                               refine=p.refine, timeout=p.goal_timeout)
         code, text = conv.result_code(result, False, p.goal_timeout)
         out.solutions = solution_msgs(result, arm, msg.header)
         out.num_families = int(result.num_families)
@@ -182,7 +218,7 @@ class GoalStream:
         period = servo.period(goal_time)
         target = servo.command(q, goal_time)
         if target is None:
-            self.node.get_logger().warning(
+            self.port.logger.warning(
                 'command output: no joint_states and no command yet, so the first step cannot '
                 'be bounded: not commanding (set use_joint_states:=true)',
                 throttle_duration_sec=5.0)
@@ -193,18 +229,18 @@ class GoalStream:
         else:
             point = JointTrajectoryPoint(positions=values,
                                          time_from_start=conv.duration_from_seconds(period))
-            pub.publish(JointTrajectory(joint_names=list(self.node.arm.joint_names),
+            arm = self.port.arm()
+            pub.publish(JointTrajectory(joint_names=list(arm.joint_names) if arm else [],
                                         points=[point]))
         self.commands += 1
 
     def _markers(self, result, header: Header, position, orientation) -> None:
-        node = self.node
-        rate = node.params.goal_marker_rate
+        rate = self.port.params().goal_marker_rate
         now = time.monotonic()
-        if rate <= 0 or now - self._last_markers < 1.0 / rate or not node.want_markers():
+        if rate <= 0 or now - self._last_markers < 1.0 / rate:
             return
-        self._last_markers = now
-        node.publish_markers(result.solutions, header, position, orientation)
+        if self.port.markers(result.solutions, header, position, orientation):
+            self._last_markers = now
 
     def close(self) -> None:
         """Stop the answering thread (it finishes the answer in hand) and its node."""

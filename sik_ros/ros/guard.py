@@ -10,6 +10,7 @@ not be filled is replaced by a fresh one carrying the code.
 """
 
 from contextlib import contextmanager
+import logging
 import threading
 import time
 import traceback
@@ -117,3 +118,18 @@ class RequestGuard:
         finally:
             with self._lock:
                 self._in_flight -= 1
+
+
+def log_at(logger, level: int, message: str) -> None:
+    """Log ``message`` on an rclpy logger at a :mod:`logging` level.
+
+    One call site per severity: rclpy refuses a call site whose severity changes.
+    """
+    if level >= logging.ERROR:
+        logger.error(message)
+    elif level >= logging.WARNING:
+        logger.warning(message)
+    elif level >= logging.INFO:
+        logger.info(message)
+    else:
+        logger.debug(message)

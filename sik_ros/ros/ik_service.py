@@ -8,7 +8,7 @@ into its code.
 """
 
 from dataclasses import dataclass
-from typing import Callable, Optional, Sequence
+from typing import Callable, Optional, Sequence, Tuple
 
 import numpy as np
 from std_msgs.msg import Header
@@ -86,9 +86,8 @@ def solve_request(solvers: Solver, arm: Arm, request: SolveIK.Request, p: NodePa
         SikError: bad input (its code: :func:`~sik_ros.ros.conversions.error_code_for`), or no
             solver free in time.
     """
-    arm.check_frame(request.target.header.frame_id, 'target')
+    position, orientation = checked_goal(arm, request.target, request.use_orientation, 'target')
     num, note = conv.solution_count(request.max_solutions, p.num_solutions, p.max_solutions_cap)
-    position, orientation = conv.goal_from_pose(request.target.pose, request.use_orientation)
     seed = conv.seed_from_joint_state(request.seed, arm.joint_names)
     if seed is None and p.use_joint_states:
         seed = state_seed()
@@ -99,6 +98,22 @@ def solve_request(solvers: Solver, arm: Arm, request: SolveIK.Request, p: NodePa
                            refine=p.refine, timeout=timeout)
     code, text = conv.result_code(result, bool(obstacles), timeout)
     return Answer(code, '; '.join(t for t in (text, note) if t), result, position, orientation)
+
+
+def checked_goal(arm: Arm, target, use_orientation: bool, what: str
+                 ) -> Tuple[np.ndarray, Optional[np.ndarray]]:
+    """A goal (a ``PoseStamped``) checked: in the arm's base frame, finite, a unit quaternion.
+
+    The one check of ``~/solve_ik`` targets and ``~/goal`` goals.
+
+    Returns:
+        the position [m] and the quaternion x y z w (None for a position goal).
+
+    Raises:
+        InvalidFrame, InvalidGoal: another frame, or a bad pose (naming ``what``).
+    """
+    arm.check_frame(target.header.frame_id, what)
+    return conv.goal_from_pose(target.pose, use_orientation)
 
 
 def solution_msgs(result: IKResult, arm: Arm, header: Header) -> list:

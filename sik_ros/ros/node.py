@@ -7,17 +7,16 @@ goal first: :mod:`~sik_ros.ros.goal_stream`), ``joint_states`` (optional seed), 
 (the ``sik_node`` command): ``sik_node --ros-args --params-file config/panda.yaml``. See
 docs/interfaces.md.
 
-The node is wiring: its constructor declares the parameters, loads the bundle, starts the
-solvers (:func:`~sik_ros.serving.solvers.make_solvers`) and creates the ROS interfaces; each
-callback hands its request to :class:`~sik_ros.ros.guard.RequestGuard` with a handler from
-:mod:`~sik_ros.ros.ik_service` or :mod:`~sik_ros.ros.path_service`. A
-:class:`~sik_ros.ros.executor.SlottedExecutor` runs the callbacks in a reentrant callback group;
-``~/goal`` is answered by a thread of its own (:class:`~sik_ros.ros.goal_stream.GoalStream`).
+The node is wiring: its constructor declares the parameters, loads the bundle named by
+``robot`` or ``model_dir`` (:mod:`~sik_ros.ros.named_bundle`) or follows the arm of
+robot_description (:mod:`~sik_ros.ros.arm_follower`), starts the solvers and creates the ROS
+interfaces; each callback hands its request to :class:`~sik_ros.ros.guard.RequestGuard` with a
+handler from :mod:`~sik_ros.ros.ik_service` or :mod:`~sik_ros.ros.path_service`; ``~/goal`` is
+answered by a thread of its own (:class:`~sik_ros.ros.goal_stream.GoalStream`).
 """
 
 from dataclasses import fields, replace
 import gc
-import logging
 import threading
 from typing import List, Optional
 
@@ -34,14 +33,14 @@ from visualization_msgs.msg import MarkerArray
 
 from sik_interfaces.srv import SolveIK, SolvePath
 from sik_ros.errors import SikError
-from sik_ros.kinematics.robots import chain_differences
 from sik_ros.ros import conversions as conv
 from sik_ros.ros.arm_follower import ArmFollower
 from sik_ros.ros.diagnostics import NodeDiagnostics
-from sik_ros.ros.goal_stream import GoalStream
-from sik_ros.ros.guard import RequestGuard
+from sik_ros.ros.goal_stream import GoalStream, StreamPort
+from sik_ros.ros.guard import log_at, RequestGuard
 from sik_ros.ros.ik_service import Arm, solution_msgs, solve_request, solver_settings
 from sik_ros.ros.joint_states import JointStateTap
+from sik_ros.ros.named_bundle import DescriptionCheck, load_named, StartupError
 from sik_ros.ros.params import declarations, NodeParams, validate
 from sik_ros.ros.path_service import path_markers, solve_path_request
 from sik_ros.serving.pool import single_threaded
@@ -64,10 +63,6 @@ RETIRE_AFTER = 10.0
 #: Period of the check on the background learning [s].
 LEARNING_POLL = 1.0
 Response = SolveIK.Response
-
-
-class StartupError(SikError):
-    """The node cannot start: bad parameters or an unusable bundle."""
 
 
 class SikNode(Node):
@@ -96,9 +91,10 @@ class SikNode(Node):
         self._ik: Optional[SelectiveIK] = None
         self.arm: Optional[Arm] = None
         self.solvers: Optional[Solver] = None
-        #: why requests are refused: the robot_description topic's chain differs from the bundle's
-        self._mismatch: Optional[str] = None
-        self._description: Optional[str] = None
+        #: the robot_description topic held to a bundle named by robot or model_dir
+        self.description_check = DescriptionCheck(Response.ROBOT_MISMATCH,
+                                                  self.get_logger().info,
+                                                  self.get_logger().error)
         #: why no arm is served (an arm from robot_description not yet, or not, servable)
         self._no_robot: Optional[str] = None
         p = self._params
@@ -106,7 +102,7 @@ class SikNode(Node):
         self.follower = None if (p.robot or p.model_dir) else ArmFollower(
             self, p, self.get_logger().info, self.get_logger().error)
         self.guard = RequestGuard(self.get_logger())
-        self.guard.refusals.append(self._mismatch_refusal)
+        self.guard.refusals.append(self.description_check.refusal)
         self.guard.refusals.append(self._no_robot_refusal)
         self.diagnostics = NodeDiagnostics(self)
         self.goal_stream: Optional[GoalStream] = None
@@ -136,13 +132,12 @@ class SikNode(Node):
                             f'on {self.resolve_topic_name("robot_description")})')
                 self.get_logger().info(self._no_robot)
             return
-        ik = self._load(self._params)
+        ik = load_named(self._params, solver_settings(self._params))
         try:
             self.install(ik, self._params.solver_processes)
         except SikError as exc:
             raise StartupError(f'cannot start the solver processes: {exc}') from exc
-        if self._description is not None:
-            self._check_description(self._description)
+        self.description_check.check(ik)
         self.get_logger().info(
             f'ready: bundle {ik.bundle} ({", ".join(ik.goals)} goals, '
             f'{len(ik.joint_names)} joints {ik.robot.base_frame} -> '
@@ -180,23 +175,19 @@ class SikNode(Node):
         return SolverConfig(**solver_settings(self._params))
 
     def _no_robot_refusal(self):
-        return None if self._no_robot is None else (Response.NO_ROBOT, self._no_robot)
+        return (Response.NO_ROBOT, self._no_robot) if self._no_robot else None
 
     @property
     def no_robot(self) -> Optional[str]:
         """Why no arm is served (requests refused ``NO_ROBOT``), or None."""
         return self._no_robot
 
-    def _poll_learning(self) -> None:
-        if self.follower is not None and not self.closing:
-            self.follower.poll()
-
     def stop(self) -> None:
         """Stop the solvers and let go of the bundle (its models are freed)."""
         if self.follower is not None:
             self.follower.close()
         solvers, self.solvers = self.solvers, None
-        self._ik, self.arm, self._mismatch = None, None, None
+        self._ik, self.arm, self.description_check.mismatch = None, None, None
         if self.goal_stream is not None:
             self.goal_stream.reset(None)
         if solvers is not None:
@@ -211,7 +202,7 @@ class SikNode(Node):
                             callback_group=group)
         self.create_service(SolvePath, '~/solve_path', self._on_solve_path,
                             qos_profile=requests, callback_group=group)
-        self.goal_stream = GoalStream(self)
+        self.goal_stream = GoalStream(self, self._stream_port())
         if self._ik is not None:
             self.goal_stream.reset(self._ik.robot.velocity_limits)
         self._update_joint_state_subscription()
@@ -219,23 +210,28 @@ class SikNode(Node):
                              reliability=ReliabilityPolicy.RELIABLE)
         self.create_subscription(String, 'robot_description', self._on_robot_description,
                                  latched, callback_group=group)
-        if self.follower is not None:
-            self.create_timer(LEARNING_POLL, self._poll_learning, callback_group=group)
+        if self.follower is not None:  # the background learning: its progress, its model
+            self.create_timer(LEARNING_POLL, self.follower.poll, callback_group=group)
+
+    def _stream_port(self) -> StreamPort:
+        """What the goal stream uses of this node."""
+        def measured():
+            state, received = self.joint_states.latest()
+            return (None, None) if state is None else (self.seed_from_state(state), received)
+
+        def markers(solutions, header, position, orientation) -> bool:
+            if not self.want_markers():
+                return False
+            self.publish_markers(solutions, header, position, orientation)
+            return True
+
+        return StreamPort(lambda: self._params, lambda: self.arm, lambda: self.solvers,
+                          measured, self.guard.answer, lambda: self.closing, markers,
+                          lambda: self.get_clock().now().nanoseconds * 1e-9, self.get_logger())
 
     def _log(self, level: int, message: str) -> None:
-        """Log at a :mod:`logging` level (the solver pool's reports).
-
-        One call site per severity: rclpy refuses a call site whose severity changes.
-        """
-        logger = self.get_logger()
-        if level >= logging.ERROR:
-            logger.error(message)
-        elif level >= logging.WARNING:
-            logger.warning(message)
-        elif level >= logging.INFO:
-            logger.info(message)
-        else:
-            logger.debug(message)
+        """Log at a :mod:`logging` level (the solver pool's reports)."""
+        log_at(self.get_logger(), level, message)
 
     # -- parameters ------------------------------------------------------------------------------
 
@@ -275,52 +271,11 @@ class SikNode(Node):
 
     # -- the bundle ------------------------------------------------------------------------------
 
-    def _load(self, p: NodeParams) -> SelectiveIK:
-        bundle = p.model_dir or p.robot
-        try:
-            ik = SelectiveIK.load(bundle)
-        except SikError as exc:
-            raise StartupError(f'cannot load the IK bundle {bundle!r}: {exc}') from exc
-        robot = ik.robot
-        for name, value, actual in (('base_frame', p.base_frame, robot.base_frame),
-                                    ('tip_frame', p.tip_frame, robot.tip_frame)):
-            if value and value != actual:
-                raise StartupError(f'parameter {name} is {value!r} but bundle {bundle!r} was '
-                                   f'made for {actual!r}')
-        if p.robot_description:
-            reason = self._differences(robot, p.robot_description)
-            if reason:
-                raise StartupError(f'bundle {bundle!r} does not fit the robot_description: '
-                                   f'{reason}')
-        return ik.with_config(**solver_settings(p))
-
-    @staticmethod
-    def _differences(robot, urdf: str) -> str:
-        """How a URDF's chain differs from the bundle's robot ('' if it does not)."""
-        try:
-            return '; '.join(chain_differences(robot, urdf))
-        except SikError as exc:
-            return str(exc)
-
     def _on_robot_description(self, msg: String) -> None:
         if self.follower is not None:
             self.follower.take(msg.data, 'topic')
-            return
-        self._description = msg.data
-        if self._ik is not None:
-            self._check_description(msg.data)
-
-    def _check_description(self, urdf: str) -> None:
-        reason = self._differences(self._ik.robot, urdf)
-        self._mismatch = (f'the bundle {self._ik.bundle} does not fit the robot_description '
-                          f'topic: {reason}') if reason else None
-        if reason:
-            self.get_logger().error(f'{self._mismatch}; refusing requests')
         else:
-            self.get_logger().info('robot_description matches the bundle\'s chain')
-
-    def _mismatch_refusal(self):
-        return None if self._mismatch is None else (Response.ROBOT_MISMATCH, self._mismatch)
+            self.description_check.take(msg.data, self._ik)
 
     # -- public state ----------------------------------------------------------------------------
 
@@ -335,14 +290,9 @@ class SikNode(Node):
         return self._ik
 
     @property
-    def robot_description_seen(self) -> bool:
-        """Whether the robot_description topic has published a URDF."""
-        return self._description is not None
-
-    @property
     def mismatch(self) -> Optional[str]:
         """Why requests are refused (the robot_description differs), or None."""
-        return self._mismatch
+        return self.description_check.mismatch
 
     @property
     def closing(self) -> bool:

@@ -116,7 +116,7 @@ class ServoState:
 
         Args:
             velocity_limits: per joint [rad/s or m/s] (bounds each command step).
-            clock: the monotonic clock [s].
+            clock: the clock of goal stamps and arrivals [s] (the node's ROS clock).
         """
         self.velocity_limits = np.asarray(velocity_limits, float)
         self._clock = clock
