@@ -17,8 +17,11 @@ trains, ``~/solve_ik``'s p50 is compared with the build running and paused (SIGS
 process group), block by block (A B A B), on one-solution pose goals: the build's cost to the
 service.
 
-    python bench/first_answer.py --arms panda,ur5,xarm7,kinova,so100,z1,tree \
+    python bench/first_answer.py --arms panda,ur5,xarm7,kinova,so100,z1,ur10,baxter,tree \
         --json docs/results/first_answer.json
+
+``ur10`` (six joints) and ``baxter`` (the left arm of a two-arm robot) are not among
+``bench/arms.py``'s arms; ``tree`` is two UR5s on a turning torso, served its left arm.
 """
 
 import argparse
@@ -48,8 +51,10 @@ from report import add_json_argument, write_json  # noqa: E402,I100 (bench/repor
 
 from arm_urdfs import erd_share, erd_text, two_arm_text  # noqa: E402,I100,I202 (test/)
 
-#: Frames of the arms whose own choice is not the inferred one (else inferred as sik-build does).
-FRAMES = dict(KNOWN_FRAMES, tree=('left_base_link', 'left_tool0'))
+#: Frames of the arms whose own choice is not the inferred one (else inferred as sik-build does):
+#: Baxter's left arm (a real two-arm tree), and the left arm of two UR5s on one torso.
+FRAMES = dict(KNOWN_FRAMES, tree=('left_base_link', 'left_tool0'),
+              baxter=('left_arm_mount', 'left_wrist'))
 
 
 def arm_source(name: str):
@@ -200,7 +205,7 @@ def bench_arm(args, name, env, folder):
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
-    parser.add_argument('--arms', default='panda,ur5,xarm7,kinova,so100,z1,tree')
+    parser.add_argument('--arms', default='panda,ur5,xarm7,kinova,so100,z1,ur10,baxter,tree')
     parser.add_argument('--targets', type=int, default=50)
     parser.add_argument('--learning-time', type=float, default=120.0)
     parser.add_argument('--learning-rows', type=int, default=300_000)

@@ -532,6 +532,20 @@ def render_summary(results: Dict[str, List[dict]]) -> Optional[str]:
                      f'{s["throughput"][str(s["clients"])]["floor"]:.0f} requests/s',
                      NA if not floor else f'**{num(s["ratio"]["p50"])}** (p50)'])
         sources.append(service)
+    first = results.get('first_answer', [None])[0]
+    if first:
+        arms = first['results']['arms']
+        exact = [a['first_exact_s'] for a in arms if a.get('first_exact_s') is not None]
+        again = [a['restart_exact_s'] for a in arms if a.get('restart_exact_s') is not None]
+        pose = [a['table']['pose']['success'] for a in arms if a.get('table')]
+        if exact and again and pose:
+            rows.append([f'Any arm from `robot_description` ({len(arms)} arms, no bundle): '
+                         f'first exact answer; after a restart (learned model cached); pose '
+                         f'success before the model',
+                         f'{num(min(exact), 1)}-{num(max(exact), 1)} s; '
+                         f'{num(min(again), 1)}-{num(max(again), 1)} s; '
+                         f'{pct(min(pose))}-{pct(max(pose))}', NA, NA])
+            sources.append(first)
     stream = next((d for d in results.get('stream', []) if d['file'] == 'stream'), None)
     if stream:
         rows.append(_stream_summary(stream['results']['rows']))
@@ -672,13 +686,48 @@ def render_service_ab(data: dict) -> str:
             + f'\n\n{b} / {a}, median of the paired per-request ratios: **{num(r["ratio"], 3)}**')
 
 
+def render_first_answer(data: dict) -> str:
+    """``bench/first_answer.py``: an arm from robot_description, from start to its answers."""
+    r = data['results']
+    rows = []
+    for a in r['arms']:
+        t, lrn = a.get('table') or {}, a.get('learned') or {}
+        cost = a.get('training_cost') or {}
+
+        def phase(f: dict) -> str:
+            if not f:
+                return NA
+            return (f'{pct(f["success"])}; {f["distinct_median"]:.0f} '
+                    f'({f["distinct_p10"]:.0f}); {num(f["time_median_ms"])} ms')
+
+        rows.append([f'{a["arm"]} ({a["joints"]})', num(a.get('first_exact_s')),
+                     phase(t.get('pose')), phase(t.get('position')),
+                     num(a.get('learned_s'), 0), phase(lrn.get('pose')),
+                     phase(lrn.get('position')),
+                     num(a.get('restart_learned_s')), num(a.get('restart_exact_s')),
+                     NA if not cost else f'{num(cost["running_p50_ms"])} / '
+                     f'{num(cost["paused_p50_ms"])} ({num(cost["ratio"])}x)'])
+    st = r['settings']
+    return (f'Each arm started with only `robot_description`, `base_frame` and `tip_frame` and '
+            f'an empty cache; the background build given {st["learning_time_s"]:.0f} s and '
+            f'{st["learning_rows"]:,} configurations; {st["targets"]} targets per phase (FK of '
+            f'random configurations, seed {st["seed"]}), 16 solutions asked over ROS. Times '
+            f'from the node's start; a phase's cells: success; distinct exact solutions, '
+            f'median (p10); round trip, median.\n\n'
+            + table(['arm (joints)', 'first exact [s]', 'table: pose', 'table: position',
+                     'learned [s]', 'learned: pose', 'learned: position',
+                     'restart: learned served [s]', 'restart: first exact [s]',
+                     '`~/solve_ik` p50 while it trains / paused [ms]'], rows))
+
+
 RENDER: Dict[str, Callable] = {
     'collect': render_collect, 'solve': render_solve, 'solve_ab': render_ab,
     'arms': render_arms, 'paths': render_paths, 'paths_ab': render_paths_ab,
     'service_probe': render_service_probe, 'soak': render_soak, 'sweep': render_sweep,
     'train_step': render_train_step, 'tracik_protocol': render_tracik_protocol,
     'ablation': render_ablation, 'families': render_families, 'stream': render_stream,
-    'executors': render_executors, 'service_ab': render_service_ab}
+    'executors': render_executors, 'service_ab': render_service_ab,
+    'first_answer': render_first_answer}
 
 
 def load() -> Dict[str, List[dict]]:

@@ -6,6 +6,7 @@ write never leaves something that looks complete under the final name.
 """
 
 import contextlib
+import hashlib
 import json
 import os
 from pathlib import Path
@@ -22,6 +23,15 @@ FORMAT_VERSION = 1
 
 #: Keys of a robot manifest that must agree between artifacts used together.
 ROBOT_KEYS = ('robot', 'urdf_sha256', 'base_frame', 'tip_frame', 'joint_names')
+
+
+def file_sha256(path: Path) -> str:
+    """The hex SHA-256 of a file's bytes, read in 1 MiB blocks."""
+    digest = hashlib.sha256()
+    with open(path, 'rb') as f:
+        for block in iter(lambda: f.read(1 << 20), b''):
+            digest.update(block)
+    return digest.hexdigest()
 
 
 def library_versions() -> dict:

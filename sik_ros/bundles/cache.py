@@ -20,13 +20,12 @@ bundle built elsewhere can be copied into an entry (``sik-build`` prints the key
 
 import contextlib
 import fcntl
-import hashlib
 import os
 from pathlib import Path
 import time
 from typing import Dict, Iterator, Optional
 
-from sik_ros.artifacts import FORMAT_VERSION, read_json, write_json_atomic
+from sik_ros.artifacts import file_sha256, FORMAT_VERSION, read_json, write_json_atomic
 from sik_ros.errors import CorruptArtifact
 
 #: The checksum file of a finished bundle.
@@ -42,19 +41,10 @@ def cache_root(base: Optional[str] = None) -> Path:
     return Path(base).expanduser() / 'sik_ros' / f'arms-v{CACHE_VERSION}-f{FORMAT_VERSION}'
 
 
-def sha256_of(path: Path) -> str:
-    """Hex SHA-256 of a file, read in blocks."""
-    h = hashlib.sha256()
-    with open(path, 'rb') as f:
-        for block in iter(lambda: f.read(1 << 20), b''):
-            h.update(block)
-    return h.hexdigest()
-
-
 def write_checksums(bundle: Path) -> Path:
     """Record every file of a bundle folder (its ``bundle.json`` too) in ``checksums.json``."""
     bundle = Path(bundle)
-    files = {p.relative_to(bundle).as_posix(): sha256_of(p)
+    files = {p.relative_to(bundle).as_posix(): file_sha256(p)
              for p in sorted(bundle.rglob('*')) if p.is_file() and p.name != CHECKSUMS
              and not p.name.startswith('.')}
     write_json_atomic(bundle / CHECKSUMS, {'format_version': FORMAT_VERSION, 'files': files})
@@ -76,7 +66,7 @@ def verify_checksums(bundle: Path) -> None:
         path = bundle / name
         if not path.is_file():
             raise CorruptArtifact(f'bundle {bundle}: {name} is missing')
-        if sha256_of(path) != digest:
+        if file_sha256(path) != digest:
             raise CorruptArtifact(f'bundle {bundle}: {name} changed since it was written '
                                   f'(its checksum differs)')
 

@@ -8,28 +8,18 @@ writes such a folder under a temporary name and renames it into place;
 copy, a half-replaced file), so that they are refused instead of evaluated.
 """
 
-import hashlib
 from pathlib import Path
 import shutil
 from typing import Dict, List, Mapping, Optional
 
-from sik_ros.artifacts import (atomic_directory, FORMAT_VERSION, read_json, robot_section,
-                               write_json_atomic)
+from sik_ros.artifacts import (atomic_directory, file_sha256, FORMAT_VERSION, read_json,
+                               robot_section, write_json_atomic)
 from sik_ros.errors import CorruptArtifact, InvalidArgument
 
 #: The manifest's file name.
 MANIFEST = 'baselines.json'
 #: The manifest's ``kind``.
 KIND = 'sik_baselines'
-
-
-def file_sha256(path: Path) -> str:
-    """The sha256 of a file's bytes, read in 1 MiB blocks."""
-    digest = hashlib.sha256()
-    with open(path, 'rb') as f:
-        for block in iter(lambda: f.read(1 << 20), b''):
-            digest.update(block)
-    return digest.hexdigest()
 
 
 def _entries(folder: Path, rel: List[str]) -> List[Dict]:

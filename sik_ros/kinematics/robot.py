@@ -8,13 +8,13 @@ tip poses and Jacobians come from the compiled kernels on it (:mod:`sik_ros.kern
 tested against Pinocchio's own frame placements and Jacobians.
 """
 
-import hashlib
 from pathlib import Path
 from typing import Optional, Sequence, Tuple
 
 import numpy as np
 import pinocchio as pin
 
+from sik_ros.artifacts import file_sha256
 from sik_ros.errors import InvalidArgument, InvalidModel
 from sik_ros.kernels import as_arg, chain_frames, fk_many, jac_many
 from sik_ros.kinematics.chain import SerialChain
@@ -26,7 +26,7 @@ from sik_ros.kinematics.rotations import rotation_to_quaternion, z_to_axis
 
 def sha256_file(path: Path) -> str:
     """Hex SHA-256 of a file's bytes."""
-    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+    return file_sha256(path)
 
 
 class Robot:
