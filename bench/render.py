@@ -712,7 +712,7 @@ def render_first_answer(data: dict) -> str:
             f'an empty cache; the background build given {st["learning_time_s"]:.0f} s and '
             f'{st["learning_rows"]:,} configurations; {st["targets"]} targets per phase (FK of '
             f'random configurations, seed {st["seed"]}), 16 solutions asked over ROS. Times '
-            f'from the node's start; a phase's cells: success; distinct exact solutions, '
+            "from the node's start; a phase's cells: success; distinct exact solutions, "
             f'median (p10); round trip, median.\n\n'
             + table(['arm (joints)', 'first exact [s]', 'table: pose', 'table: position',
                      'learned [s]', 'learned: pose', 'learned: position',
