@@ -14,7 +14,8 @@ from visualization_msgs.msg import Marker
 
 from sik_interfaces.msg import IKSolution, IKSolutionArray
 from sik_interfaces.srv import SolveIK
-from sik_ros.errors import InvalidArgument, InvalidGoal, InvalidSeed, JointLimitViolation
+from sik_ros.errors import (InvalidArgument, InvalidGoal, InvalidSeed, JointLimitViolation,
+                            ModelNotReady)
 from sik_ros.ros import conversions as conv
 from sik_ros.solver import Solution
 
@@ -110,14 +111,15 @@ def test_duration_in_seconds():
 
 
 def test_error_codes_of_library_errors():
-    """Seed errors map to INVALID_SEED; every other bad input to INVALID_GOAL."""
+    """Seed errors map to INVALID_SEED, raw answers with no model to MODEL_NOT_READY; else GOAL."""
     assert conv.error_code_for(JointLimitViolation('j', 4.0, -1.0, 1.0)) == R.INVALID_SEED
+    assert conv.error_code_for(ModelNotReady('x')) == R.MODEL_NOT_READY
     assert conv.error_code_for(InvalidSeed('x')) == R.INVALID_SEED
     assert conv.error_code_for(InvalidGoal('x')) == R.INVALID_GOAL
     assert conv.error_code_for(InvalidArgument('x')) == R.INVALID_GOAL
     assert set(conv.ERROR_NAMES.values()) == {
         'SUCCESS', 'NO_SOLUTION', 'INVALID_GOAL', 'INVALID_FRAME', 'INVALID_SEED', 'TIMEOUT',
-        'ROBOT_MISMATCH', 'JOINT_JUMP', 'INTERNAL_ERROR'}
+        'ROBOT_MISMATCH', 'JOINT_JUMP', 'NO_ROBOT', 'MODEL_NOT_READY', 'INTERNAL_ERROR'}
 
 
 # -- answers and markers --------------------------------------------------------------------------

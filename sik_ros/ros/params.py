@@ -170,7 +170,7 @@ SPECS: Tuple[ParamSpec, ...] = (
               read_only=True),
     ParamSpec('learning', bool, True,
               'an arm from robot_description: learn its model in the background (one core, '
-              'low priority) and serve it when ready, cached per arm; false: the table of '
+              'low priority) and serve it once built, cached per arm; false: the table of '
               'configurations only (a cached model is still served) (read-only)',
               read_only=True),
     ParamSpec('learning_time', float, 1800.0,
