@@ -182,3 +182,26 @@ def test_one_builder_per_entry(tmp_path):
         assert os.WEXITSTATUS(status) == 0
     with b.building() as again:
         assert again
+
+
+def test_the_learned_model_replaces_the_table_only_when_not_worse(tmp_path):
+    """The verdict: not worse in success and distinct solutions; kept per bundle checksum."""
+    from sik_ros.serving.arm_source import (keep_verdict, learned_not_worse, table_preferred)
+
+    def figures(success, distinct):
+        return {'table': {'pose': {'success': 1.0, 'distinct_median': 16.0}},
+                'learned': {'pose': {'success': success, 'distinct_median': distinct}}}
+
+    assert learned_not_worse(figures(1.0, 16.0))
+    assert not learned_not_worse(figures(0.98, 16.0))
+    assert not learned_not_worse(figures(1.0, 9.0))
+    arm = prepare_arm(erd_text('ur5'), 'base_link', 'tool0', str(tmp_path))
+    arm.entry.bundle.mkdir(parents=True)
+    (arm.entry.bundle / 'bundle.json').write_text('{}')
+    write_checksums(arm.entry.bundle)
+    assert not table_preferred(arm)  # no verdict: a bundle dropped in is served
+    assert keep_verdict(arm, figures(1.0, 9.0)) is False
+    assert table_preferred(arm)
+    (arm.entry.bundle / 'bundle.json').write_text('{"rebuilt": 1}')
+    write_checksums(arm.entry.bundle)
+    assert not table_preferred(arm)  # the verdict was another bundle's

@@ -15,7 +15,8 @@ import threading
 from typing import Callable, List, Optional, Protocol, Tuple
 
 from sik_ros.errors import SikError
-from sik_ros.serving.arm_source import Arm, first_solver, load_learned, prepare_arm
+from sik_ros.serving.arm_source import (Arm, compare, first_solver, keep_verdict,
+                                        load_learned, prepare_arm)
 from sik_ros.serving.learner import BackgroundLearner
 from sik_ros.solver import SelectiveIK, SolverConfig
 
@@ -42,6 +43,10 @@ class ArmFollower:
         self.arm: Optional[Arm] = None
         self.learner: Optional[BackgroundLearner] = None
         self.learned = False
+        #: the table of configurations being served (the learned model is held to it)
+        self.table: Optional[SelectiveIK] = None
+        #: what became of the learned model, for /diagnostics
+        self.verdict = ''
         #: why no arm is served (a bad description, or none yet), for /diagnostics
         self.problem: Optional[str] = 'waiting for robot_description'
         self._lock = threading.Lock()
@@ -84,6 +89,7 @@ class ArmFollower:
             self._bad(f'robot_description ({source}): its solver cannot start: {exc}')
             return
         self.arm, self.learned, self.problem = arm, learned, None
+        self.table, self.verdict = (None if learned else ik), ''
         self.info(f'serving {arm.robot.name} {arm.robot.base_frame} -> {arm.robot.tip_frame} '
                   f'({arm.robot.dof} joints; cache key {arm.key}) from '
                   + ('its learned bundle' if learned else 'its table of configurations'))
@@ -105,13 +111,26 @@ class ArmFollower:
                 self.error(f'the learned bundle {bundle} did not load: '
                            f'{"; ".join(arm.notes[-1:])}; serving the table of configurations')
                 return
+            if self.table is not None:
+                figures = compare(self.table, ik)
+                text = ', '.join(f'{g}: success {100 * f["success"]:.0f} % / '
+                                 f'{100 * figures["table"][g]["success"]:.0f} %, distinct '
+                                 f'{f["distinct_median"]:.0f} / '
+                                 f'{figures["table"][g]["distinct_median"]:.0f}'
+                                 for g, f in figures['learned'].items())
+                if not keep_verdict(arm, figures):
+                    self.verdict = f'kept the table: the learned model answered worse ({text})'
+                    self.info(f'{self.verdict}; a longer learning_time trains a better one')
+                    return
+                self.verdict = f'learned / table: {text}'
             try:
                 self.host.install(ik, self.params.solver_processes)
             except SikError as exc:
                 self.error(f'the learned bundle {bundle} did not start: {exc}')
                 return
-            self.learned = True
-            self.info(f'learned model swapped in: {bundle}')
+            self.learned, self.table = True, None
+            self.info(f'learned model swapped in: {bundle}'
+                      + (f' ({self.verdict})' if self.verdict else ''))
 
     def values(self) -> List[Tuple[str, str]]:
         """What ``/diagnostics`` shows of the arm and its learning."""
@@ -124,6 +143,8 @@ class ArmFollower:
             out += [(k.replace('_', ' '), v) for k, v in self.learner.status().items()]
         elif self.arm is not None and not self.learned:
             out.append(('learning', 'off'))
+        if self.verdict:
+            out.append(('learned model', self.verdict))
         return out
 
     def _stop_learning(self) -> None:

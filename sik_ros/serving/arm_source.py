@@ -5,15 +5,24 @@ leaves the cache untouched), keys the chain and writes its cache entry's URDF;
 :func:`first_solver` gives the solver that answers at once: the learned bundle of the entry when
 it is there and intact, else the arm's table of collected configurations
 (:mod:`~sik_ros.bundles.sweep_models`), which answers exactly with no training.
+
+A learned model replaces the table only where it answers at least as well: :func:`compare`
+solves the same targets with both (paired, in turn) and :func:`keep_verdict` records the
+outcome in the entry (``verdict.json``, tied to the bundle's checksums), so that a restart
+serves what won without measuring again. A model trained briefly (a short ``learning_time``)
+can start refinement from worse postures than the arm's own collected configurations.
 """
 
 from dataclasses import dataclass, field
 from pathlib import Path
 import tempfile
-from typing import Callable, List, Optional, Tuple
+from typing import Callable, Dict, List, Optional, Tuple
 
+import numpy as np
+
+from sik_ros.artifacts import file_sha256, read_json, write_json_atomic
 from sik_ros.bundles.bundle import load_bundle
-from sik_ros.bundles.cache import ArmEntry, cache_root
+from sik_ros.bundles.cache import ArmEntry, cache_root, CHECKSUMS
 from sik_ros.bundles.sweep_models import sweep_models
 from sik_ros.errors import SikError
 from sik_ros.kinematics.arm_description import (arm_files, arm_robot, chain_key, check_chain,
@@ -23,6 +32,9 @@ from sik_ros.solver import SelectiveIK, SolverConfig
 
 #: Seconds the table of configurations may take by default.
 SWEEP_SECONDS = 3.0
+#: Targets per goal kind of :func:`compare`, and the distinct solutions asked.
+COMPARE_TARGETS = 24
+COMPARE_SOLUTIONS = 16
 
 
 @dataclass
@@ -106,18 +118,77 @@ def load_learned(arm: Arm, config: SolverConfig) -> Optional[SelectiveIK]:
     return SelectiveIK(robot, models, config, path)
 
 
+def compare(table: SelectiveIK, learned: SelectiveIK, targets: int = COMPARE_TARGETS,
+            seed: int = 0) -> Dict[str, Dict[str, Dict[str, float]]]:
+    """Success and distinct exact solutions (median) of both solvers on the same targets.
+
+    Targets: FK of configurations drawn uniformly within the limits, each goal kind, solved by
+    one solver then the other.
+    """
+    robot = table.robot
+    q = np.random.default_rng(seed).uniform(robot.lower, robot.upper, (targets, robot.dof))
+    out: Dict[str, Dict[str, Dict[str, float]]] = {'table': {}, 'learned': {}}
+    for goal in sorted(set(table.goals) & set(learned.goals)):
+        figures = {'table': ([], []), 'learned': ([], [])}
+        for qi in q:
+            p, quat = robot.fk(qi)
+            for name, ik in (('table', table), ('learned', learned)):
+                res = ik.solve(p, quat if goal == 'pose' else None, COMPARE_SOLUTIONS)
+                figures[name][0].append(float(res.success))
+                figures[name][1].append(sum(s.converged for s in res.solutions))
+        for name, (ok, distinct) in figures.items():
+            out[name][goal] = {'success': float(np.mean(ok)),
+                               'distinct_median': float(np.median(distinct))}
+    return out
+
+
+def learned_not_worse(figures: Dict) -> bool:
+    """Whether the learned model answered every goal kind as well as the table did."""
+    return all(figures['learned'][g]['success'] >= f['success']
+               and figures['learned'][g]['distinct_median'] >= f['distinct_median']
+               for g, f in figures['table'].items())
+
+
+def keep_verdict(arm: Arm, figures: Dict) -> bool:
+    """Record :func:`compare`'s outcome in the entry (for its bundle); the verdict."""
+    better = learned_not_worse(figures)
+    write_json_atomic(arm.entry.path / 'verdict.json', {
+        'checksums_sha256': file_sha256(arm.entry.bundle / CHECKSUMS),
+        'learned_not_worse': better, 'figures': figures})
+    return better
+
+
+def table_preferred(arm: Arm) -> bool:
+    """Whether the entry's verdict for its bundle chose the table of configurations."""
+    try:
+        verdict = read_json(arm.entry.path / 'verdict.json', 'verdict')
+        same = verdict.get('checksums_sha256') == file_sha256(arm.entry.bundle / CHECKSUMS)
+    except (SikError, OSError):
+        return False
+    return same and verdict.get('learned_not_worse') is False
+
+
+def table_solver(arm: Arm, config: SolverConfig, seconds: float = SWEEP_SECONDS,
+                 say: Callable[[str], None] = print) -> SelectiveIK:
+    """The arm's table of configurations as a solver (``seconds`` of sweep and table)."""
+    models = sweep_models(arm.robot, seconds)
+    table = models['position'].table
+    say(f'table of configurations: {len(table.indices):,} configurations in {len(table):,} '
+        f'cells')
+    return SelectiveIK(arm.robot, models, config)
+
+
 def first_solver(arm: Arm, config: SolverConfig, seconds: float = SWEEP_SECONDS,
                  say: Callable[[str], None] = print) -> Tuple[SelectiveIK, bool]:
     """The solver that answers first, and whether it is the learned one.
 
-    The learned bundle of the entry when it is there; else the arm's table of configurations
-    (``seconds`` of sweep and table).
+    The learned bundle of the entry when it is there (and its verdict did not prefer the
+    table); else the arm's table of configurations (``seconds`` of sweep and table).
     """
     learned = load_learned(arm, config)
-    if learned is not None:
+    if learned is not None and not table_preferred(arm):
         return learned, True
-    models = sweep_models(arm.robot, seconds)
-    table = models['position'].table
-    say(f'table of configurations: {len(table.indices):,} configurations in {len(table):,} '
-        f'cells (no learned model yet)')
-    return SelectiveIK(arm.robot, models, config), False
+    if learned is not None:
+        say('the learned model answered worse than the table of configurations when it was '
+            'built: serving the table')
+    return table_solver(arm, config, seconds, say), False

@@ -193,9 +193,9 @@ class SelectiveIK:
         objective = check_objective(objective)
         refine = flag(refine, 'refine')
         if not refine and not self.learned:
-            raise ModelNotReady('raw answers (refine=False) are the learned model\'s, and this '
-                                'arm has none yet (its table of configurations answers '
-                                'refined requests)')
+            raise ModelNotReady('raw answers (refine=False) are the learned model\'s, and no '
+                                'learned model serves this arm yet (its table of '
+                                'configurations answers refined requests)')
         timeout = seconds(timeout, 'timeout')
         per_family = None if one_per_family is None else flag(one_per_family,
                                                               'one_per_family')
