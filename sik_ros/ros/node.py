@@ -155,10 +155,11 @@ class SikNode(Node):
         """
         solvers = make_solvers(ik, processes, self.workers + 1, self._log)
         self.get_logger().info(f'solvers warmed up in {solvers.warm_up_seconds:.2f} s')
-        old = self.solvers
+        old, old_ik = self.solvers, self._ik
         self._ik, self.solvers = ik, solvers
         self.arm = Arm(ik.robot.base_frame, list(ik.joint_names))
-        if self.goal_stream is not None:
+        same_arm = old_ik is not None and old_ik.robot.manifest() == ik.robot.manifest()
+        if self.goal_stream is not None and not same_arm:  # a stream goes on across a swap
             self.goal_stream.reset(ik.robot.velocity_limits)
         self._no_robot = None
         if old is not None:
