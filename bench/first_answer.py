@@ -202,6 +202,9 @@ def bench_arm(args, name, env, folder):
         finally:
             launch.stop_node(proc)
     restart_log = folder / name / 'restart.log'
+    if not rclpy.ok():  # a signal to this process's group reached rclpy's handler
+        print(f'{name}: rclpy was shut down; initialised again', file=sys.stderr)
+        rclpy.init()
     with SolveIKClient() as client, open(restart_log, 'wb') as out:
         wall, started = time.time(), time.monotonic()
         proc = start(args, env, text, frames, cache, out)
@@ -228,6 +231,8 @@ def main() -> None:
     rows = []
     with tempfile.TemporaryDirectory(prefix='sik_first_answer_') as tmp:
         for name in args.arms.split(','):
+            if not rclpy.ok():
+                rclpy.init()
             row = bench_arm(args, name, env, Path(tmp))
             rows.append(row)
             print(json.dumps(row), flush=True)
