@@ -194,10 +194,10 @@ def bench_arm(args, name, env, folder):
             while time.monotonic() < deadline and not any(
                     w in log.read_text(errors='replace') for w in words):
                 time.sleep(0.5)
-            text = log.read_text(errors='replace')
-            if any(w in text for w in words):
+            said = log.read_text(errors='replace')
+            if any(w in said for w in words):
                 row['learned_s'] = time.monotonic() - started
-                row['swapped_in'] = words[0] in text
+                row['swapped_in'] = words[0] in said
                 row['learned'] = phase(client, robot, targets)
         finally:
             launch.stop_node(proc)
