@@ -5,24 +5,22 @@
 or fewer also has a seed table (:mod:`sik_ros.tables.seed_table`); ``trained`` says where, how
 long and on how many samples each model was trained. :func:`build_bundle` makes one from
 trained models and a dataset (``sik-index --bundle`` and the tests use it); :func:`load_bundle`
-reads one back, checking every file against the manifest.
+reads one back, checking every file against the manifest. A SIK model also gets its NumPy twin
+(``twin``: :mod:`sik_ros.learning.twins`), which a bundle loads from without importing torch;
+a bundle without twins (the bundled Panda's) loads its models through torch.
 """
 
 from dataclasses import dataclass
 from pathlib import Path
 import shutil
-from typing import Callable, Dict, Mapping, Optional, Tuple, Union
-
-import torch
+from typing import Any, Callable, Dict, Mapping, Optional, Tuple, Union
 
 from sik_ros.artifacts import (atomic_write, check_robot_manifest, FORMAT_VERSION, read_json,
                                robot_section, write_json_atomic)
 from sik_ros.errors import ArtifactMismatch, CorruptArtifact
 from sik_ros.kinematics.robot import Robot
 from sik_ros.kinematics.robots import robot_from_manifest
-from sik_ros.learning.checkpoints import load_checkpoint, model_from_checkpoint, model_signature
-from sik_ros.learning.indexing import build_table
-from sik_ros.learning.provenance import trained_summary
+from sik_ros.learning.twins import load_twin
 from sik_ros.tables.dataset import Dataset
 from sik_ros.tables.index_table import IndexTable, PostureTable, TableConfig
 from sik_ros.tables.seed_table import default_rows, SeedTable
@@ -38,7 +36,8 @@ class GoalModel:
     """What the solver holds per goal kind: the network, its configs and its table.
 
     Attributes:
-        model: the SIK/PSIK module, in eval mode.
+        model: the SIK/PSIK module, in eval mode, or its NumPy twin
+            (:class:`~sik_ros.learning.twins.NumpySIK`); None for a table of configurations.
         cfg: its :class:`~sik_ros.learning.models.ModelConfig`.
         norm: its :class:`~sik_ros.learning.models.Normalizer`.
         table: the posture indices to decode (an :class:`IndexTable` or another
@@ -47,7 +46,7 @@ class GoalModel:
             (arms of six joints or fewer), or None.
     """
 
-    model: torch.nn.Module
+    model: Any
     cfg: object
     norm: object
     table: PostureTable
@@ -116,13 +115,20 @@ def load_bundle(bundle: Union[str, Path], robot: Optional[Robot] = None
         check_robot_manifest(f'bundle {path}', robot.manifest(), rm)
     models = {}
     for goal, files in manifest['models'].items():
-        ckpt = load_checkpoint(path / files['model'])
-        check_robot_manifest(f'model {files["model"]}', robot.manifest(), ckpt['robot'])
-        model, cfg, norm = model_from_checkpoint(ckpt)
+        if 'twin' in files:  # no torch
+            model, cfg, norm, own = load_twin(path / files['twin'])
+            signature = own['signature']
+        else:
+            from sik_ros.learning.checkpoints import (load_checkpoint, model_from_checkpoint,
+                                                      model_signature)
+            own = load_checkpoint(path / files['model'])
+            model, cfg, norm = model_from_checkpoint(own)
+            signature = model_signature(own)
+        check_robot_manifest(f'model {files["model"]}', robot.manifest(), own['robot'])
         if cfg.goal != goal or cfg.kind not in ('sik', 'psik'):
             raise ArtifactMismatch(f'bundle {path}: model for {goal} goals', goal,
                                    f'{cfg.kind}/{cfg.goal}')
-        table = IndexTable.load(path / files['table'], robot.manifest(), model_signature(ckpt))
+        table = IndexTable.load(path / files['table'], robot.manifest(), signature)
         seeds = SeedTable.load(path / files['seeds'], robot) if 'seeds' in files else None
         models[goal] = GoalModel(model, cfg, norm, table, seeds)
     return path, robot, models
@@ -131,7 +137,7 @@ def load_bundle(bundle: Union[str, Path], robot: Optional[Robot] = None
 def bundle_files(goal: str) -> Dict[str, str]:
     """The file names of a goal kind's model, table and seed table inside a bundle."""
     return {'model': f'sik_{goal}.pt', 'table': f'sik_{goal}_table.npz',
-            'seeds': f'sik_{goal}_seeds.npz'}
+            'seeds': f'sik_{goal}_seeds.npz', 'twin': f'sik_{goal}_twin.npz'}
 
 
 def add_to_bundle(bundle: Path, robot_manifest: Dict, goal: str, model_file: Path,
@@ -146,6 +152,9 @@ def add_to_bundle(bundle: Path, robot_manifest: Dict, goal: str, model_file: Pat
     Files are copied under temporary names and renamed; the manifest is rewritten atomically
     last, so a reader never sees a manifest naming a half-written file.
     """
+    from sik_ros.learning.checkpoints import load_checkpoint
+    from sik_ros.learning.provenance import trained_summary
+    from sik_ros.learning.twins import write_twin
     bundle = Path(bundle)
     bundle.mkdir(parents=True, exist_ok=True)
     if (bundle / 'bundle.json').exists():
@@ -167,8 +176,11 @@ def add_to_bundle(bundle: Path, robot_manifest: Dict, goal: str, model_file: Pat
             with atomic_write(dst) as tmp:
                 shutil.copyfile(src, tmp)
     manifest['models'][goal] = {key: names[key] for key in files}
+    ckpt = load_checkpoint(model_file)
+    if write_twin(ckpt, bundle / names['twin']) is not None:
+        manifest['models'][goal]['twin'] = names['twin']
     # where, how long and on how many samples the model was trained (sik-eval shows it)
-    manifest.setdefault('trained', {})[goal] = trained_summary(load_checkpoint(model_file))
+    manifest.setdefault('trained', {})[goal] = trained_summary(ckpt)
     write_json_atomic(bundle / 'bundle.json', manifest)
     return bundle
 
@@ -193,6 +205,8 @@ def build_bundle(out: Path, robot: Robot, models: Mapping[str, Path], dataset: D
     Returns:
         ``out``.
     """
+    from sik_ros.learning.checkpoints import load_checkpoint
+    from sik_ros.learning.indexing import build_table
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     if default_rows(robot) is None:

@@ -13,13 +13,8 @@ import torch
 
 from sik_ros.artifacts import atomic_write, FORMAT_VERSION
 from sik_ros.errors import ArtifactMismatch, CorruptArtifact
-from sik_ros.learning.models import build_model, ModelConfig, Normalizer
-
-
-def normalizer_from_dict(d: Dict) -> Normalizer:
-    """A :class:`Normalizer` from its checkpoint dict."""
-    return Normalizer(tuple(d['lower']), tuple(d['upper']), tuple(d['position_center']),
-                      float(d['position_scale']), dict(d.get('extra', {})))
+from sik_ros.learning.model_config import normalizer_from_dict  # noqa: F401 (API)
+from sik_ros.learning.models import build_model, ModelConfig
 
 
 def load_checkpoint(path: Path) -> Dict:

@@ -11,10 +11,10 @@ from typing import List, Optional, Tuple
 import weakref
 
 import numpy as np
-import torch
 
 from sik_ros.kernels import as_arg, mlp_rows, pack_layers
-from sik_ros.learning.models import make_goal, SIK
+from sik_ros.learning.model_config import make_goal
+from sik_ros.learning.twins import NumpySIK
 from sik_ros.solver.config import KERNEL_ROWS
 from sik_ros.solver.context import Context, Goal
 
@@ -27,8 +27,9 @@ class NumpyMLP:
         self._packed = pack_layers(layers)
 
     @staticmethod
-    def of(seq: torch.nn.Module) -> Optional['NumpyMLP']:
-        """The NumPy twin of ``seq``, or None when it holds other layers."""
+    def of(seq) -> Optional['NumpyMLP']:
+        """The NumPy twin of a torch ``seq``, or None when it holds other layers."""
+        import torch
         mods = list(seq.children()) if isinstance(seq, torch.nn.Sequential) else []
         linear = mods[0::2]
         if not mods or not all(isinstance(m, torch.nn.Linear) for m in linear) or not all(
@@ -58,14 +59,21 @@ class NumpyMLP:
 _TWINS: 'weakref.WeakKeyDictionary' = weakref.WeakKeyDictionary()
 
 
-def _twins(model: torch.nn.Module):
-    """(encoder, decoder) NumPy twins of an SIK model, or None (made once per model)."""
+def _twins(model):
+    """(encoder, decoder) NumPy twins of an SIK model, or None (made once per model).
+
+    A bundle's twin (:class:`NumpySIK`, loaded without torch) is its own.
+    """
     if model not in _TWINS:
         twins = None
-        if isinstance(model, SIK):
-            enc, dec = NumpyMLP.of(model.encoder), NumpyMLP.of(model.decoder)
-            if enc is not None and dec is not None:
-                twins = (enc, dec)
+        if isinstance(model, NumpySIK):
+            twins = (NumpyMLP(model.encoder), NumpyMLP(model.decoder))
+        else:  # a torch module: torch is loaded already
+            from sik_ros.learning.models import SIK
+            if isinstance(model, SIK):
+                enc, dec = NumpyMLP.of(model.encoder), NumpyMLP.of(model.decoder)
+                if enc is not None and dec is not None:
+                    twins = (enc, dec)
         _TWINS[model] = twins
     return _TWINS[model]
 
@@ -86,8 +94,9 @@ def _limits(ctx: Context, goal: Goal) -> Tuple[np.ndarray, np.ndarray]:
     return (lo + hi) / 2, (hi - lo) / 2
 
 
-def goal_net(ctx: Context, goal: Goal, rows: int) -> torch.Tensor:
-    """The goal repeated ``rows`` times, in the network's normalised units."""
+def goal_net(ctx: Context, goal: Goal, rows: int):
+    """The goal repeated ``rows`` times, in the network's normalised units (a torch tensor)."""
+    import torch
     g = make_goal(goal.kind, np.repeat(goal.position[None], rows, 0),
                   None if goal.rotation is None else np.repeat(goal.rotation[None], rows, 0))
     return ctx.models[goal.kind].norm.goal_to_net(torch.from_numpy(g.astype(np.float32)))
@@ -106,6 +115,7 @@ def decode(ctx: Context, goal: Goal, z: np.ndarray) -> np.ndarray:
     if len(z) == 0:
         return np.empty((0, ctx.robot.dof))
     if twins is None:
+        import torch
         with torch.no_grad():
             x = gm.model.decode(goal_net(ctx, goal, len(z)), torch.from_numpy(z))
             q = gm.norm.q_from_net(x).double().numpy()
@@ -123,6 +133,7 @@ def encode(ctx: Context, goal: Goal, q: np.ndarray) -> np.ndarray:
         return np.array(q, dtype=np.float64)
     twins = _twins(gm.model)
     if twins is None:
+        import torch
         with torch.no_grad():
             z, _ = gm.model.encode(goal_net(ctx, goal, len(q)),
                                    gm.norm.q_to_net(torch.from_numpy(q.astype(np.float32))))
