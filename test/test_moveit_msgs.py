@@ -7,7 +7,8 @@ object_recognition_msgs 2.0.0 (``ros2`` branch of github.com/wg-perception/objec
 by the command::
 
     git -C moveit_msgs archive 2.6.0 msg srv package.xml | tar -x -C up/moveit_msgs
-    git -C object_recognition_msgs archive ros2 msg package.xml | tar -x -C up/object_recognition_msgs
+    git -C object_recognition_msgs archive ros2 msg package.xml \
+        | tar -x -C up/object_recognition_msgs
     python scripts/type_hashes.py up/object_recognition_msgs:msg/ObjectType.msg \
         up/moveit_msgs:msg/AttachedCollisionObject.msg,...,srv/GetPositionIK.srv
 

@@ -33,10 +33,12 @@ EXPECTED = [
     ('goal_marker_rate', float, 10.0), ('command_format', str, 'none'),
     ('command_topic', str, '~/command'), ('solver_processes', int, 0),
     ('max_obstacles', int, 256), ('max_waypoints', int, 2000), ('shutdown_grace', float, 1.0),
-    ('robot_description', str, ''),
-    ('lifecycle', bool, False)]
+    ('robot_description', str, ''), ('moveit_services', bool, True),
+    ('compute_ik_service', str, '/compute_ik'), ('compute_fk_service', str, '/compute_fk'),
+    ('ik_group', str, ''), ('lifecycle', bool, False)]
 READ_ONLY = {'robot', 'model_dir', 'base_frame', 'tip_frame', 'solver_processes',
-             'robot_description', 'lifecycle', 'command_format', 'command_topic'}
+             'robot_description', 'lifecycle', 'command_format', 'command_topic',
+             'moveit_services', 'compute_ik_service', 'compute_fk_service'}
 
 
 def yaml_parameters():

@@ -40,6 +40,7 @@ from sik_ros.ros.goal_stream import GoalStream
 from sik_ros.ros.guard import RequestGuard
 from sik_ros.ros.ik_service import Arm, solution_msgs, solve_request, solver_settings
 from sik_ros.ros.joint_states import JointStateTap
+from sik_ros.ros.moveit_ik import serve_moveit
 from sik_ros.ros.params import declarations, NodeParams, validate
 from sik_ros.ros.path_service import path_markers, solve_path_request
 from sik_ros.serving.pool import single_threaded
@@ -158,6 +159,7 @@ class SikNode(Node):
                              reliability=ReliabilityPolicy.RELIABLE)
         self.create_subscription(String, 'robot_description', self._on_robot_description,
                                  latched, callback_group=group)
+        self.moveit = serve_moveit(self, group, requests)
 
     def _log(self, level: int, message: str) -> None:
         """Log at a :mod:`logging` level (the solver pool's reports).
