@@ -9,7 +9,7 @@ from those packages' installed ``share/<package>/{msg,srv}/*.json`` descriptions
 Usage (packages in dependency order; ``DIR:FILE,FILE`` takes only those files of ``DIR``)::
 
     python scripts/type_hashes.py object_recognition_msgs moveit_msgs
-    python scripts/type_hashes.py --json hashes.json /path/to/upstream/moveit_msgs:msg/RobotState.msg
+    python scripts/type_hashes.py --json out.json upstream/moveit_msgs:msg/RobotState.msg
 
 Each output line is ``<package>/<msg|srv>/<Name> RIHS01_<64 hex digits>``.
 """
