@@ -672,13 +672,29 @@ def render_service_ab(data: dict) -> str:
             + f'\n\n{b} / {a}, median of the paired per-request ratios: **{num(r["ratio"], 3)}**')
 
 
+def render_moveit_ik(data: dict) -> str:
+    """``bench/moveit_ik.py``: /compute_ik beside ~/solve_ik (one solution) and the floor."""
+    r = data['results']
+    labels = (('solve_ik', '`~/solve_ik`, 1 solution'), ('compute_ik', '`/compute_ik`'),
+              ('floor', 'empty `Trigger` service'))
+    rows = [[label, ' / '.join(num(r['round_trip'][key][p]) for p in ('p50_ms', 'p90_ms',
+                                                                       'p99_ms')),
+             f'{r["success"][key]} / {r["requests"]}' if key in r['success'] else '']
+            for key, label in labels]
+    return (table(['service', 'round trip p50 / p90 / p99 [ms]', 'SUCCESS'], rows)
+            + f'\n\n`/compute_ik` / `~/solve_ik`: p50 ratio **{num(r["ratio_p50"])}**, median '
+            f'of the per-goal ratios **{num(r["paired_ratio_median"])}** (avoid_collisions '
+            f'{str(r["avoid_collisions"]).lower()})')
+
+
 RENDER: Dict[str, Callable] = {
     'collect': render_collect, 'solve': render_solve, 'solve_ab': render_ab,
     'arms': render_arms, 'paths': render_paths, 'paths_ab': render_paths_ab,
     'service_probe': render_service_probe, 'soak': render_soak, 'sweep': render_sweep,
     'train_step': render_train_step, 'tracik_protocol': render_tracik_protocol,
     'ablation': render_ablation, 'families': render_families, 'stream': render_stream,
-    'executors': render_executors, 'service_ab': render_service_ab}
+    'executors': render_executors, 'service_ab': render_service_ab,
+    'moveit_ik': render_moveit_ik}
 
 
 def load() -> Dict[str, List[dict]]:

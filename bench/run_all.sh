@@ -34,6 +34,7 @@ run service bench/service.py --requests 1000 --duration 10 --goals mixed
 run stream bench/stream.py --rates 100 500 1000 --duration 10
 run stream-busy bench/stream.py --rates 100 500 1000 --duration 10 --busy
 run executors bench/executors.py --duration 5
+run moveit_ik bench/moveit_ik.py --requests 2000
 # OLD: a revision to compare the node's round trip with (e.g. OLD=013d4cc, 0.4.0)
 [[ -n "${OLD:-}" ]] && run service_ab bench/service_ab.py "old=@$OLD" new=. --requests 300
 run arms bench/arms.py --arms panda,ur5 --targets 50 --max-attempts 100
