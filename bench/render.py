@@ -677,8 +677,8 @@ def render_moveit_ik(data: dict) -> str:
     r = data['results']
     labels = (('solve_ik', '`~/solve_ik`, 1 solution'), ('compute_ik', '`/compute_ik`'),
               ('floor', 'empty `Trigger` service'))
-    rows = [[label, ' / '.join(num(r['round_trip'][key][p]) for p in ('p50_ms', 'p90_ms',
-                                                                       'p99_ms')),
+    cols = ('p50_ms', 'p90_ms', 'p99_ms')
+    rows = [[label, ' / '.join(num(r['round_trip'][key][p]) for p in cols),
              f'{r["success"][key]} / {r["requests"]}' if key in r['success'] else '']
             for key, label in labels]
     return (table(['service', 'round trip p50 / p90 / p99 [ms]', 'SUCCESS'], rows)

@@ -1,4 +1,4 @@
-"""The parts of /compute_ik and /compute_fk that need no node: links, states, goals, constraints."""
+"""The parts of /compute_ik and /compute_fk that need no node: links, states, goals, rules."""
 
 from geometry_msgs.msg import Pose
 from moveit_msgs.msg import (Constraints, JointConstraint, MoveItErrorCodes as E,
