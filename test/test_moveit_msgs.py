@@ -148,3 +148,18 @@ def test_services_import_as_moveit_names():
         'solution': 'moveit_msgs/RobotState', 'error_code': 'moveit_msgs/MoveItErrorCodes'}
     assert list(GetPositionFK.Request.get_fields_and_field_types()) == [
         'header', 'fk_link_names', 'robot_state']
+
+
+@pytest.mark.parametrize('package', ['object_recognition_msgs', 'moveit_msgs'])
+def test_installed_package_is_not_shadowed(package, tmp_path):
+    """Configured where the package is installed (here, the venv), the copy builds nothing."""
+    env = dict(os.environ, AMENT_PREFIX_PATH=sys.prefix, CMAKE_PREFIX_PATH=sys.prefix)
+    run = subprocess.run(['cmake', '-S', str(REPO / package), '-B', str(tmp_path / 'build'),
+                          f'-DCMAKE_INSTALL_PREFIX={tmp_path / "install"}', '-Wno-dev'],
+                         env=env, capture_output=True, text=True, timeout=120)
+    assert run.returncode == 0, run.stdout + run.stderr
+    assert f'{package} is installed in {Path(sys.prefix).resolve()}' in run.stdout
+    install = subprocess.run(['cmake', '--install', str(tmp_path / 'build')], env=env,
+                             capture_output=True, text=True, timeout=60)
+    assert install.returncode == 0, install.stderr
+    assert not (tmp_path / 'install').exists()
