@@ -7,6 +7,7 @@ joints, fingers included), not sik_ros's kinematics.
 """
 
 import subprocess
+import time
 
 from builtin_interfaces.msg import Duration
 from geometry_msgs.msg import Pose, PoseStamped
@@ -16,7 +17,9 @@ from moveit_msgs.srv import GetPositionFK, GetPositionIK
 import numpy as np
 import pinocchio as pin
 import pytest
+from rcl_interfaces.srv import SetParameters
 import rclpy
+from rclpy.parameter import Parameter
 from rclpy.signals import SignalHandlerOptions
 from sensor_msgs.msg import JointState
 from shape_msgs.msg import SolidPrimitive
@@ -327,3 +330,32 @@ def test_compute_fk_exact(ros, fk):
         req.header.frame_id = frame
         req.robot_state.joint_state = state(ARM, q)
         assert call(ros, ros.fk, req).error_code.val == code
+
+
+def test_diff_state_takes_the_arm_from_joint_states(ros, fk, free):
+    """A diff naming only the fingers is seeded by joint_states: the answer is that posture."""
+    client = ros.create_client(SetParameters, '/sik_node/set_parameters')
+    assert client.wait_for_service(timeout_sec=10.0)
+    future = client.call_async(SetParameters.Request(
+        parameters=[Parameter('use_joint_states', value=True).to_parameter_msg()]))
+    rclpy.spin_until_future_complete(ros, future, timeout_sec=10.0)
+    assert future.result() is not None and future.result().results[0].successful
+    rng = np.random.default_rng(19)
+    (q,), (goal,) = reachable(fk, rng, 1, free)
+    publisher = ros.create_publisher(JointState, 'joint_states', 10)
+    req = ik_request(pose_of(goal), FINGERS, [0.03, 0.03], timeout=Duration(sec=1))
+    req.ik_request.robot_state.is_diff = True
+    answer = None
+    for _ in range(50):  # until the node's subscription is matched and has a state
+        publisher.publish(state(ARM + FINGERS, list(q) + [0.0, 0.0]))
+        answer = call(ros, ros.ik, req)
+        if answer.error_code.val == E.SUCCESS:
+            break
+        assert answer.error_code.val == E.INVALID_ROBOT_STATE, answer.error_code.message
+        time.sleep(0.1)
+    assert answer.error_code.val == E.SUCCESS, answer.error_code.message
+    position_error, angle = check_solution(fk, answer, req, goal)
+    assert position_error <= POS_TOL and angle <= ROT_TOL
+    got = dict(zip(answer.solution.joint_state.name, answer.solution.joint_state.position))
+    assert np.abs(np.array([got[n] for n in ARM]) - q).max() < 1e-3
+    assert list(answer.solution.joint_state.name) == FINGERS + ARM
