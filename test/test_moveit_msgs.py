@@ -98,6 +98,7 @@ class TypeHash(ctypes.Structure):
     _fields_ = [('version', ctypes.c_uint8), ('value', ctypes.c_uint8 * 32)]
 
 
+@pytest.mark.e2e
 def test_sources_hash_as_upstream():
     """The repository's interface sources give upstream's hash for every type, no more, no less."""
     env = dict(os.environ, AMENT_PREFIX_PATH=sys.prefix)
@@ -150,6 +151,7 @@ def test_services_import_as_moveit_names():
         'header', 'fk_link_names', 'robot_state']
 
 
+@pytest.mark.e2e
 @pytest.mark.parametrize('package', ['object_recognition_msgs', 'moveit_msgs'])
 def test_installed_package_is_not_shadowed(package, tmp_path):
     """Configured where the package is installed (here, the venv), the copy builds nothing."""
