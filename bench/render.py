@@ -720,6 +720,21 @@ def render_first_answer(data: dict) -> str:
                      '`~/solve_ik` p50 while it trains / paused [ms]'], rows))
 
 
+def render_moveit_ik(data: dict) -> str:
+    """``bench/moveit_ik.py``: /compute_ik beside ~/solve_ik (one solution) and the floor."""
+    r = data['results']
+    labels = (('solve_ik', '`~/solve_ik`, 1 solution'), ('compute_ik', '`/compute_ik`'),
+              ('floor', 'empty `Trigger` service'))
+    cols = ('p50_ms', 'p90_ms', 'p99_ms')
+    rows = [[label, ' / '.join(num(r['round_trip'][key][p]) for p in cols),
+             f'{r["success"][key]} / {r["requests"]}' if key in r['success'] else '']
+            for key, label in labels]
+    return (table(['service', 'round trip p50 / p90 / p99 [ms]', 'SUCCESS'], rows)
+            + f'\n\n`/compute_ik` / `~/solve_ik`: p50 ratio **{num(r["ratio_p50"])}**, median '
+            f'of the per-goal ratios **{num(r["paired_ratio_median"])}** (avoid_collisions '
+            f'{str(r["avoid_collisions"]).lower()})')
+
+
 RENDER: Dict[str, Callable] = {
     'collect': render_collect, 'solve': render_solve, 'solve_ab': render_ab,
     'arms': render_arms, 'paths': render_paths, 'paths_ab': render_paths_ab,
@@ -727,7 +742,7 @@ RENDER: Dict[str, Callable] = {
     'train_step': render_train_step, 'tracik_protocol': render_tracik_protocol,
     'ablation': render_ablation, 'families': render_families, 'stream': render_stream,
     'executors': render_executors, 'service_ab': render_service_ab,
-    'first_answer': render_first_answer}
+    'first_answer': render_first_answer, 'moveit_ik': render_moveit_ik}
 
 
 def load() -> Dict[str, List[dict]]:

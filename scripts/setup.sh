@@ -3,7 +3,8 @@
 #   1. the venv (python3.11) and the pinned requirements (requirements/main.txt + constraints.txt),
 #      colcon among them (after `source scripts/env.sh`, `colcon build` works in a workspace),
 #   2. the sik_interfaces messages, built with CMake against the ROS 2 wheels and installed into
-#      the venv,
+#      the venv; then moveit_msgs and object_recognition_msgs (the subset /compute_ik and
+#      /compute_fk use) the same way, unless a real moveit_msgs is installed,
 #   3. sik_ros itself, installed in editable mode,
 #   4. its numba kernels, compiled into their disk cache (python -m sik_ros.kernels).
 # Each step is skipped when a stamp file in the venv says it was done for the same inputs, so a
@@ -136,6 +137,62 @@ EOF
   (cd / && "$PY" -c 'from sik_interfaces.msg import IKSolutionArray
 from sik_interfaces.srv import SolveIK') || die "sik_interfaces was installed but does not import"
   mark_done sik_interfaces "$IFACE_HASH"
+fi
+
+# --- 2b. moveit_msgs and object_recognition_msgs, unless a real MoveIt provides them ----------
+# sik_node's /compute_ik and /compute_fk speak moveit_msgs. Where a ROS install with MoveIt is
+# sourced (a prefix on AMENT_PREFIX_PATH other than the venv lists moveit_msgs in its ament
+# index), or this Python already imports a moveit_msgs that is not ours, that one is used and
+# these copies are neither built nor installed (they would shadow it). Ours are recognised by
+# the marker in their package.xml.
+MOVEIT_MARKER='part of sik_ros, built only where no real moveit_msgs is installed'
+real_moveit_msgs() {
+  local prefix
+  local IFS=:
+  for prefix in ${AMENT_PREFIX_PATH:-}; do
+    [[ -n "$prefix" && "$(realpath -m "$prefix")" != "$(realpath -m "$VENV")" ]] || continue
+    if [[ -f "$prefix/share/ament_index/resource_index/packages/moveit_msgs" ]]; then
+      printf '%s\n' "$prefix"; return 0
+    fi
+  done
+  local found
+  found="$(cd / && "$PY" -c 'import moveit_msgs; print(moveit_msgs.__file__)' 2>/dev/null)" \
+    || return 1
+  grep -qs "$MOVEIT_MARKER" "$VENV/share/moveit_msgs/package.xml" && [[ "$found" == "$VENV"/* ]] \
+    && return 1
+  printf '%s\n' "$found"
+}
+build_interfaces() {  # build_interfaces <package folder>: CMake build and install into the venv
+  local pkg="$1" dir="$VENV/.sik-build/$1"
+  rm -rf "$dir"
+  mkdir -p "$dir"
+  AMENT_PREFIX_PATH="$VENV" CMAKE_PREFIX_PATH="$VENV" cmake -S "$pkg" -B "$dir" -Wno-dev \
+    -DCMAKE_BUILD_TYPE=Release -DCMAKE_INSTALL_PREFIX="$VENV" -DPython3_EXECUTABLE="$PY" \
+    -DBUILD_TESTING=OFF >"$dir.configure.log" 2>&1 \
+    || { cat "$dir.configure.log" >&2; die "cmake configure of $pkg failed"; }
+  AMENT_PREFIX_PATH="$VENV" CMAKE_PREFIX_PATH="$VENV" cmake --build "$dir" -j"$JOBS" \
+    >"$dir.build.log" 2>&1 || { tail -n 60 "$dir.build.log" >&2; die "build of $pkg failed"; }
+  cmake --install "$dir" >"$dir.install.log" 2>&1 \
+    || { cat "$dir.install.log" >&2; die "install of $pkg failed"; }
+}
+if REAL_MOVEIT="$(real_moveit_msgs)"; then
+  log "moveit_msgs: using the installed one ($REAL_MOVEIT); not building sik_ros's copy"
+else
+  mapfile -t MOVEIT_FILES < <(find moveit_msgs object_recognition_msgs -type f \( -name '*.msg' \
+    -o -name '*.srv' -o -name CMakeLists.txt -o -name package.xml \) | LC_ALL=C sort)
+  MOVEIT_HASH="$(hash_of "${MOVEIT_FILES[@]}" scripts/setup.sh -- "$IFACE_HASH")"
+  if is_done moveit_msgs "$MOVEIT_HASH" \
+      && (cd / && "$PY" -c 'from moveit_msgs.srv import GetPositionFK, GetPositionIK') \
+        2>/dev/null; then
+    log "moveit_msgs: up to date"
+  else
+    log "building object_recognition_msgs and moveit_msgs (about 1-2 min the first time)"
+    build_interfaces object_recognition_msgs
+    build_interfaces moveit_msgs
+    (cd / && "$PY" -c 'from moveit_msgs.srv import GetPositionFK, GetPositionIK') \
+      || die "moveit_msgs was installed but does not import"
+    mark_done moveit_msgs "$MOVEIT_HASH"
+  fi
 fi
 
 # --- 3. sik_ros (editable) ---------------------------------------------------------------------

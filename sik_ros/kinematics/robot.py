@@ -142,6 +142,11 @@ class Robot:
     # -- kinematics ----------------------------------------------------------------------------
 
     @property
+    def full_model(self) -> pin.Model:
+        """The whole description's Pinocchio model (every joint, locked ones too; read only)."""
+        return self._full_model
+
+    @property
     def dof(self) -> int:
         """Number of arm joints."""
         return len(self.joint_names)

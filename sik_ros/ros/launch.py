@@ -58,8 +58,9 @@ def launch_node(model_dir: Optional[str] = None, params: Sequence[str] = (),
     """
     cmd = [sys.executable, '-m', 'sik_ros.ros.run', '--ros-args', '--params-file',
            str(params_file())]
-    # config/panda.yaml names the Panda's frames: another bundle serves its own
-    bundle = [f'model_dir:={model_dir}', "base_frame:=''", "tip_frame:=''"] if model_dir else []
+    # config/panda.yaml names the Panda's frames and group: another bundle serves its own
+    bundle = ([f'model_dir:={model_dir}', "base_frame:=''", "tip_frame:=''", "ik_group:=''"]
+              if model_dir else [])
     overrides = bundle + list(params)
     for item in overrides:
         cmd += ['-p', item]

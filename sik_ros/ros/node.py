@@ -40,6 +40,7 @@ from sik_ros.ros.goal_stream import GoalStream, StreamPort
 from sik_ros.ros.guard import log_at, RequestGuard
 from sik_ros.ros.ik_service import Arm, solution_msgs, solve_request, solver_settings
 from sik_ros.ros.joint_states import JointStateTap
+from sik_ros.ros.moveit_ik import serve_moveit
 from sik_ros.ros.named_bundle import DescriptionCheck, load_named, StartupError
 from sik_ros.ros.params import declarations, NodeParams, validate
 from sik_ros.ros.path_service import path_markers, solve_path_request
@@ -213,6 +214,7 @@ class SikNode(Node):
                                  latched, callback_group=group)
         if self.follower is not None:  # the background learning: its progress, its model
             self.create_timer(LEARNING_POLL, self.follower.poll, callback_group=group)
+        self.moveit = serve_moveit(self, group, requests)
 
     def _stream_port(self) -> StreamPort:
         """What the goal stream uses of this node."""

@@ -186,6 +186,17 @@ SPECS: Tuple[ParamSpec, ...] = (
     ParamSpec('sweep_time', float, 3.0,
               'time the table of configurations of a new arm may take [s]; [0.2, 60]',
               min=0.2, max=60.0, unit='s', read_only=True),
+    ParamSpec('moveit_services', bool, True,
+              'serve MoveIt\'s kinematics services (compute_ik_service, compute_fk_service); '
+              'false where move_group offers them beside the node (read-only)',
+              read_only=True),
+    ParamSpec('compute_ik_service', str, '/compute_ik',
+              'name of the moveit_msgs/srv/GetPositionIK service (read-only)', read_only=True),
+    ParamSpec('compute_fk_service', str, '/compute_fk',
+              'name of the moveit_msgs/srv/GetPositionFK service (read-only)', read_only=True),
+    ParamSpec('ik_group', str, '',
+              'the group_name compute_ik answers (MoveIt\'s planning group of the arm); empty: '
+              'the bundle\'s robot name followed by _arm (panda_arm for the Panda)'),
     ParamSpec('lifecycle', bool, False,
               'a managed node (rclpy LifecycleNode): it starts unconfigured, loads the bundle '
               'on configure and serves only while active (otherwise requests are answered '
@@ -270,6 +281,9 @@ def validate(p: 'NodeParams') -> Optional[str]:
                 f'got {p.command_format!r}')
     if p.command_format != 'none' and not p.command_topic:
         return 'command_topic is empty: name the controller\'s command topic'
+    if p.moveit_services and not (p.compute_ik_service and p.compute_fk_service):
+        return 'compute_ik_service and compute_fk_service must not be empty (or set ' \
+            'moveit_services to false)'
     # ints before floats; a number bounded by another parameter after that parameter
     for s in sorted((s for s in SPECS if s.numeric),
                     key=lambda s: (s.type is float, bool(s.max_param))):
