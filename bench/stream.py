@@ -9,9 +9,10 @@ start). Per stream: goals answered, the latency of a
 goal's own answer, the staleness of the newest answer (from each goal until an answer to it or
 to a newer goal arrived: p50, p99), the last answer's delay after the last goal, answers out of
 order, answers that carry their goal's stamp, codes (TIMEOUT, JOINT_JUMP), posture flips
-(consecutive answers more than 0.3 rad apart in a joint), every answer checked by Pinocchio's
-forward kinematics, replaced goals, and the node's processor time [% of one core]. Then, for
-each kind, ``~/solve_ik`` round trips alone and during a 1 kHz stream (16 solutions, p50).
+(consecutive answers more than 0.3 rad apart in a joint), every answer checked by the
+project's forward kinematics (``Robot.fk``, tested against Pinocchio's), replaced goals, and
+the node's processor time [% of one core]. Then, for each kind, ``~/solve_ik`` round trips
+alone and during a 1 kHz stream (16 solutions, p50).
 
 Usage: ``python bench/stream.py [--rates 100 500 1000] [--duration 10] [--goals pose position]
 [--busy] [--model-dir DIR] [--json PATH]``. ``--busy`` keeps one core busy with another process

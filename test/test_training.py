@@ -325,19 +325,28 @@ def test_a_psik_starts_from_a_sik_model_with_a_standardised_index(panda, uniform
     psik = ModelConfig(kind='psik', encoder=PRESETS['tiny'][0], decoder=PRESETS['tiny'][1])
     b = trainer(panda, uniform_small, tmp_path / 'b', model=psik, steps=20, kl_anneal=10)
     b.initialise(load_checkpoint(tmp_path / 'a.pt'), 'a.pt')
-    q, goal, _, _ = b._batch(b.train_idx[:2000])
+    # held-out rows: the standardisation was fitted on training rows, it must hold beyond them
+    held_out = b.val_idx
+    assert not set(held_out.tolist()) & set(b.train_idx.tolist())
+    q, goal, _, _ = b._batch(held_out)
     g, x = b.norm.goal_to_net(goal), b.norm.q_to_net(q)
     with torch.no_grad():
         z_sik, _ = a.model.encode(g, x)
         mu, logvar = b.model.encode(g, x)
         np.testing.assert_allclose(b.model.decode(g, mu).numpy(),
                                    a.model.decode(g, z_sik).numpy(), rtol=1e-4, atol=1e-4)
-    assert mu.shape == z_sik.shape == (2000, 4)
+    assert mu.shape == z_sik.shape == (len(held_out), 4) and len(held_out) == 500
     np.testing.assert_allclose(mu.mean(0).numpy(), 0.0, atol=0.1)
     np.testing.assert_allclose(mu.std(0).numpy(), 1.0, atol=0.1)
     np.testing.assert_allclose(logvar.numpy(), PSIK_LOGVAR_START, atol=1e-6)
-    weights = [kl_weight_at(b.cfg, s) for s in (0, 4, 9, 15)]
-    assert weights == pytest.approx([1e-4, 5e-4, 1e-3, 1e-3])
+    # the documented ramp: from 0 before the first step, by equal steps, to the full weight
+    # at step kl_anneal - 1, and the full weight after it
+    full, ramp = b.cfg.kl_weight, b.cfg.kl_anneal
+    assert ramp == 10
+    weights = np.array([kl_weight_at(b.cfg, s) for s in range(2 * ramp)])
+    np.testing.assert_allclose(np.diff(np.concatenate([[0.0], weights[:ramp]])), full / ramp,
+                               rtol=1e-9)
+    np.testing.assert_allclose(weights[ramp - 1:], full, rtol=1e-12)
     b.run()
     assert b.step == 20 and np.isfinite(b.history[-1]['val_dist_mean_m'])
     with pytest.raises(ArtifactMismatch, match='model config'):

@@ -14,7 +14,7 @@ import sys
 from typing import List, Optional
 
 from sik_ros.cli import argv_or_default, Parser, run_cli
-from sik_ros.errors import InvalidArgument
+from sik_ros.errors import CorruptArtifact, InvalidArgument
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -79,6 +79,10 @@ def main(argv: Optional[List[str]] = None) -> int:
             raise InvalidArgument(f'bundle {ik.bundle} has no position model; the experiments '
                                   'need one')
         baselines, missing = load_baselines(args.baselines, ik.robot)
+        refused = {k: v for k, v in missing.items() if v.startswith('refused')}
+        if refused:
+            # a shipped model that does not load would silently drop its columns
+            raise CorruptArtifact('; '.join(f'{k}: {v}' for k, v in sorted(refused.items())))
         out.mkdir(parents=True, exist_ok=True)
         with tqdm(total=1, disable=args.quiet, mininterval=1.0, file=sys.stderr) as bar:
             res = run_evaluation(ik, baselines, settings, out / 'figures', bar)

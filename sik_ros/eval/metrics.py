@@ -1,7 +1,8 @@
 """Measures of joint angles by forward kinematics: distance error, orientation, arm points.
 
 Every error of the evaluation is recomputed from the joint angles with these, never taken from a
-solver's own report.
+solver's own report, by Pinocchio's forward kinematics (:func:`pin_tips`), not the project's own
+kernels that the solver uses.
 """
 
 from typing import Sequence, Tuple
@@ -21,9 +22,19 @@ def arm_points(robot: Robot, q: np.ndarray) -> np.ndarray:
     return np.concatenate([base, origins, tip[:, None]], axis=1)
 
 
+def pin_tips(robot: Robot, q: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
+    """Tip positions (N, 3) [m] and rotations (N, 3, 3) of (N, n) [rad] by Pinocchio itself."""
+    q = np.atleast_2d(np.asarray(q, dtype=float))
+    pos, rot = np.empty((len(q), 3)), np.empty((len(q), 3, 3))
+    for i, qi in enumerate(q):
+        placement = robot.pin_placement(qi)
+        pos[i], rot[i] = placement.translation, placement.rotation
+    return pos, rot
+
+
 def position_errors(robot: Robot, q: np.ndarray, targets: np.ndarray) -> np.ndarray:
     """Distance errors [m] of configurations (N, n) [rad] against targets (N, 3) or (3,) [m]."""
-    p, _ = robot.fk_rot(np.atleast_2d(q))
+    p, _ = pin_tips(robot, q)
     return goal_errors(p, None, np.asarray(targets, dtype=float))[0]
 
 

@@ -60,6 +60,7 @@ PAPER: Dict = {
 #: The methods as the paper names them.
 NAMES = {'sik': 'SIK', 'psik': 'PSIK', 'fcn': 'FCN', 'fcn_uni': 'FCN-uni', 'anfis': 'ANFIS'}
 #: The report's names of the distance-error variants (see :func:`sik_ros.eval.studies.sik_errors`).
-VARIANTS = {'raw_first': 'raw 1st', 'raw_mean': 'raw mean', 'refined': 'refined', 'raw': 'raw'}
+VARIANTS = {'lookup': 'look-up (paper\'s protocol)', 'raw_first': 'raw best (product)',
+            'raw_mean': 'raw mean of 10 (product)', 'refined': 'refined (product)', 'raw': 'raw'}
 #: The paper's labels of the targets of one experiment (a to d).
 LETTERS = 'abcd'

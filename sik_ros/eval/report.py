@@ -6,7 +6,7 @@ a plain sentence (:func:`verdict`) whether ours is as good as the paper's figure
 
 from pathlib import Path
 import shlex
-from typing import Dict, List, Sequence, Tuple
+from typing import Dict, List, Sequence
 
 import numpy as np
 
@@ -14,8 +14,8 @@ from sik_ros.eval.baselines import (Baseline, BASELINE_FILES, has_prior_table, M
                                     PRIOR_DRAWS, single_solution)
 from sik_ros.eval.histories import TrainedModel
 from sik_ros.eval.markdown import fmt, table, verdict
-from sik_ros.eval.metrics import mean_cm
-from sik_ros.eval.paper import NAMES, PAPER, RADII, VARIANTS
+from sik_ros.eval.paper import NAMES, PAPER
+from sik_ros.eval.report_distance import distance_section
 from sik_ros.eval.report_postures import (diversity_section, indices_section,
                                           obstacle_section, orientation_section)
 from sik_ros.eval.run import Results
@@ -119,109 +119,6 @@ def model_line(goal: str, h: TrainedModel, manifest: Dict) -> str:
                  f'{100 * real["max_tip_error"]:g} cm of the goal at and one cell around their '
                  'cell): the look-up by position gives those' if real else '') + '.'
     return line
-
-
-def distance_section(res: Results, baselines: Dict[str, Method]) -> List[str]:
-    """Experiment 1."""
-    d = res.distance
-    lines = ['## 1. Distance error over the workspace', '',
-             'The distance error is the distance between the target and the tip that the '
-             'returned joint angles reach, computed by forward kinematics (the paper\'s '
-             'definition). Targets are reachable by construction: the tip positions of joint '
-             'angles drawn uniformly within the limits. Variants: **raw 1st** is the '
-             'first-ranked solution of `solve(refine=False)`: the decoder output for up to 192 '
-             'posture indices from the table, ranked by FK error (self-colliding postures '
-             'last), an optimistic reading of a raw decoder; **raw mean** is the mean over the '
-             'up to 10 distinct solutions that call returns, closest to the paper\'s protocol '
-             'of decoding indices from the table (the paper\'s figure for SIK and PSIK is set '
-             'beside it); **refined** is the first solution of `solve()`, damped least squares '
-             'on top of the decoder. FCN and ANFIS predict one solution; their angles are '
-             'clipped to the limits. The paper trained FCN on the original and on the '
-             'uni-position dataset (one row per position), ANFIS on the uni-position one.', '',
-             f'### Over the workspace ({len(res.workspace_targets)} targets)', '']
-    rows = []
-    for name, variants in d.workspace.items():
-        for v, e in variants.items():
-            if v == 'raw_count':
-                continue
-            paper = PAPER['workspace_cm'][name] if v in ('raw_mean', 'raw') else None
-            rows.append([NAMES[name], VARIANTS[v], fmt(mean_cm(e)),
-                         fmt(100 * np.median(e)), fmt(paper, 1)])
-    lines += table(['model', 'variant', 'mean [cm]', 'median [cm]', 'paper mean [cm]'], rows)
-    lines += ['']
-    for name, variants in d.workspace.items():
-        key = 'raw_mean' if 'raw_mean' in variants else 'raw'
-        what = f'{NAMES[name]} ({VARIANTS[key]}) over the workspace'
-        lines.append('- ' + verdict(mean_cm(variants[key]), PAPER['workspace_cm'][name],
-                                    'cm', what))
-    counts = d.workspace['sik']['raw_count']
-    lines += [f'- SIK raw calls returned {np.mean(counts):.1f} distinct solutions on average '
-              '(at most 10 were asked).', '']
-    return lines + radius_lines(res, baselines)
-
-
-def radius_lines(res: Results, baselines: Dict[str, Method]) -> List[str]:
-    """Experiment 1 per radius: the table against the paper's Table 2, verdicts, figure."""
-    d, st = res.distance, res.settings
-    lines = [f'### Per radius ({st.targets} targets per radius)', '',
-             'Targets lie within 1 cm of a sphere of the given radius around the base origin '
-             f'(`panda_link0`): among {st.samples:,} tips of uniform joint samples, those '
-             f'within 1 cm of the sphere, {st.targets} picked at random. "targets" says how '
-             'many there were when fewer than asked. Errors in cm; the paper\'s figures '
-             '(Table 2) beside ours. Self-collisions are not excluded (the paper switched them '
-             'off too).', '']
-    means = d.radius_means_cm()
-    header, rows = radius_table(res, baselines, means)
-    if len(st.radii) < len(RADII):
-        lines += [f'Only {len(st.radii)} of the paper\'s {len(RADII)} radii were run: our '
-                  'averages cover those, the paper\'s cover all of its radii.', '']
-    lines += ['<!-- per-radius table -->'] + table(header, rows) + ['']
-    for name in ['sik'] + [k for k in BASELINE_FILES if k in baselines]:
-        key = 'raw_mean' if 'raw_mean' in means[name] else 'raw'
-        ours = float(np.nanmean(means[name][key]))
-        what = f'{NAMES[name]} ({VARIANTS[key]}) averaged over the radii'
-        lines.append('- ' + verdict(ours, PAPER['radius_avg_cm'][name], 'cm', what))
-    missing = [NAMES[k] for k in BASELINE_FILES if k not in baselines]
-    if missing:
-        lines.append(f'- Not measured (no model given): {", ".join(missing)}; the paper\'s '
-                     'rows are in the figure only for the models we ran.')
-    lines += ['', f'![error against radius]({res.figures["error_vs_radius"]})', '']
-    return lines
-
-
-def radius_table(res: Results, baselines: Dict[str, Method], means) -> Tuple[List[str], List]:
-    """The per-radius table's header and rows (ours, the paper's, the averages) [cm]."""
-    st = res.settings
-    header = ['radius [cm]', 'targets']
-    cols = []
-    for name in ['sik'] + [k for k in BASELINE_FILES if k in baselines]:
-        for v in ('raw_first', 'raw_mean', 'refined', 'raw'):
-            if v in means[name]:
-                header.append(f'{NAMES[name]} {VARIANTS[v]}')
-                cols.append(means[name][v])
-        header.append(f'{NAMES[name]} paper')
-        cols.append(PAPER['radius_cm'][name])
-    rows = []
-    for i, r in enumerate(st.radii):
-        k = RADII.index(r)
-        sph = res.spheres[r]
-        avail = sph.available
-        n = str(len(sph.positions))
-        if avail < st.targets:
-            n += f' (of {st.targets}: only {avail} exist)'
-        row = [f'{100 * r:.0f}', n]
-        for c, header_name in zip(cols, header[2:]):
-            row.append(fmt(c[k], 2) if header_name.endswith('paper') else fmt(c[i]))
-        rows.append(row)
-    avg = ['average', '']
-    for c, header_name in zip(cols, header[2:]):
-        if header_name.endswith('paper'):
-            key = [k for k, v in NAMES.items() if header_name == f'{v} paper'][0]
-            avg.append(fmt(PAPER['radius_avg_cm'][key]))
-        else:
-            avg.append(fmt(np.nanmean(c)))
-    rows.append(avg)
-    return header, rows
 
 
 TIMING_ROWS = (

@@ -10,6 +10,7 @@ from sik_ros.eval.metrics import mean_cm
 from sik_ros.eval.obstacle import NoObstacleCase
 from sik_ros.eval.paper import LETTERS, NAMES, PAPER
 from sik_ros.eval.raw_pose import raw_pose_lines
+from sik_ros.eval.report_distance import pose_lookup_lines
 from sik_ros.eval.run import Results
 from sik_ros.eval.studies import ORIENTED_POOL
 
@@ -155,7 +156,7 @@ def orientation_section(res: Results) -> List[str]:
                              '1 − cosine similarity', 4), '']
     if 'orientation' in res.figures:
         lines += [f'![orientation]({res.figures["orientation"]})', '']
-    return lines + raw_pose_lines(res.raw_pose, paper['distance_cm'])
+    return lines + pose_lookup_lines(res) + raw_pose_lines(res.raw_pose)
 
 
 def obstacle_section(res: Results) -> List[str]:

@@ -17,9 +17,10 @@ from sik_ros.eval import plots
 from sik_ros.eval.baselines import Method, multi_solution, single_solution, TracIK
 from sik_ros.eval.histories import bundle_histories, latent_study, LatentRun, TrainedModel
 from sik_ros.eval.index_properties import index_properties, IndexProperties
+from sik_ros.eval.lookup import LookupErrors, pose_lookup
 from sik_ros.eval.obstacle import NoObstacleCase, obstacle_study, ObstacleCase
 from sik_ros.eval.paper import LETTERS, NAMES, PAPER, RADII, VARIANTS
-from sik_ros.eval.raw_pose import raw_pose_study, RawPose, TARGETS
+from sik_ros.eval.raw_pose import raw_pose_study, RawPose, SEED, TARGETS
 from sik_ros.eval.studies import (distance_error_study, DistanceErrors, diversity_study,
                                   DiversityTarget, element_sweep, Orientation,
                                   orientation_study, sphere_targets, SphereTargets, Sweep,
@@ -126,8 +127,10 @@ class Results:
         histories: the bundle's training summaries, by goal kind.
         orientation: experiment 5 (None: the bundle has no pose model).
         obstacle: experiment 6.
-        raw_pose: experiment 5's raw pose answers as shipped and the paper's way
-            (:mod:`~sik_ros.eval.raw_pose`; empty: no pose model).
+        raw_pose: experiment 5's raw pose answers of the product, as shipped and with
+            self-collision unchecked (:mod:`~sik_ros.eval.raw_pose`; empty: no pose model).
+        pose_lookup: experiment 5 by the paper's protocol (:func:`~.lookup.pose_lookup`, the
+            targets of ``raw_pose``; None: no pose model).
         index_props: experiment 4's index range and interpolation, per multi-solution solver
             (:mod:`~sik_ros.eval.index_properties`).
         figures: ``{key: path relative to the report}`` of the PNG files drawn.
@@ -150,6 +153,7 @@ class Results:
     obstacle: Optional[Union[ObstacleCase, NoObstacleCase]]
     index_props: Dict[str, IndexProperties] = field(default_factory=dict)
     raw_pose: Dict[str, RawPose] = field(default_factory=dict)
+    pose_lookup: Optional[LookupErrors] = None
     figures: Dict[str, str] = field(default_factory=dict)
     date: str = ''
     elapsed_s: float = 0.0
@@ -202,7 +206,12 @@ def run_evaluation(ik: SelectiveIK, baselines: Dict[str, Method], settings: Sett
 
     bar.set_description('5 orientation')
     orientation = orientation_study(ik) if 'pose' in ik.goals else None
-    raw_pose = raw_pose_study(ik, min(settings.targets, TARGETS)) if 'pose' in ik.goals else {}
+    raw_pose, pose_look = {}, None
+    if 'pose' in ik.goals:
+        n_pose = min(settings.targets, TARGETS)
+        raw_pose = raw_pose_study(ik, n_pose)
+        q_pose = np.random.default_rng(SEED).uniform(robot.lower, robot.upper, (n_pose, robot.dof))
+        pose_look = pose_lookup(ik, *robot.fk_rot(q_pose))
     step()
 
     bar.set_description('6 obstacle')
@@ -210,7 +219,7 @@ def run_evaluation(ik: SelectiveIK, baselines: Dict[str, Method], settings: Sett
     step()
 
     res = Results(settings, machine, ws, spheres, distance, timing, note, diversity, latent,
-                  sweep, histories, orientation, obstacle, index_props, raw_pose)
+                  sweep, histories, orientation, obstacle, index_props, raw_pose, pose_look)
     bar.set_description('figures')
     draw_figures(res, ik, baselines, fig_dir, step)
     return res
@@ -227,10 +236,12 @@ def draw_figures(res: Results, ik: SelectiveIK, baselines: Dict[str, Method], fi
 
     ours = {}
     for name, variants in res.distance.radius_means_cm().items():
-        for v in ('raw_mean', 'refined', 'raw'):
+        for v in ('lookup', 'raw'):
             if v in variants:
                 ours[f'{NAMES[name]} {VARIANTS[v]}'] = variants[v]
     paper = {NAMES[k]: v for k, v in PAPER['radius_cm'].items() if k == 'sik' or k in baselines}
+    # only the paper's protocol is drawn beside the paper's figures (the product's answers
+    # are selected by their error)
     figure('error_vs_radius', lambda p: plots.error_vs_radius(
         [100 * r for r in res.settings.radii], ours, paper, p,
         paper_radii_cm=[100 * r for r in RADII]))

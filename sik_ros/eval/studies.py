@@ -11,18 +11,18 @@ Sections of the paper's "Experiments" and the function for each:
 5. orientation as goal: :func:`orientation_study`;
 6. obstacle avoidance with Algorithm 2: :mod:`sik_ros.eval.obstacle`.
 
-Every distance error here is recomputed from the joint angles by forward kinematics: the distance
-between the target and the tip the angles reach [m].
+Every distance error is recomputed from the joint angles by forward kinematics [m].
 """
 
 from dataclasses import dataclass
-from typing import Callable, Dict, List, Optional, Sequence, Tuple
+from typing import Dict, List, Sequence, Tuple
 
 import numpy as np
 from scipy.spatial.transform import Rotation
 
 from sik_ros.eval.baselines import Baseline, Method
-from sik_ros.eval.metrics import mean_cm, orientation_cosine, position_errors
+from sik_ros.eval.lookup import position_lookup, Progress
+from sik_ros.eval.metrics import mean_cm, orientation_cosine, pin_tips, position_errors
 from sik_ros.eval.paper import DIVERSITY_TARGETS, RADII, SWEEP_TARGET
 from sik_ros.kinematics.goal_error import goal_errors
 from sik_ros.kinematics.robot import Robot
@@ -33,9 +33,7 @@ from sik_ros.solver.ranking import posture_mask
 from sik_ros.solver.refine import refine
 from sik_ros.tables.index_table import farthest_point_subset, PostureTable
 
-#: Called with how many steps of work were just done.
-Progress = Optional[Callable[[int], None]]
-#: Per-target distance errors [m] by variant (``raw_first``, ``raw_mean``, ``refined``, ...).
+#: Per-target distance errors [m] by variant (``lookup``, ``raw_first``, ``refined``, ...).
 Errors = Dict[str, np.ndarray]
 
 
@@ -95,9 +93,8 @@ def sphere_targets(robot: Robot, radii: Sequence[float] = RADII, per_radius: int
                    chunk: int = 200_000) -> Dict[float, SphereTargets]:
     """Reachable targets near spheres around the base origin.
 
-    Draws ``samples`` joint configurations uniformly within the limits, keeps the tips whose
-    distance from the base origin is within ``tol`` [m] of a radius [m], and picks
-    ``per_radius`` of them at random (all of them when fewer exist).
+    Of ``samples`` uniform joint draws, the tips within ``tol`` [m] of a radius [m] from the
+    base origin; ``per_radius`` of them at random (all when fewer exist).
 
     Returns:
         ``{radius: SphereTargets}``.
@@ -126,12 +123,17 @@ def sik_errors(ik: SelectiveIK, targets: np.ndarray, progress: Progress = None,
     """Distance errors [m] of a SelectiveIK (SIK or PSIK) on position targets (N, 3) [m].
 
     Returns:
-        per target: ``raw_first`` (first-ranked solution of ``solve(refine=False)``),
-        ``raw_mean`` (mean over its up to ``num_raw`` solutions), ``raw_count`` (how many it
-        returned), ``refined`` (first-ranked solution of ``solve(refine=True)``).
+        per target: ``lookup`` (the paper's protocol: the mean over every index the table's
+        look-up gives, :func:`~sik_ros.eval.lookup.position_lookup`) and ``lookup_count`` (how
+        many); the product's answers: ``raw_first`` (first-ranked solution of
+        ``solve(refine=False)``, the best by FK error), ``raw_mean`` (mean over its up to
+        ``num_raw`` solutions), ``raw_count`` (how many it returned), ``refined`` (first-ranked
+        solution of ``solve(refine=True)``).
     """
-    keys = ('raw_first', 'raw_mean', 'raw_count', 'refined')
-    out = {k: np.empty(len(targets)) for k in keys}
+    look = position_lookup(ik, targets)
+    out = {'lookup': look.distance, 'lookup_count': look.count.astype(float)}
+    for key in ('raw_first', 'raw_mean', 'raw_count', 'refined'):
+        out[key] = np.empty(len(targets))
     for i, p in enumerate(np.asarray(targets, dtype=float)):
         raw = ik.solve(p, num_solutions=num_raw, refine=False)
         q_raw = np.array([s.q for s in raw.solutions])
@@ -169,11 +171,9 @@ def distance_error_study(ik: SelectiveIK, baselines: Dict[str, Method], workspac
 
     Args:
         ik: the SIK solver (position goals).
-        baselines: ``{name: SelectiveIK or Baseline}`` (see
-            :func:`sik_ros.eval.baselines.load_baselines`).
+        baselines: ``{name: SelectiveIK or Baseline}`` (:func:`~.baselines.load_baselines`).
         workspace: targets uniform over the workspace (N, 3) [m].
-        spheres: output of :func:`sphere_targets`.
-        progress: called per target solved.
+        spheres: output of :func:`sphere_targets`; ``progress``: called per target solved.
     """
     models = {'sik': ik, **baselines}
     out = DistanceErrors({}, {})
@@ -390,7 +390,7 @@ def orientation_study(ik: SelectiveIK, targets: int = 4, postures: int = 5,
         q_ref = refine(ik.context, q_raw, Goal(pos, rot)).q
         rec = {}
         for tag, q in (('raw', q_raw), ('refined', q_ref)):
-            p, r = ik.robot.fk_rot(q)
+            p, r = pin_tips(ik.robot, q)
             cos, angle = orientation_cosine(rot, r)
             rec.update({f'q_{tag}': q, f'err_{tag}': goal_errors(p, r, pos)[0],
                         f'cos_{tag}': cos, f'angle_{tag}': angle})

@@ -76,6 +76,7 @@ def summary(res: Results) -> Dict[str, Any]:
                   'elements': [pick(e) for e in res.sweep.elements]},
         'orientation': None if res.orientation is None else pick(res.orientation,
                                                                  drop=('targets',)),
+        'pose_lookup': None if res.pose_lookup is None else asdict(res.pose_lookup),
         'obstacle': obstacle,
         'latent': None if res.latent is None else [pick(r, drop=('history',))
                                                    for r in res.latent],
