@@ -14,19 +14,21 @@ can start refinement from worse postures than the arm's own collected configurat
 """
 
 from dataclasses import dataclass, field
+import hashlib
 from pathlib import Path
 import tempfile
 from typing import Callable, Dict, List, Optional, Tuple
 
 import numpy as np
 
-from sik_ros.artifacts import file_sha256, read_json, write_json_atomic
+from sik_ros.artifacts import file_sha256, read_json, write_json_atomic, write_text_atomic
 from sik_ros.bundles.bundle import load_bundle
 from sik_ros.bundles.cache import ArmEntry, cache_root, CHECKSUMS
 from sik_ros.bundles.sweep_models import sweep_models
 from sik_ros.errors import SikError
 from sik_ros.kinematics.arm_description import (arm_files, arm_robot, chain_key, check_chain,
-                                                Description, read_description)
+                                                collision_text, Description, mesh_folders,
+                                                read_description)
 from sik_ros.kinematics.robot import Robot
 from sik_ros.solver import SelectiveIK, SolverConfig
 
@@ -73,17 +75,44 @@ def prepare_arm(text: str, base: str, tip: str, cache: Optional[str] = None) -> 
     """
     desc = read_description(text)
     check_chain(desc, base, tip)
+    root = cache_root(cache)
+    resolved, missing = collision_text(desc.text, mesh_folders())
+    index = root / 'index' / hashlib.sha256(
+        '\0'.join((resolved, base, tip)).encode()).hexdigest()
+    known = _known(desc, root, index, resolved, base, tip)
+    if known is not None:  # this description was served before: its entry's robot, loaded once
+        return Arm(known[0], known[1], ArmEntry(root, known[1]), missing, [])
     with tempfile.TemporaryDirectory(prefix='sik_arm_') as tmp:
         urdf, missing = arm_files(desc, Path(tmp))
         key = chain_key(arm_robot(desc, urdf, base, tip))
-    entry = ArmEntry(cache_root(cache), key)
+    entry = ArmEntry(root, key)
     notes = []
     robot = _entry_robot(desc, entry, key, base, tip, notes)
     if robot is None:
         entry.path.mkdir(parents=True, exist_ok=True)
         arm_files(desc, entry.path)
         robot = arm_robot(desc, entry.urdf, base, tip)
+    index.parent.mkdir(parents=True, exist_ok=True)
+    write_text_atomic(index, key + '\n')
     return Arm(robot, key, entry, missing, notes)
+
+
+def _known(desc: Description, root: Path, index: Path, resolved: str, base: str, tip: str
+           ) -> Optional[Tuple[Robot, str]]:
+    """The robot and key of a description served before (the same text, meshes and frames).
+
+    Read from the entry the index names, when its URDF is that text and its chain that key;
+    None otherwise (the caller keys the description afresh).
+    """
+    try:
+        key = index.read_text().strip()
+        urdf = ArmEntry(root, key).urdf
+        if not key or urdf.read_text() != resolved:
+            return None
+        robot = arm_robot(desc, urdf, base, tip)
+    except (OSError, SikError):
+        return None
+    return (robot, key) if chain_key(robot) == key else None
 
 
 def _entry_robot(desc: Description, entry: ArmEntry, key: str, base: str, tip: str,

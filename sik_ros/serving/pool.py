@@ -20,8 +20,10 @@ from dataclasses import asdict, dataclass
 import logging
 import multiprocessing
 from multiprocessing.connection import Connection
+import os
 import queue
 import signal
+import sys
 import threading
 import time
 from typing import Any, Callable, Dict, List, Optional
@@ -88,8 +90,11 @@ def single_threaded() -> None:
     processes on the same cores costs more than it gains (docs/design.md, "Measured
     choices").
     """
-    import torch
-    torch.set_num_threads(1)
+    torch = sys.modules.get('torch')
+    if torch is not None:
+        torch.set_num_threads(1)
+    else:  # read when torch is imported (a bundle without NumPy twins): not imported for this
+        os.environ['OMP_NUM_THREADS'] = '1'
     threadpool_limits(1, user_api='blas')
 
 
