@@ -37,6 +37,7 @@ def test_twins_compute_what_the_torch_models_compute(tiny_bundle):
     assert checked == 2
 
 
+@pytest.mark.e2e
 def test_a_bundle_with_twins_serves_without_torch(tiny_bundle, panda):
     """Loading and solving from the twins imports no torch (a node starts sooner)."""
     p, quat = (v.tolist() for v in panda.fk((panda.lower + panda.upper) / 2))
