@@ -23,7 +23,7 @@ import fcntl
 import os
 from pathlib import Path
 import time
-from typing import Dict, Iterator, Optional
+from typing import Dict, IO, Iterator, Optional
 
 from sik_ros.artifacts import file_sha256, FORMAT_VERSION, read_json, write_json_atomic
 from sik_ros.errors import CorruptArtifact
@@ -107,26 +107,35 @@ class ArmEntry:
         (aside.parent / f'{aside.name}.reason.txt').write_text(reason + '\n')
         return aside
 
-    @contextlib.contextmanager
-    def building(self) -> Iterator[bool]:
-        """Hold the entry's build lock while the block runs; yields whether it was taken.
+    def try_lock(self) -> Optional[IO]:
+        """Take the entry's build lock, without waiting: its handle, or None when held.
 
-        Non-blocking: False when another process is building this arm.
+        The lock is the kernel's (``flock``): a process that dies lets go of it.
         """
         self.path.mkdir(parents=True, exist_ok=True)
         f = open(self.path / 'lock', 'a+')
         try:
-            try:
-                fcntl.flock(f, fcntl.LOCK_EX | fcntl.LOCK_NB)
-            except OSError:
-                yield False
-                return
-            try:
-                yield True
-            finally:
-                fcntl.flock(f, fcntl.LOCK_UN)
-        finally:
+            fcntl.flock(f, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
             f.close()
+            return None
+        return f
+
+    @staticmethod
+    def unlock(handle: IO) -> None:
+        """Let go of a lock :meth:`try_lock` took."""
+        fcntl.flock(handle, fcntl.LOCK_UN)
+        handle.close()
+
+    @contextlib.contextmanager
+    def building(self) -> Iterator[bool]:
+        """Hold the entry's build lock while the block runs; yields whether it was taken."""
+        handle = self.try_lock()
+        try:
+            yield handle is not None
+        finally:
+            if handle is not None:
+                self.unlock(handle)
 
     def status(self) -> Dict:
         """The build's progress as its builder last wrote it (empty when none)."""

@@ -37,7 +37,7 @@ class NumpySIK:
         self.cfg, self.encoder, self.decoder = cfg, encoder, decoder
 
 
-def _layers(seq) -> Optional[Layers]:
+def torch_layers(seq) -> Optional[Layers]:
     """A torch ``Sequential`` of ``Linear`` and ``ELU`` layers as arrays, or None."""
     import torch
     mods = list(seq.children()) if isinstance(seq, torch.nn.Sequential) else []
@@ -60,7 +60,7 @@ def write_twin(ckpt: Dict, path: Path) -> Optional[Path]:
     model, cfg, _ = model_from_checkpoint(ckpt)
     if not isinstance(model, SIK) or cfg.kind != 'sik':
         return None
-    enc, dec = _layers(model.encoder), _layers(model.decoder)
+    enc, dec = torch_layers(model.encoder), torch_layers(model.decoder)
     if enc is None or dec is None:
         return None
     manifest = {'kind': KIND, 'format_version': FORMAT_VERSION,

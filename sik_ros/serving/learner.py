@@ -57,7 +57,6 @@ class BackgroundLearner:
         self.seconds, self.rows, self.log = float(seconds), int(rows), log
         self._proc: Optional[subprocess.Popen] = None
         self._lock = None
-        self._lock_ctx = None
         self._failures = 0
         self._delivered = False
         self.state = 'waiting'
@@ -74,12 +73,9 @@ class BackgroundLearner:
 
     def _start(self) -> bool:
         """Take the entry's lock and start the build; False when another process holds it."""
-        ctx = self.entry.building()
-        taken = ctx.__enter__()
-        if not taken:
-            ctx.__exit__(None, None, None)
+        self._lock = self.entry.try_lock()
+        if self._lock is None:
             return False
-        self._lock_ctx = ctx
         if self.entry.bundle.exists() and not self.entry.ready():
             # an unfinished bundle left by a builder that died: sik-build resumes from its work
             # folder only when that folder says the bundle stage was done
@@ -99,9 +95,9 @@ class BackgroundLearner:
         return True
 
     def _release(self) -> None:
-        if self._lock_ctx is not None:
-            self._lock_ctx.__exit__(None, None, None)
-            self._lock_ctx = None
+        lock, self._lock = self._lock, None
+        if lock is not None:
+            self.entry.unlock(lock)
 
     # -- polling ---------------------------------------------------------------------------
 

@@ -14,7 +14,7 @@ import numpy as np
 
 from sik_ros.kernels import as_arg, mlp_rows, pack_layers
 from sik_ros.learning.model_config import make_goal
-from sik_ros.learning.twins import NumpySIK
+from sik_ros.learning.twins import NumpySIK, torch_layers
 from sik_ros.solver.config import KERNEL_ROWS
 from sik_ros.solver.context import Context, Goal
 
@@ -29,15 +29,8 @@ class NumpyMLP:
     @staticmethod
     def of(seq) -> Optional['NumpyMLP']:
         """The NumPy twin of a torch ``seq``, or None when it holds other layers."""
-        import torch
-        mods = list(seq.children()) if isinstance(seq, torch.nn.Sequential) else []
-        linear = mods[0::2]
-        if not mods or not all(isinstance(m, torch.nn.Linear) for m in linear) or not all(
-                isinstance(m, torch.nn.ELU) and m.alpha == 1.0 for m in mods[1::2]) \
-                or len(mods) % 2 == 0:
-            return None
-        return NumpyMLP([(m.weight.detach().numpy().T.astype(np.float32),
-                          m.bias.detach().numpy().astype(np.float32)) for m in linear])
+        layers = torch_layers(seq)
+        return None if layers is None else NumpyMLP(layers)
 
     def __call__(self, x: np.ndarray) -> np.ndarray:
         """The outputs (M, out) of float32 inputs (M, in)."""
