@@ -279,6 +279,9 @@ def test_joint_trajectory_command(tmp_path_factory, robot):
             assert harness.wait_for_service(c.node, service, proc, 90.0), \
                 proc.log_path.read_text()
             assert c.wait_for_node(20.0)
+            deadline = time.monotonic() + 10.0  # the command topic matched before the goals
+            while sub.get_publisher_count() == 0 and time.monotonic() < deadline:
+                time.sleep(0.05)
             c.publish_state((robot.lower + robot.upper) / 2)
             goals, quat = circle(robot, 100, 50.0)
             c.run(goals, 50.0, quat, settle=1.0)
@@ -286,7 +289,8 @@ def test_joint_trajectory_command(tmp_path_factory, robot):
     finally:
         rclpy.try_shutdown(context=context)
         harness.stop_node(proc)
-    assert len(got) >= 50, f'{len(got)} trajectories for 100 goals'
+    assert len(got) >= 50, (f'{len(got)} trajectories for 100 goals; the node said:\n'
+                            + proc.log_path.read_text()[-2000:])
     for traj in got:
         assert list(traj.joint_names) == list(robot.joint_names)
         assert len(traj.points) == 1
