@@ -21,7 +21,7 @@ import argparse
 import os
 import sys
 import time
-from typing import Dict, List
+from typing import Dict, List, Tuple
 
 import numpy as np
 
@@ -38,6 +38,15 @@ POS_TOL, ROT_TOL = 1e-4, 1e-3
 ON_FAMILY = 0.25
 #: Reference samples at neighbouring values of joint 7 closer than this are linked [rad].
 LINK = 0.3
+#: Times an interval of joint 7 is halved where a solution has no neighbour within LINK.
+DEPTH = 5
+#: Two curves that end in one finest interval meet there only this far from every limit [rad].
+EDGE = 0.01
+#: Step of a verified path between the reference's families [rad], and most steps each way.
+PATH_STEP = 0.05
+PATH_STEPS = 400
+#: Two solutions at one value of joint 7 closer than this are one [rad].
+SAME_SAMPLE = 0.01
 #: Branches of an arm of six joints: wrapped solutions closer than this are one [rad].
 SAME_BRANCH = 0.1
 
@@ -57,10 +66,59 @@ def homogeneous(p: np.ndarray, r: np.ndarray) -> np.ndarray:
     return t
 
 
+class HeldSweep:
+    """A numerical sweep of joint 7, completing frankik's.
+
+    At each value, joint 7 held, the other six are solved from the solutions at the
+    neighbouring values (the sweep continued) and from random starts (damped least squares,
+    the solver's compiled kernel, 60 iterations); the exact, distinct solutions are kept.
+    frankik leaves out a branch of joint 4 (solutions with joint 4 above about -0.47 rad).
+    """
+
+    def __init__(self, ik: SelectiveIK, starts: int):
+        from sik_ros.solver.refine import kernel_settings
+        self.robot, self.cfg = ik.robot, ik.config
+        self.settings = kernel_settings(ik.config, 60, 0, False, False)
+        self.rng = np.random.default_rng(0)
+        self.starts = starts
+
+    def aim(self, p: np.ndarray, r: np.ndarray) -> None:
+        """The pose of the next sweep."""
+        self.pos, self.rot = np.ascontiguousarray(p), np.ascontiguousarray(r)
+
+    def solutions(self, q7: float, hint: np.ndarray, draw: bool) -> List[np.ndarray]:
+        """Distinct exact solutions within the limits with joint 7 held at ``q7``.
+
+        Refined from ``hint`` (K, 7) (joint 7 set to ``q7``: the sweep continued) and, with
+        ``draw``, from random starts.
+        """
+        from sik_ros.kernels.dls import refine_rows
+        robot = self.robot
+        lower, upper = robot.lower.copy(), robot.upper.copy()
+        lower[6] = upper[6] = q7
+        q = np.concatenate([np.reshape(hint, (-1, 7)),
+                            self.rng.uniform(lower, upper, (self.starts if draw else 0, 7))])
+        if not len(q):
+            return []
+        q[:, 6] = q7
+        m = len(q)
+        perr, oerr, status = np.empty(m), np.empty(m), np.empty(m, dtype=np.int8)
+        reals, ints, prune_at = self.settings
+        refine_rows(robot.frames, lower, upper, np.asarray(robot.periodic, dtype=bool), q,
+                    self.pos, self.rot, True, reals.copy(), ints, prune_at, perr, oerr,
+                    status)
+        out: List[np.ndarray] = []
+        for i in np.flatnonzero((perr <= POS_TOL) & (oerr <= ROT_TOL)):
+            if all(np.linalg.norm(q[i] - k) > SAME_SAMPLE for k in out):
+                out.append(q[i].copy())
+        return out
+
+
 class Frankik:
     """The analytic reference for the Panda: ``frankik.ik_full`` swept over joint 7."""
 
-    def __init__(self, ik: SelectiveIK, samples: int):
+    def __init__(self, ik: SelectiveIK, samples: int, held_starts: int = 0,
+                 paths: bool = False):
         import frankik
         self.fk, self.ik_full = frankik.fk, frankik.ik_full
         self.lower, self.upper = ik.robot.lower, ik.robot.upper
@@ -71,38 +129,181 @@ class Frankik:
         # takes: fk's frame less its hand offset
         self.offset = np.linalg.inv(self.fk(q)) @ ours
         self.hand = frankik.FrankaKinematics.FrankaHandTCPOffset
+        self.held = HeldSweep(ik, held_starts) if held_starts > 0 else None
+        self.robot, self.paths = ik.robot, paths
+
+    def _at(self, goal: np.ndarray, q7: float, hint: np.ndarray, draw: bool) -> np.ndarray:
+        """The solutions within the limits at one value of joint 7 (K, 7).
+
+        frankik's, and the numerical sweep's (:class:`HeldSweep`, from ``hint``, the
+        solutions at neighbouring values, and with ``draw`` random starts) that none of
+        frankik's lies near.
+        """
+        sol = self.ik_full(goal, None, float(q7))
+        keep = [q for q in sol if np.isfinite(q).all() and np.all(q >= self.lower - 1e-9)
+                and np.all(q <= self.upper + 1e-9)]
+        if self.held is not None:
+            for q in self.held.solutions(q7, hint, draw):
+                if all(np.linalg.norm(q - k) > SAME_SAMPLE for k in keep):
+                    keep.append(q)
+        return np.array(keep).reshape(-1, 7)
 
     def families(self, p: np.ndarray, r: np.ndarray):
-        """The reference's samples (S, 7) and their family labels (S,), and the sweep's time."""
+        """The reference's samples (S, 7) and their family labels (S,), and the sweep's time.
+
+        Solutions at neighbouring values of joint 7 within :data:`LINK` are linked. Where a
+        solution at one value has none within :data:`LINK` at the next (the curve moves fast
+        near a singularity, or ends), the interval is halved, down to :data:`DEPTH` times, and
+        the halves linked alike; two curves that end in the same finest interval, within
+        :data:`LINK` of each other and clear of the limits, meet there (a fold of the
+        self-motion in joint 7: one family).
+        """
         goal = homogeneous(p, r) @ np.linalg.inv(self.offset) @ np.linalg.inv(self.hand)
+        if self.held is not None:
+            self.held.aim(p, r)
         t0 = time.perf_counter()
-        rows, step = [], []
-        for k, q7 in enumerate(self.q7):
-            sol = self.ik_full(goal, None, float(q7))
-            for q in sol:
-                if np.isfinite(q).all() and np.all(q >= self.lower - 1e-9) and \
-                        np.all(q <= self.upper + 1e-9):
-                    rows.append(q)
-                    step.append(k)
-        elapsed = time.perf_counter() - t0
-        if not rows:
-            return np.empty((0, 7)), np.empty(0, dtype=int), elapsed
-        q, step = np.array(rows), np.array(step)
-        parent = np.arange(len(q))
+        rows: List[np.ndarray] = []
+        parent: List[int] = []
+
+        def add(q7, hint=(), draw=False):
+            sol = self._at(goal, q7, np.array([rows[i] for i in hint]), draw)
+            first = len(rows)
+            rows.extend(sol)
+            parent.extend(range(first, first + len(sol)))
+            return list(range(first, first + len(sol)))
 
         def root(i):
             while parent[i] != i:
                 parent[i] = parent[parent[i]]
                 i = parent[i]
             return i
-        for k in np.unique(step):
-            a, b = np.flatnonzero(step == k), np.flatnonzero(step == k + 1)
+
+        def union(i, j):
+            ri, rj = root(i), root(j)
+            parent[max(ri, rj)] = min(ri, rj)
+
+        def clear(i):
+            q = rows[i]
+            return bool(np.all(q > self.lower + EDGE) and np.all(q < self.upper - EDGE))
+
+        def meet(ends):
+            for x, i in enumerate(ends):
+                for j in ends[x + 1:]:
+                    if clear(i) and clear(j) and np.linalg.norm(rows[i] - rows[j]) < LINK:
+                        union(i, j)
+
+        def connect(va, a, vb, b, depth):
+            linked_a, linked_b = set(), set()
             for i in a:
                 for j in b:
-                    if np.linalg.norm(q[i] - q[j]) < LINK:
-                        parent[max(root(i), root(j))] = min(root(i), root(j))
-        labels = np.array([root(i) for i in range(len(q))])
-        return q, np.unique(labels, return_inverse=True)[1], elapsed
+                    if np.linalg.norm(rows[i] - rows[j]) < LINK:
+                        union(i, j)
+                        linked_a.add(i)
+                        linked_b.add(j)
+            ends_a = [i for i in a if i not in linked_a]
+            ends_b = [j for j in b if j not in linked_b]
+            if not ends_a and not ends_b:
+                return
+            if depth < DEPTH:
+                vm = (va + vb) / 2
+                m = add(vm, a + b)
+                connect(va, a, vm, m, depth + 1)
+                connect(vm, m, vb, b, depth + 1)
+            else:
+                meet(ends_a)
+                meet(ends_b)
+
+        grid = []
+        for v in self.q7:
+            grid.append(add(v, grid[-1] if grid else (), True))
+        for k in range(len(grid) - 1):
+            connect(self.q7[k], grid[k], self.q7[k + 1], grid[k + 1], 0)
+        elapsed = time.perf_counter() - t0
+        if not rows:
+            return np.empty((0, 7)), np.empty(0, dtype=int), elapsed
+        labels = np.array([root(i) for i in range(len(rows))])
+        labels = np.unique(labels, return_inverse=True)[1]
+        if self.paths:
+            return (*joined_by_paths(self.robot, p, r, np.array(rows), labels), elapsed)
+        return np.array(rows), labels, elapsed
+
+
+def rotation_angle(r: np.ndarray) -> float:
+    """The angle of a rotation matrix [rad]."""
+    return float(np.arccos(np.clip((np.trace(r) - 1) / 2, -1, 1)))
+
+
+def verified(robot, q: np.ndarray, p: np.ndarray, r: np.ndarray) -> bool:
+    """Whether ``q`` lies within the limits and reaches the pose by Pinocchio's own FK."""
+    tip = robot.pin_placement(q)
+    return bool(np.all(q >= robot.lower) and np.all(q <= robot.upper)) and \
+        np.linalg.norm(tip.translation - p) <= POS_TOL and \
+        rotation_angle(tip.rotation.T @ r) <= ROT_TOL
+
+
+def pose_error(robot, q: np.ndarray, p: np.ndarray, r: np.ndarray):
+    """The tip's error (6,) (position, rotation vector in the base frame) and Jacobian."""
+    tp, tr, jac = robot.jacobian_batch(q[None])
+    dr = r @ tr[0].T
+    angle = rotation_angle(dr)
+    axis = np.array([dr[2, 1] - dr[1, 2], dr[0, 2] - dr[2, 0], dr[1, 0] - dr[0, 1]])
+    w = axis * (angle / (2 * np.sin(angle)) if angle > 1e-9 else 0.5)
+    return np.concatenate([p - tp[0], w]), jac[0]
+
+
+def joined_by_paths(robot, p: np.ndarray, r: np.ndarray, ref_q: np.ndarray,
+                    labels: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
+    """The reference's labels, families joined where a verified path of solutions joins them.
+
+    A sweep of joint 7 sees a piece of the self-motion along which joint 7 hardly moves (the
+    other six move at one value of it) as no piece at all, and parts the families it joins.
+    From both ends (in joint 7) of every family clear of the limits, the curve is followed
+    both ways within the limits: points :data:`PATH_STEP` apart (null vector of the
+    Jacobian, then damped least squares back onto the pose), each verified by Pinocchio's FK
+    and the limits, none more than two steps from the last; a family whose sample the path
+    passes within :data:`PATH_STEP` is joined to the end's.
+
+    Returns:
+        the samples (the reference's and the paths' points) and their labels.
+    """
+    parent = np.arange(labels.max() + 1)
+    points, owner = [], []
+
+    def root(i):
+        while parent[i] != i:
+            i = parent[i]
+        return i
+    lo, up = robot.lower, robot.upper
+    for f in range(labels.max() + 1):
+        rows = np.flatnonzero(labels == f)
+        for e in (rows[np.argmin(ref_q[rows, 6])], rows[np.argmax(ref_q[rows, 6])]):
+            if np.min(np.minimum(ref_q[e] - lo, up - ref_q[e])) <= EDGE:
+                continue  # an end at a limit: the family ends there
+            for way in (1.0, -1.0):
+                x, heading = ref_q[e].copy(), None
+                for _ in range(PATH_STEPS):
+                    _, jac = pose_error(robot, x, p, r)
+                    v = np.linalg.svd(jac)[2][-1]
+                    v *= way if heading is None else np.sign(v @ heading) or 1.0
+                    y = x + PATH_STEP * v
+                    for _ in range(10):
+                        err, jac = pose_error(robot, y, p, r)
+                        if np.linalg.norm(err[:3]) < POS_TOL / 10 and \
+                                np.linalg.norm(err[3:]) < ROT_TOL / 10:
+                            break
+                        y = y + jac.T @ np.linalg.solve(jac @ jac.T + 1e-10 * np.eye(6), err)
+                    if not verified(robot, y, p, r) or np.linalg.norm(y - x) > 2 * PATH_STEP:
+                        break
+                    heading, x = v, y
+                    points.append(y)
+                    owner.append(f)
+                    near = labels[np.linalg.norm(ref_q - x, axis=1) < PATH_STEP]
+                    for g in np.unique(near):
+                        a, b = root(f), root(int(g))
+                        parent[max(a, b)] = min(a, b)
+    q = np.concatenate([ref_q, np.reshape(points, (-1, ref_q.shape[1]))])
+    joined = np.array([root(int(f)) for f in np.concatenate([labels, owner]).astype(int)])
+    return q, np.unique(joined, return_inverse=True)[1]
 
 
 def on_family(q: np.ndarray, ref_q: np.ndarray, ref_label: np.ndarray) -> int:
@@ -176,7 +377,7 @@ def panda(args) -> Dict:
     for v in variants:
         ik.configure(family_search=v)
         ik.solve(*ik.fk(np.full(7, 0.1)), num_solutions=16)
-    ref = Frankik(ik, args.q7_samples)
+    ref = Frankik(ik, args.q7_samples, args.held_starts, not args.no_paths)
     tracik = TracIK(ik.robot)
     rng = np.random.default_rng(args.seed)
     seeds = np.random.default_rng(args.seed + 100)  # the peer's: apart from the poses' draws
@@ -299,6 +500,12 @@ def main(argv=None) -> int:
     parser.add_argument('--panda-poses', type=int, default=40)
     parser.add_argument('--q7-samples', type=int, default=1200,
                         help='values of joint 7 in frankik\'s sweep')
+    parser.add_argument('--held-starts', type=int, default=24,
+                        help='random starts per value of joint 7 of the numerical sweep that '
+                        'completes frankik\'s (0: frankik alone)')
+    parser.add_argument('--no-paths', action='store_true',
+                        help='the reference\'s families without the verified paths that join '
+                        'them')
     parser.add_argument('--arm-bundle', default='', help='bundle of an arm of six joints')
     parser.add_argument('--arm-poses', type=int, default=60)
     parser.add_argument('--restarts', type=int, default=300,

@@ -90,7 +90,7 @@ def test_exact_flips_keep_the_tip_and_turn_into_the_limits():
     within them at that pose; the UR5 (offset wrist) has no exact flip.
     """
     from sik_ros.kinematics.branches import exact_flips, flip
-    from sik_ros.kinematics.periodic import TURN
+    from sik_ros.kernels.angles import TURN
     from sik_ros.kinematics.robots import load_robot
     kinova = load_robot('kinova')
     assert exact_flips(kinova) == (3,) and exact_flips(load_robot('ur5')) == ()

@@ -5,8 +5,8 @@ import pytest
 
 from sik_ros.deadline import NO_DEADLINE
 from sik_ros.errors import InvalidArgument
+from sik_ros.kernels.angles import TURN
 from sik_ros.kernels.families import branch_labels
-from sik_ros.kinematics.periodic import TURN
 from sik_ros.kinematics.rotations import quaternion_matrix
 from sik_ros.solver import families, SelectiveIK, SolverConfig
 from sik_ros.solver.batch import Candidates
@@ -183,48 +183,80 @@ def test_firsts_marks_each_familys_first_row_in_order():
         assert (families.firsts(fam + 100 * (fam >= 0), order) == expect).all()
 
 
-def test_family_search_adds_exact_points_of_pieces_apart_from_the_found(bundled):
-    """The traced pieces' points reach the pose (Pinocchio FK), within limits, apart from all.
+def test_family_search_adds_exact_points_within_limits_far_apart_per_family(bundled):
+    """The atlas's points reach the pose (Pinocchio FK) within the limits, each family's apart.
 
-    Apart: from every solution they were traced from; the Panda has one exact flip.
+    Apart: every point the search adds is ``distinct_threshold`` from the solutions it traced
+    from and from the others of its piece; the Panda has one exact flip.
     """
-    from sik_ros.kernels.sweep import trace_pieces
     from sik_ros.kinematics.branches import robot_flips as flips_of
-    robot, cfg = bundled.robot, bundled.config
+    from sik_ros.solver.explore import unindexed
+    from sik_ros.solver.ranking import assess
+    from sik_ros.solver.search import search
+    robot, cfg, ctx = bundled.robot, bundled.config, bundled.context
     assert flips_of(robot).tolist() == [0]  # the Panda's spherical shoulder
-    assert not cfg.family_search  # the solutions found without the search
-    points = 0
+    added = 0
     for pos, quat in pose_goals(bundled, 6, seed=3):
-        res = bundled.solve(pos, quat, num_solutions=16)
+        res = bundled.with_config(family_search=False).solve(pos, quat, num_solutions=16)
         q = np.ascontiguousarray([s.q for s in res.solutions if s.converged])
-        rot = quaternion_matrix(quat)
-        out, owner = np.empty((32, 7)), np.empty(32, dtype=np.int64)
-        k = trace_pieces(robot.frames, robot.lower, robot.upper, q, flips_of(robot),
-                         np.asarray(pos, float), rot, 0.15, 400, 0.2, cfg.position_tolerance,
-                         cfg.orientation_tolerance, cfg.max_step, out, owner)
-        for x in out[:k]:
+        goal = Goal(np.asarray(pos, float), quaternion_matrix(quat))
+        c = assess(q, unindexed(q, 2), np.zeros(len(q)), np.zeros(len(q)), 'pose', cfg)
+        out, atlas = search(ctx, c, goal, NO_DEADLINE)
+        assert atlas is not None and len(atlas.points) > 0
+        new = out.q[len(q):]
+        pieces = atlas.pieces_of(new, robot.periodic)
+        for k, x in enumerate(new):
             tip = robot.pin_placement(x)
             assert np.linalg.norm(tip.translation - pos) <= cfg.position_tolerance
-            dr = tip.rotation.T @ rot
+            dr = tip.rotation.T @ goal.rotation
             assert np.arccos(np.clip((np.trace(dr) - 1) / 2, -1, 1)) <= \
                 cfg.orientation_tolerance
             assert np.all(x >= robot.lower) and np.all(x <= robot.upper)
-            assert np.linalg.norm(q - x, axis=1).min() >= 0.2
-        points += k
-    assert points >= 3  # pieces were found and checked
+            same = pieces == pieces[k]
+            same[k] = False
+            near = np.linalg.norm(new[same] - x, axis=1) if same.any() else np.array([np.inf])
+            assert near.min() >= cfg.distinct_threshold - 1e-9
+        assert np.all(out.exact[len(q):])
+        added += len(new)
+    assert added >= 6  # points were added and checked
+
+
+def test_default_labels_are_the_traced_curves_both_ways(bundled):
+    """The answer's families are the traced self-motion curves within the limits, both ways.
+
+    Solutions on one traced curve share a family (no curve split in two), and solutions of
+    one family lie on one traced curve (no two curves joined): "the search finds more
+    families" cannot pass by splitting. The reference: :func:`families.traced`, each
+    solution's curve followed within the limits in steps of 0.1 rad.
+    """
+    ctx = bundled.context
+    pairs = split = joined = 0
+    for pos, quat in pose_goals(bundled, 8, seed=7):
+        res = bundled.solve(pos, quat, num_solutions=16)
+        exact = [s for s in res.solutions if s.converged]
+        q = np.array([s.q for s in exact])
+        goal = Goal(np.asarray(pos, float), quaternion_matrix(quat))
+        traced = families.traced(ctx, q, goal, NO_DEADLINE)
+        for i in range(len(q)):
+            for j in range(i + 1, len(q)):
+                ours = exact[i].family == exact[j].family
+                curve = traced[i] == traced[j]
+                split += curve and not ours
+                joined += ours and not curve
+                pairs += 1
+    assert pairs >= 100
+    assert split == 0 and joined == 0
 
 
 def test_family_search_finds_more_families(bundled):
-    """With the search, no pose has fewer families, and some have more; every answer exact."""
+    """Without the search no pose has more families, and some have fewer; every answer exact."""
     cfg = bundled.config
+    assert cfg.family_search  # on by default
+    plain = bundled.with_config(family_search=False)
     more = 0
     for pos, quat in pose_goals(bundled, 10, seed=11):
-        without = bundled.solve(pos, quat, num_solutions=16)
-        bundled.configure(family_search=True)
-        try:
-            with_search = bundled.solve(pos, quat, num_solutions=16)
-        finally:
-            bundled.configure(family_search=False)
+        without = plain.solve(pos, quat, num_solutions=16)
+        with_search = bundled.solve(pos, quat, num_solutions=16)
         assert with_search.num_families >= without.num_families
         more += with_search.num_families > without.num_families
         exact = [s for s in with_search.solutions if s.converged]

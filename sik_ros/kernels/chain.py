@@ -15,11 +15,14 @@ from numba import njit
 import numpy as np
 
 from sik_ros.kernels._cache import CACHE
-from sik_ros.kinematics.chain import SerialChain
 
 
-def chain_frames(chain: SerialChain) -> np.ndarray:
-    """The kernels' ``frames`` array (n + 2, 4, 3) of a chain (C-contiguous float64)."""
+def chain_frames(chain) -> np.ndarray:
+    """The kernels' ``frames`` array (n + 2, 4, 3) of a chain (C-contiguous float64).
+
+    ``chain``: a :class:`~sik_ros.kinematics.chain.SerialChain` (its joint, base and tip
+    rotations and translations).
+    """
     n = chain.dof
     frames = np.zeros((n + 2, 4, 3))
     frames[:n, :3] = chain.joint_rotations

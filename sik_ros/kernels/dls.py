@@ -16,9 +16,9 @@ from numba import njit
 import numpy as np
 
 from sik_ros.kernels._cache import CACHE
+from sik_ros.kernels.angles import turn_once
 from sik_ros.kernels.chain import F1, F2, F3, place, rotation_error
 from sik_ros.kernels.clock import monotonic
-from sik_ros.kinematics.periodic import TURN
 
 #: Row outcomes of :func:`refine_rows` (``status``).
 UNTOUCHED, CONVERGED, GIVEN_UP, ITERATIONS, PRUNED, DEADLINE = range(6)
@@ -112,10 +112,7 @@ def limited_step(q, jac, err, dims, lower, upper, periodic, turn, lam2, max_step
     for j in range(n):
         v = q[j] + jm[0, j] * scale
         if turn and periodic[j]:
-            if v < lower[j]:
-                v += TURN
-            elif v > upper[j]:
-                v -= TURN
+            v = turn_once(v, lower[j], upper[j])
         q[j] = min(max(v, lower[j]), upper[j])
 
 

@@ -24,58 +24,14 @@ import math
 from numba import njit
 import numpy as np
 
-from sik_ros.kernels.chain import null_vector7, place
+from sik_ros.kernels._cache import CACHE
+from sik_ros.kernels.angles import angle_distance, PER_TURN, TURN, turn_once
 from sik_ros.kernels.clock import monotonic
-from sik_ros.kernels.dls import goal_error, limited_step
-from sik_ros.kinematics.periodic import PER_TURN, TURN
-
-#: Most corrector iterations per point of a trace or a segment.
-CORRECTIONS = 8
-#: Squared damping of the corrector's steps [1].
-CORRECT_DAMPING2 = 1e-8
+from sik_ros.kernels.selfmotion import advance, correct
+from sik_ros.kernels.sets import root, roots, union
 
 
-@njit(cache=True, nogil=True)
-def _distance(a, b, periodic):  # pragma: no cover (compiled)
-    """Joint distance [rad] of two rows, periodic joints at their nearest turn."""
-    s = 0.0
-    for c in range(a.shape[0]):
-        v = a[c] - b[c]
-        if periodic[c]:
-            v -= TURN * np.rint(v * PER_TURN)
-        s += v * v
-    return math.sqrt(s)
-
-
-@njit(cache=True, nogil=True)
-def _root(parent, i):  # pragma: no cover (compiled)
-    """The root of ``i`` in the union-find forest ``parent`` (paths halved)."""
-    while parent[i] != i:
-        parent[i] = parent[parent[i]]
-        i = parent[i]
-    return i
-
-
-@njit(cache=True, nogil=True)
-def _roots(parent):  # pragma: no cover (compiled)
-    """Each row's root."""
-    out = np.empty(parent.shape[0], dtype=np.int64)
-    for i in range(parent.shape[0]):
-        out[i] = _root(parent, i)
-    return out
-
-
-@njit(cache=True, nogil=True)
-def _union(parent, a, b):  # pragma: no cover (compiled)
-    """Join the families of ``a`` and ``b``; the smaller root stays the root."""
-    ra, rb = _root(parent, a), _root(parent, b)
-    if ra < rb:
-        parent[rb] = ra
-    elif rb < ra:
-        parent[ra] = rb
-
-
-@njit('boolean[::1](int64[::1], int64[::1])', cache=True, nogil=True)
+@njit('boolean[::1](int64[::1], int64[::1])', cache=CACHE, nogil=True)
 def first_rows(families, order):  # pragma: no cover (compiled)
     """(M,) bool: the first row of each family in ``order`` (rows without one, -1: True)."""
     m = families.shape[0]
@@ -89,37 +45,28 @@ def first_rows(families, order):  # pragma: no cover (compiled)
     return first
 
 
-@njit('int64[::1](float64[:, ::1], float64, boolean[::1])', cache=True, nogil=True)
+@njit('int64[::1](float64[:, ::1], float64, boolean[::1])', cache=CACHE, nogil=True)
 def branch_labels(q, threshold, periodic):  # pragma: no cover (compiled)
     """Each row's branch: the first earlier row within ``threshold`` [rad], else itself."""
     m = q.shape[0]
     labels = np.arange(m)
     for i in range(m):
         for j in range(i):
-            if labels[j] == j and _distance(q[i], q[j], periodic) < threshold:
+            if labels[j] == j and angle_distance(q[i], q[j], periodic) < threshold:
                 labels[i] = j
                 break
     return labels
 
 
-@njit(cache=True, nogil=True)
-def _correct(frames, lower, upper, periodic, x, pos, rot, pose, tol_p, tol_o, max_step,
-             p, r, jac, jm, a, err, xs):  # pragma: no cover (compiled)
-    """``x`` corrected onto the goal in place; whether it met the tolerances within limits."""
-    dims = 6 if pose else 3
-    for _ in range(CORRECTIONS):
-        place(frames, x, p, r, jac, True)
-        pe, oe = goal_error(pos, rot, pose, p, r, err)
-        if pe < tol_p and (not pose or oe < tol_o):
-            return True
-        limited_step(x, jac, err, dims, lower, upper, periodic, True, CORRECT_DAMPING2,
-                     max_step, jm, a, xs)
-    place(frames, x, p, r, jac, False)
-    pe, oe = goal_error(pos, rot, pose, p, r, err)
-    return pe < tol_p and (not pose or oe < tol_o)
+@njit(cache=CACHE, nogil=True)
+def _into_limits(x, lower, upper, periodic):  # pragma: no cover (compiled)
+    """``x`` kept within the limits in place: periodic joints turned once, the others clamped."""
+    for c in range(x.shape[0]):
+        v = turn_once(x[c], lower[c], upper[c]) if periodic[c] else x[c]
+        x[c] = min(max(v, lower[c]), upper[c])
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=CACHE, nogil=True)
 def _at_limit(x, lower, upper, periodic):  # pragma: no cover (compiled)
     """Whether a joint that does not wrap stands at (or beyond) a limit."""
     for j in range(x.shape[0]):
@@ -130,7 +77,7 @@ def _at_limit(x, lower, upper, periodic):  # pragma: no cover (compiled)
 
 @njit('int64[::1](float64[:, :, ::1], float64[::1], float64[::1], boolean[::1], '
       'float64[:, ::1], float64[::1], float64[:, ::1], float64, int64, float64, float64, '
-      'float64, float64, float64)', cache=True, nogil=True)
+      'float64, float64, float64)', cache=CACHE, nogil=True)
 def trace_labels(frames, lower, upper, periodic, q, pos, rot, step, max_steps, link, tol_p,
                  tol_o, max_step, deadline):  # pragma: no cover (compiled)
     """Family roots of exact pose solutions ``q`` (M, 7) of a 7-joint arm by tracing.
@@ -155,58 +102,39 @@ def trace_labels(frames, lower, upper, periodic, q, pos, rot, step, max_steps, l
     x, prev = np.empty(n), np.empty(n)
     timed = deadline < np.inf
     for i in range(m):
-        if _root(parent, i) != i:  # reached by an earlier solution's trace
+        if root(parent, i) != i:  # reached by an earlier solution's trace
             continue
         closed = False
         for way in (1.0, -1.0):
             if closed:
                 break
             x[:] = q[i]
-            first = True
             for s in range(max_steps):
                 if timed and monotonic() > deadline:
-                    return _roots(parent)
-                place(frames, x, p, r, jac, True)
-                if not null_vector7(jac, minor, v):
-                    break
-                if first:
-                    sign = way
-                else:
-                    dot = 0.0
-                    for j in range(n):
-                        dot += v[j] * heading[j]
-                    sign = 1.0 if dot >= 0.0 else -1.0
-                first = False
+                    return roots(parent)
                 prev[:] = x
-                for j in range(n):
-                    heading[j] = sign * v[j]
-                    x[j] += step * heading[j]
-                    if periodic[j]:
-                        if x[j] < lower[j]:
-                            x[j] += TURN
-                        elif x[j] > upper[j]:
-                            x[j] -= TURN
-                    elif x[j] < lower[j] or x[j] > upper[j]:
-                        x[j] = min(max(x[j], lower[j]), upper[j])
-                if not _correct(frames, lower, upper, periodic, x, pos, rot, True, tol_p,
-                                tol_o, max_step, p, r, jac, jm, a, err, xs):
+                if not advance(frames, x, heading, s == 0, way, step, p, r, jac, minor, v):
                     break
-                if _distance(x, prev, periodic) > 2.0 * step:
+                _into_limits(x, lower, upper, periodic)
+                if not correct(frames, lower, upper, periodic, x, pos, rot, True, tol_p,
+                               tol_o, max_step, p, r, jac, jm, a, err, xs):
+                    break
+                if angle_distance(x, prev, periodic) > 2.0 * step:
                     break
                 for k in range(m):
-                    if k != i and _distance(x, q[k], periodic) < link:
-                        _union(parent, i, k)
-                if s >= 2 and _distance(x, q[i], periodic) < link:
+                    if k != i and angle_distance(x, q[k], periodic) < link:
+                        union(parent, i, k)
+                if s >= 2 and angle_distance(x, q[i], periodic) < link:
                     closed = True
                     break
                 if _at_limit(x, lower, upper, periodic):
                     break
-    return _roots(parent)
+    return roots(parent)
 
 
 @njit('int64[::1](float64[:, :, ::1], float64[::1], float64[::1], boolean[::1], '
       'float64[:, ::1], float64[::1], float64[:, ::1], boolean, float64, float64, float64, '
-      'float64, float64, float64)', cache=True, nogil=True)
+      'float64, float64, float64)', cache=CACHE, nogil=True)
 def segment_labels(frames, lower, upper, periodic, q, pos, rot, pose, step, reach, tol_p,
                    tol_o, max_step, deadline):  # pragma: no cover (compiled)
     """Family roots of exact solutions ``q`` (M, n) linked by corrected straight segments.
@@ -223,14 +151,14 @@ def segment_labels(frames, lower, upper, periodic, q, pos, rot, pose, step, reac
     m, n = q.shape[0], q.shape[1]
     parent = np.arange(m)
     if m < 2:
-        return _roots(parent)
+        return roots(parent)
     pairs = m * (m - 1) // 2
     dist = np.empty(pairs)
     ia, ib = np.empty(pairs, dtype=np.int64), np.empty(pairs, dtype=np.int64)
     k = 0
     for i in range(m):
         for j in range(i + 1, m):
-            d = _distance(q[i], q[j], periodic)
+            d = angle_distance(q[i], q[j], periodic)
             if d <= reach:  # only pairs within reach are sorted and tried
                 dist[k], ia[k], ib[k] = d, i, j
                 k += 1
@@ -242,7 +170,7 @@ def segment_labels(frames, lower, upper, periodic, q, pos, rot, pose, step, reac
     timed = deadline < np.inf
     for k in np.argsort(dist):
         i, j = ia[k], ib[k]
-        if _root(parent, i) == _root(parent, j):
+        if root(parent, i) == root(parent, j):
             continue
         if timed and monotonic() > deadline:
             break
@@ -258,17 +186,12 @@ def segment_labels(frames, lower, upper, periodic, q, pos, rot, pose, step, reac
             prev[:] = x
             for c in range(n):
                 x[c] += delta[c]
-                if periodic[c]:
-                    if x[c] < lower[c]:
-                        x[c] += TURN
-                    elif x[c] > upper[c]:
-                        x[c] -= TURN
-                x[c] = min(max(x[c], lower[c]), upper[c])
-            if not _correct(frames, lower, upper, periodic, x, pos, rot, pose, tol_p, tol_o,
-                            max_step, p, r, jac, jm, a, err, xs) or \
-                    _distance(x, prev, periodic) > 2.0 * step:
+            _into_limits(x, lower, upper, periodic)
+            if not correct(frames, lower, upper, periodic, x, pos, rot, pose, tol_p, tol_o,
+                           max_step, p, r, jac, jm, a, err, xs) or \
+                    angle_distance(x, prev, periodic) > 2.0 * step:
                 ok = False
                 break
-        if ok and _distance(x, q[j], periodic) < 2.0 * step:
-            _union(parent, i, j)
-    return _roots(parent)
+        if ok and angle_distance(x, q[j], periodic) < 2.0 * step:
+            union(parent, i, j)
+    return roots(parent)

@@ -10,9 +10,9 @@ from numba import njit
 import numpy as np
 
 from sik_ros.kernels._cache import CACHE
+from sik_ros.kernels.angles import LIMIT_SLACK, turn_once
 from sik_ros.kernels.kdtree import nearest_rows, TREE_TYPES
 from sik_ros.kernels.sets import farthest_rows
-from sik_ros.kinematics.periodic import LIMIT_SLACK, TURN
 
 
 @njit('Tuple((float64[::1], float64))(float64[::1], float64[:, ::1], float64[::1], '
@@ -74,10 +74,7 @@ def table_starts(points, nodes, split, low, high, depth, columns, base_q, key, o
             v = base_q[rows[i], 0]
             if turn_first:
                 v += azimuth
-                if v < lower - LIMIT_SLACK:
-                    v += TURN
-                if v > upper + LIMIT_SLACK:
-                    v -= TURN
+                v = turn_once(v, lower - LIMIT_SLACK, upper + LIMIT_SLACK)
                 if v < lower - LIMIT_SLACK or v > upper + LIMIT_SLACK:
                     continue
                 v = min(max(v, lower), upper)

@@ -1,7 +1,8 @@
-"""Compiled greedy choices among a few hundred rows: far-apart subsets and distinct rows.
+"""Compiled greedy choices among a few hundred rows: far-apart subsets, distinct rows, unions.
 
-Both walk the rows in order and compare each with the ones chosen so far, one call instead of a
-NumPy call per pick; distances are plain Euclidean ones (L2 over the columns compared).
+The first two walk the rows in order and compare each with the ones chosen so far, one call
+instead of a NumPy call per pick; distances are plain Euclidean ones (L2 over the columns
+compared). :func:`root` and :func:`union` are a union-find forest (families, pieces).
 """
 
 import math
@@ -10,7 +11,7 @@ from numba import njit
 import numpy as np
 
 from sik_ros.kernels._cache import CACHE
-from sik_ros.kinematics.periodic import PER_TURN, TURN
+from sik_ros.kernels.angles import PER_TURN, TURN
 
 
 @njit('int64[::1](float64[:, ::1], int64, int64, float64, int64, float64)', cache=CACHE,
@@ -150,3 +151,31 @@ def exact_by_margin(q, perr, oerr, position_tolerance, orientation_tolerance, we
         _insert(out, cost, kept, i, margin_cost(q[i], lower, upper))
         kept += 1
     return out[:kept].copy(), cost[:kept].copy()
+
+
+@njit(cache=CACHE, nogil=True)
+def root(parent, i):  # pragma: no cover (compiled)
+    """The root of ``i`` in the union-find forest ``parent`` (paths halved)."""
+    while parent[i] != i:
+        parent[i] = parent[parent[i]]
+        i = parent[i]
+    return i
+
+
+@njit(cache=CACHE, nogil=True)
+def roots(parent):  # pragma: no cover (compiled)
+    """Each element's root."""
+    out = np.empty(parent.shape[0], dtype=np.int64)
+    for i in range(parent.shape[0]):
+        out[i] = root(parent, i)
+    return out
+
+
+@njit(cache=CACHE, nogil=True)
+def union(parent, a, b):  # pragma: no cover (compiled)
+    """Join the sets of ``a`` and ``b``; the smaller root stays the root."""
+    ra, rb = root(parent, a), root(parent, b)
+    if ra < rb:
+        parent[rb] = ra
+    elif rb < ra:
+        parent[ra] = rb

@@ -24,6 +24,7 @@ from typing import Tuple
 
 import numpy as np
 
+from sik_ros.kernels.angles import flip_rows
 from sik_ros.kinematics.robot import Robot
 
 #: Angles of each joint tried as a singular angle (a grid over one turn).
@@ -125,8 +126,6 @@ def robot_flips(robot: Robot) -> np.ndarray:
 
 def flip(q: np.ndarray, a: int) -> np.ndarray:
     """Configurations (M, n) with joints ``a, a+1, a+2`` flipped (:func:`exact_flips`)."""
-    out = np.array(q, dtype=float)
-    out[:, a] += np.pi
-    out[:, a + 1] *= -1.0
-    out[:, a + 2] += np.pi
+    out = np.array(q, dtype=float, order='C')
+    flip_rows(out, a)
     return out

@@ -8,20 +8,15 @@ configurations.
 """
 
 import functools
-import math
 from typing import Tuple
 
 import numpy as np
 
-#: One turn [rad].
-TURN = 2 * math.pi
-#: Turns per radian [1/rad] (the kernels multiply by it rather than divide by :data:`TURN`).
-PER_TURN = 0.5 / math.pi
+from sik_ros.kernels.angles import LIMIT_SLACK, TURN
+
 #: A joint whose range falls short of a turn by less than this counts as periodic [rad]
 #: (ranges written with rounded values of pi).
 RANGE_SLACK = 1e-6
-#: A turned value this far outside a limit still fits it [rad] (rounding of the turn).
-LIMIT_SLACK = 1e-9
 
 
 def periodic_joints(lower: np.ndarray, upper: np.ndarray) -> np.ndarray:

@@ -30,9 +30,9 @@ import pinocchio as pin
 from sik_ros.artifacts import check_robot_manifest
 from sik_ros.errors import (ArtifactMismatch, CorruptArtifact, FrameNotFound, InvalidArgument,
                             InvalidModel, RobotNotFound)
+from sik_ros.kernels.angles import TURN
 from sik_ros.kinematics.description import expand_xacro, is_xacro_text
 from sik_ros.kinematics.model_tree import chain_joint, find_frame, rename_frame
-from sik_ros.kinematics.periodic import TURN
 from sik_ros.kinematics.robot import Robot, sha256_file
 
 #: Default base and tip frames of robots whose own choice differs from the inferred one.

@@ -10,7 +10,7 @@ import math
 from typing import Tuple
 
 from sik_ros.errors import InvalidArgument
-from sik_ros.kinematics.periodic import TURN
+from sik_ros.kernels.angles import TURN
 
 
 @dataclass(frozen=True)
@@ -66,12 +66,17 @@ RESTART_SPREAD = 0.15
 FREE_RESTARTS = 16
 FREE_ROUNDS = 3
 #: The family search (:mod:`sik_ros.solver.search`): the tracer's step along a self-motion
-#: curve [rad], most steps each way, how near a found solution a point is on its piece [rad],
-#: and most new points a call.
-SEARCH_STEP = 0.15
+#: curve [rad], most steps each way, how near a traced point a solution is on its piece
+#: [rad], most points recorded, most new points a call and per piece, and the values of the
+#: last joint it holds for starts on other curves (:func:`sik_ros.solver.search.swept`).
+SEARCH_STEP = 0.25
 SEARCH_STEPS = 400
 SEARCH_LINK = 0.2
-SEARCH_POINTS = 32
+SEARCH_RECORDED = 4096
+SEARCH_POINTS = 64
+SEARCH_PER_PIECE = 4
+SEARCH_SWEEP = 2
+SWEEP_ITERATIONS = 20
 #: Seed-table starts refined for each branch code no exact solution of an isolated pose goal
 #: has (:func:`sik_ros.solver.explore.other_branches`).
 BRANCH_CODE_STARTS = 2
@@ -269,7 +274,7 @@ class SolverConfig:
     seed_starts: int = 24
     seed_neighbours: int = 100
     one_per_family: bool = False
-    family_search: bool = False
+    family_search: bool = True
 
     def __post_init__(self):
         """Reject values the solver cannot work with.

@@ -15,9 +15,11 @@ import zlib
 import numpy as np
 
 from sik_ros.deadline import Deadline
+from sik_ros.kernels.angles import turned_rows
 from sik_ros.kernels.chain import null_directions
+from sik_ros.kernels.selfmotion import step_rows
 from sik_ros.kinematics.branches import flip, robot_flips
-from sik_ros.kinematics.periodic import equivalents, TURN
+from sik_ros.kinematics.periodic import equivalents
 from sik_ros.solver.batch import Candidates
 from sik_ros.solver.config import (BRANCH_CODE_STARTS, EQUIVALENTS_PER_SOLUTION,
                                    RESTART_SPREAD, RESTARTS)
@@ -108,8 +110,8 @@ def other_branches(ctx: Context, goal: Goal, seeds: SeedTable, r: Refined,
     if starts and exact.any():  # an exact flip of a found branch (a spherical wrist) is one
         # every angle turned by whole turns into its limits (the same placement), else dropped
         for a in robot_flips(robot):
-            q = robot.lower + np.mod(flip(r.q[exact], a) - robot.lower, TURN)
-            starts.append(q[np.all(q <= robot.upper, axis=1)])
+            q = flip(r.q[exact], a)
+            starts.append(q[turned_rows(q, robot.lower, robot.upper, q)])
     if not starts or deadline.expired():
         return r
     more = refine(ctx, np.concatenate(starts), goal, deadline)
@@ -180,12 +182,14 @@ def walk(ctx: Context, c: Candidates, goal: Goal, deadline: Deadline,
     new = []
     for _ in range(cfg.walk_rounds):
         nvec = null_space(ctx, frontier)
-        if heading is None:
+        first = heading is None
+        if first:
             nvec = np.concatenate([nvec, -nvec])
             frontier = np.concatenate([frontier, frontier])
-        else:
-            nvec *= np.where((nvec * heading).sum(1) < 0, -1.0, 1.0)[:, None]
-        start = np.clip(frontier + cfg.walk_step * nvec, ctx.robot.lower, ctx.robot.upper)
+            heading = np.empty_like(nvec)
+        start = np.empty_like(frontier)
+        step_rows(frontier, nvec, heading, first, cfg.walk_step, ctx.robot.lower,
+                  ctx.robot.upper, start)
         r = refine(ctx, start, goal, deadline, cfg.walk_iterations)
         step = assess(r.q, unindexed(r.q, c.z.shape[1]), r.perr, r.oerr, goal.kind, cfg)
         pick = np.empty(0, dtype=int)

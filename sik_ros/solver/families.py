@@ -87,12 +87,24 @@ def traced(ctx: Context, q: np.ndarray, goal: Goal, deadline: Deadline) -> np.nd
                         cfg.orientation_tolerance, cfg.max_step, deadline.at)
 
 
-def roots(ctx: Context, c: Candidates, goal: Goal, deadline: Deadline) -> np.ndarray:
-    """(M,) int64: the family root of each exact candidate of ``c`` (a row of ``c``), -1 else."""
+def roots(ctx: Context, c: Candidates, goal: Goal, deadline: Deadline,
+          atlas=None) -> np.ndarray:
+    """(M,) int64: the family root of each exact candidate of ``c`` (a row of ``c``), -1 else.
+
+    With an ``atlas`` of the pose (:class:`~sik_ros.solver.search.Atlas`), a family is one of
+    its pieces (a row on none is a family of its own); else :func:`labels`.
+    """
     out = np.full(len(c), -1, dtype=np.int64)
     rows = np.flatnonzero(c.exact)
-    if len(rows):
+    if not len(rows):
+        return out
+    if atlas is None:
         out[rows] = rows[labels(ctx, c.q[rows], goal, deadline)]
+        return out
+    pieces = atlas.pieces_of(c.q[rows], ctx.robot.periodic)
+    first = {}
+    for row, piece in zip(rows.tolist(), pieces.tolist()):
+        out[row] = row if piece < 0 else first.setdefault(piece, row)
     return out
 
 

@@ -41,7 +41,7 @@ from sik_ros.solver.ranking import (assess, best_distinct, by_score, distinct_ma
                                     from_solutions, merge, pose_score, rank)
 from sik_ros.solver.refine import errors, refine
 from sik_ros.solver.results import IKResult, Solution
-from sik_ros.solver.search import search, searchable
+from sik_ros.solver.search import Atlas, search, searchable
 from sik_ros.solver.single import (fill_indices, from_starts, oriented_count,
                                    single_starts, turns_centre)
 
@@ -149,17 +149,17 @@ def solve(ctx: Context, goal: Goal, num: int, q_seed: Optional[np.ndarray],
             if result is not None:
                 return result
     timed_out = False
-    own = None
+    own = atlas = None
     if call.route == LEAN:  # every branch, unless one is asked for
         result, c, timed_out = every_branch(ctx, goal, call.seeds, num, call.enough,
                                             deadline)
         if result is not None:
             return result
-        c, timed_out = more_starts(ctx, call, c, timed_out)
+        c, timed_out, atlas = more_starts(ctx, call, c, timed_out)
     elif call.route == REFINED:
         c = initial_postures(ctx, goal, num, None if call.single else q_seed, refined,
                              seeded=call.seeds is not None)
-        c, timed_out = refine_all(ctx, call, c)
+        c, timed_out, atlas = refine_all(ctx, call, c)
     else:
         c = initial_postures(ctx, goal, num, q_seed, refined)
         c = assess(c.q, c.z, *errors(ctx, c.q, goal), goal.kind, ctx.config)
@@ -167,31 +167,35 @@ def solve(ctx: Context, goal: Goal, num: int, q_seed: Optional[np.ndarray],
             c = adjust_raw(ctx, goal, c, num, q_seed is not None, call.deadline)
         own = c.take(np.arange(1)) if q_seed is not None and objective is None else None
     c = distinct_postures(ctx, c, goal, q_seed)
-    fam = family_roots(ctx, call, c)
+    fam = family_roots(ctx, call, c, atlas)
     sols = rank(ctx, c, q_seed, obstacles, objective, limit=num, deadline=deadline,
                 families=fam, branches_first=call.isolated)
     if own is not None:
         sols = seed_posture_first(ctx, goal, own, sols, q_seed, obstacles, num, deadline)
-    sols, fam, cut = free_rounds(ctx, call, c, sols, fam)
+    sols, fam, cut = free_rounds(ctx, call, c, sols, fam, atlas)
     return finish(ctx, call, sols, timed_out or cut, fam)
 
 
-def family_roots(ctx: Context, call: Call, c: Candidates) -> Optional[np.ndarray]:
+def family_roots(ctx: Context, call: Call, c: Candidates,
+                 atlas: Optional[Atlas] = None) -> Optional[np.ndarray]:
     """The family root of each candidate (-1: not exact), or None when not labelled.
 
     A path's starts (``first_found``) are not ranked by family: their tracks are. A call
     asking for one solution answers one family (:func:`finish`) without linking candidates.
+    With the search's ``atlas``, the families are its pieces.
     """
     if call.first_found or call.num == 1:
         return None
-    return families.roots(ctx, c, call.goal, call.deadline)
+    return families.roots(ctx, c, call.goal, call.deadline, atlas)
 
 
-def refine_all(ctx: Context, call: Call, c: Candidates) -> Tuple[Candidates, bool]:
-    """Stage 3: the starts refined, then restarts and the walk where they fall short.
+def refine_all(ctx: Context, call: Call,
+               c: Candidates) -> Tuple[Candidates, bool, Optional[Atlas]]:
+    """Stage 3: the starts refined, then restarts, the search or the walk where they fall short.
 
     Returns:
-        the refined candidates, and whether the deadline cut refinement short.
+        the refined candidates, whether the deadline cut refinement short, and the search's
+        atlas (None without one).
     """
     cfg, goal, deadline = ctx.config, call.goal, call.deadline
     # decoded postures that nearly coincide would refine to the same solution
@@ -215,11 +219,16 @@ def refine_all(ctx: Context, call: Call, c: Candidates) -> Tuple[Candidates, boo
 
 
 def more_starts(ctx: Context, call: Call, c: Candidates,
-                timed_out: bool) -> Tuple[Candidates, bool]:
-    """Stage 3 after the first refinement ``c``: restarts and the walk where it fell short.
+                timed_out: bool) -> Tuple[Candidates, bool, Optional[Atlas]]:
+    """Stage 3 after the first refinement ``c``: restarts, then the family search or the walk.
+
+    The search (a 7-joint arm's pose goal asking for several solutions) traces every curve
+    of the self-motion through the solutions found and gives points far apart on each of
+    its pieces; other pose goals of redundant arms walk from the solutions found.
 
     Returns:
-        the refined candidates, and whether the deadline cut refinement short.
+        the refined candidates, whether the deadline cut refinement short, and the search's
+        atlas (None without one).
     """
     cfg, goal, num, deadline = ctx.config, call.goal, call.num, call.deadline
     if goal.kind == POSE and not call.far and not c.exact.any() and \
@@ -230,13 +239,15 @@ def more_starts(ctx: Context, call: Call, c: Candidates,
     if not call.far and not c.exact.any():
         c, cut = restart(ctx, c, goal, deadline)
         timed_out = timed_out or cut
-    if goal.kind == POSE and not call.far and ctx.robot.dof > 6 and cfg.walk_rounds > 0:
+    atlas = None
+    if num > 1 and not call.far and not call.first_found and searchable(ctx, goal):
+        c, atlas = search(ctx, c, goal, deadline)  # every piece of the curves found
+    if atlas is None and goal.kind == POSE and not call.far and ctx.robot.dof > 6 and \
+            cfg.walk_rounds > 0:
         # the first exact ones are as good as any only with the default ranking
         margin = spare(cfg, num) if call.enough is not None else cfg.early_stop_margin
         c = walk(ctx, c, goal, deadline, num + max(margin, 0))
-    if num > 1 and not call.far and not call.first_found and searchable(ctx, goal):
-        c = search(ctx, c, goal, deadline)  # the pieces the limits part from those found
-    return c, timed_out
+    return c, timed_out, atlas
 
 
 def more_oriented(ctx: Context, call: Call, c: Candidates) -> Tuple[Candidates, bool]:
@@ -252,7 +263,7 @@ def more_oriented(ctx: Context, call: Call, c: Candidates) -> Tuple[Candidates, 
 
 
 def free_rounds(ctx: Context, call: Call, c: Candidates, sols: List[Solution],
-                fam: Optional[np.ndarray]
+                fam: Optional[np.ndarray], atlas: Optional[Atlas] = None
                 ) -> Tuple[List[Solution], Optional[np.ndarray], bool]:
     """Stage 4's restarts when every exact solution found collides with the arm itself.
 
@@ -277,7 +288,7 @@ def free_rounds(ctx: Context, call: Call, c: Candidates, sols: List[Solution],
         more, cut = restart(ctx, c, goal, deadline, keep=FREE_RESTARTS, stream=stream)
         timed_out = timed_out or cut
         c = distinct_postures(ctx, more, goal, call.q_seed)
-        fam = family_roots(ctx, call, c)
+        fam = family_roots(ctx, call, c, atlas)
         sols = rank(ctx, c, call.q_seed, call.obstacles, call.objective, limit=call.num,
                     deadline=deadline, families=fam, branches_first=call.isolated)
     return sols, fam, timed_out

@@ -88,7 +88,8 @@ def errors(ctx: Context, q: np.ndarray, goal: Goal) -> Tuple[np.ndarray, np.ndar
 
 def refine(ctx: Context, q: np.ndarray, goal: Goal, deadline: Deadline = NO_DEADLINE,
            iterations: Optional[int] = None, prune: bool = False,
-           enough: Optional[int] = None) -> Refined:
+           enough: Optional[int] = None,
+           limits: Optional[Tuple[np.ndarray, np.ndarray]] = None) -> Refined:
     """Damped least squares from each row of ``q`` (M, n) towards ``goal``, within the limits.
 
     Rows are refined one after the other, in order. With ``prune``, at the iterations in
@@ -108,6 +109,8 @@ def refine(ctx: Context, q: np.ndarray, goal: Goal, deadline: Deadline = NO_DEAD
         iterations: most iterations per row (default: ``config.refine_iterations``).
         prune: stop rows heading for the same solution as an earlier, better one.
         enough: stop once this many distinct rows are exact.
+        limits: lower and upper limits (n,) [rad] in place of the arm's (a joint held at a
+            value: both its limits that value).
     """
     cfg, robot = ctx.config, ctx.robot
     q = np.array(q, dtype=float, order='C')
@@ -119,7 +122,8 @@ def refine(ctx: Context, q: np.ndarray, goal: Goal, deadline: Deadline = NO_DEAD
     reals = reals.copy()
     reals[DEADLINE] = deadline.at
     pose = goal.rotation is not None
-    cut = refine_rows(robot.frames, robot.lower, robot.upper, robot.periodic, q,
+    lower, upper = (robot.lower, robot.upper) if limits is None else limits
+    cut = refine_rows(robot.frames, lower, upper, robot.periodic, q,
                       as_arg(goal.position), as_arg(goal.rotation) if pose else NO_ROTATION,
                       pose, reals, ints, prune_at, perr, oerr, status)
     return Refined(q, perr, oerr, bool(cut))

@@ -18,8 +18,8 @@ from sik_ros.artifacts import (atomic_directory, check_robot_manifest, FORMAT_VE
                                library_versions, read_json, write_json_atomic)
 from sik_ros.defaults import MAX_ROWS
 from sik_ros.errors import CorruptArtifact, InvalidArgument
+from sik_ros.kernels.angles import TURN
 from sik_ros.kinematics.chain import chain_forward
-from sik_ros.kinematics.periodic import TURN
 from sik_ros.kinematics.rotations import rotation_to_quaternion
 
 if TYPE_CHECKING:  # Pinocchio: a chain file's arm trains without it

@@ -35,11 +35,11 @@ from sik_ros.artifacts import (atomic_write, check_robot_manifest, FORMAT_VERSIO
                                range_values)
 from sik_ros.defaults import SEED_TABLE_ROWS
 from sik_ros.errors import ArtifactMismatch, CorruptArtifact, InvalidArgument
+from sik_ros.kernels.angles import TURN
 from sik_ros.kernels.kdtree import KDTree
 from sik_ros.kernels.seeds import axis_key, table_starts
 from sik_ros.kinematics.branches import branch_signs
 from sik_ros.kinematics.chain import chain_forward
-from sik_ros.kinematics.periodic import TURN
 from sik_ros.kinematics.robot import Robot
 from sik_ros.kinematics.rotations import rotation_to_quaternion, z_to_axis
 from sik_ros.tables.dataset import Dataset

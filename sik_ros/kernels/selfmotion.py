@@ -1,0 +1,310 @@
+"""Compiled self-motion of a redundant arm at a pose: the step along it, and its curves traced.
+
+A 7-joint arm reaches a 6-d pose along one-dimensional self-motion curves: closed loops, the
+joint limits aside, which the limits cut into the pose's posture families (the pieces an
+analytic solver sweeping one joint finds). Every kernel that moves along them takes its step
+here:
+
+- :func:`advance`: the predictor, a step along the unit null vector of the Jacobian, kept
+  pointing the way the curve is followed; :func:`step_rows` does the same for a batch whose
+  null vectors are given (the solver's walk);
+- :func:`correct`: the corrector, damped least squares back onto the goal;
+- :func:`trace_atlas`: each known solution's curve (and its exact flips') followed *past* the
+  limits until it closes, every point within the limits recorded with its piece: the pose's
+  atlas. Its pieces are the families; :func:`spread_points` gives points far apart on each
+  and :func:`atlas_pieces` the piece of any solution.
+"""
+
+from numba import njit
+import numpy as np
+
+from sik_ros.kernels._cache import CACHE
+from sik_ros.kernels.angles import angle_distance, flip_triple, turned_into
+from sik_ros.kernels.chain import null_vector7, place
+from sik_ros.kernels.clock import monotonic
+from sik_ros.kernels.dls import goal_error, limited_step
+from sik_ros.kernels.sets import root, union
+
+#: Most corrector iterations per point of a trace or a segment.
+CORRECTIONS = 8
+#: Squared damping of the corrector's steps [1].
+CORRECT_DAMPING2 = 1e-8
+#: A free joint's bounds while a curve is followed past the limits [rad].
+FREE = 1e9
+#: Most a trace's corrector may move a predicted point, as a share of the step: farther, it
+#: may have landed on another curve passing near (the step is halved).
+DRIFT = 0.5
+#: Times a trace's step is halved where the corrector fails (near a singularity) before the
+#: trace ends there.
+HALVINGS = 3
+
+
+@njit(cache=CACHE, nogil=True)
+def correct(frames, lower, upper, periodic, x, pos, rot, pose, tol_p, tol_o, max_step,
+            p, r, jac, jm, a, err, xs):  # pragma: no cover (compiled)
+    """``x`` corrected onto the goal in place; whether it met the tolerances within limits."""
+    dims = 6 if pose else 3
+    for _ in range(CORRECTIONS):
+        place(frames, x, p, r, jac, True)
+        pe, oe = goal_error(pos, rot, pose, p, r, err)
+        if pe < tol_p and (not pose or oe < tol_o):
+            return True
+        limited_step(x, jac, err, dims, lower, upper, periodic, True, CORRECT_DAMPING2,
+                     max_step, jm, a, xs)
+    place(frames, x, p, r, jac, False)
+    pe, oe = goal_error(pos, rot, pose, p, r, err)
+    return pe < tol_p and (not pose or oe < tol_o)
+
+
+@njit(cache=CACHE, nogil=True)
+def _step_along(x, v, heading, first, way, h):  # pragma: no cover (compiled)
+    """``x`` moved ``h`` along ``v`` signed as ``way`` (``first``) or as ``heading``.
+
+    ``heading`` becomes the signed unit vector: the way the curve is followed.
+    """
+    sign = way
+    if not first:
+        dot = 0.0
+        for j in range(x.shape[0]):
+            dot += v[j] * heading[j]
+        sign = 1.0 if dot >= 0.0 else -1.0
+    for j in range(x.shape[0]):
+        heading[j] = sign * v[j]
+        x[j] += h * heading[j]
+
+
+@njit(cache=CACHE, nogil=True)
+def advance(frames, x, heading, first, way, h, p, r, jac, minor, v):  # pragma: no cover
+    """The predictor: ``x`` moved ``h`` [rad] along the null vector of its Jacobian.
+
+    The unit null vector (of a 6 x 7 Jacobian) is signed as ``way`` on the ``first`` step,
+    then to keep ``heading`` (updated). Returns False where the Jacobian is singular.
+    """
+    place(frames, x, p, r, jac, True)
+    if not null_vector7(jac, minor, v):
+        return False
+    _step_along(x, v, heading, first, way, h)
+    return True
+
+
+@njit('void(float64[:, ::1], float64[:, ::1], float64[:, ::1], boolean, float64, float64[::1], '
+      'float64[::1], float64[:, ::1])', cache=CACHE, nogil=True)
+def step_rows(q, nvec, heading, first, h, lower, upper, out):  # pragma: no cover (compiled)
+    """Each row of ``q`` moved ``h`` along its null vector ``nvec`` into ``out``, clipped.
+
+    As :func:`advance`, the null vectors given (any arm): signed as given on the ``first``
+    step, else to keep each row's ``heading``; ``nvec`` becomes the signed vectors.
+    """
+    for i in range(q.shape[0]):
+        out[i] = q[i]
+        _step_along(out[i], nvec[i], heading[i], first, 1.0, h)
+        nvec[i] = heading[i]
+        for j in range(q.shape[1]):
+            out[i, j] = min(max(out[i, j], lower[j]), upper[j])
+
+
+@njit(cache=CACHE, nogil=True)
+def _near(x, rows, count, link, periodic):  # pragma: no cover (compiled)
+    """The first of the first ``count`` rows within ``link`` of ``x``, or -1."""
+    for k in range(count):
+        if angle_distance(x, rows[k], periodic) < link:
+            return k
+    return -1
+
+
+@njit(cache=CACHE, nogil=True)
+def _record(inside, cur, q, periodic, link, points, piece, count, row_piece,
+            parent):  # pragma: no cover (compiled)
+    """A point within the limits recorded on piece ``cur``, the rows near it joined to it."""
+    if count < points.shape[0]:
+        points[count] = inside
+        piece[count] = cur
+        count += 1
+    for k in range(q.shape[0]):
+        if angle_distance(inside, q[k], periodic) < link:
+            if row_piece[k] < 0:
+                row_piece[k] = cur
+            else:
+                union(parent, row_piece[k], cur)
+    return count
+
+
+@njit('int64(float64[:, :, ::1], float64[::1], float64[::1], boolean[::1], float64[:, ::1], '
+      'int64[::1], float64[::1], float64[:, ::1], float64, int64, float64, float64, float64, '
+      'float64, float64, float64[:, ::1], int64[::1], int64[::1])', cache=CACHE, nogil=True)
+def trace_atlas(frames, lower, upper, periodic, q, flips, pos, rot, step, max_steps, link,
+                tol_p, tol_o, max_step, deadline, points, piece,
+                row_piece):  # pragma: no cover (compiled)
+    """The atlas of a 7-joint arm's self-motion at a pose through its known solutions ``q``.
+
+    ``q`` (M, 7): exact solutions at the pose (position ``pos`` (3,) [m], rotation ``rot``
+    (3, 3), tolerances ``tol_p`` [m], ``tol_o`` [rad]). From each row no earlier trace passed
+    (within ``link`` [rad]), and from its exact flips (``flips``: the first joints of
+    :func:`~sik_ros.kinematics.branches.exact_flips`' triples; configurations at the same
+    pose, maybe on another curve, skipped when on a recorded one), the curve is followed both
+    ways in steps of ``step`` [rad] *free of the limits* (:func:`advance`, then
+    :func:`correct`; the step halved up to :data:`HALVINGS` times where the corrector fails
+    or moves the point more than :data:`DRIFT` steps, near a singularity or another curve)
+    until it closes on its start (every angle modulo a turn), fails or has taken
+    ``max_steps``. Every point, its angles turned by whole turns into the
+    limits where they fit, is recorded in ``points`` (P, 7) with its piece in ``piece``
+    (P,): consecutive points within the limits are one piece, and pieces a row or a closed
+    curve joins are one. ``row_piece`` (M,): each row's piece (-1: none reached it). Piece
+    numbers are resolved to the smallest of their joined set. Past ``deadline`` (a
+    :func:`~sik_ros.kernels.clock.monotonic` time) no trace goes on.
+
+    Returns:
+        how many points were recorded (at most P; the traces stop when ``points`` is full).
+    """
+    m, n = q.shape[0], q.shape[1]
+    lo, up = np.full(n, -FREE), np.full(n, FREE)
+    free, turns = np.zeros(n, dtype=np.bool_), np.ones(n, dtype=np.bool_)
+    p, r = np.empty(3), np.empty((3, 3))
+    jac, jm = np.empty((6, n)), np.empty((6, n))
+    a, err, xs, minor = np.empty((6, 6)), np.empty(6), np.empty(6), np.empty((6, 6))
+    v, heading, x, prev = np.empty(n), np.empty(n), np.empty(n), np.empty(n)
+    start, inside, predicted = np.empty(n), np.empty(n), np.empty(n)
+    parent = np.arange(points.shape[0])
+    row_piece[:] = -1
+    count, pieces = 0, 0
+    timed = deadline < np.inf
+    full = points.shape[0]
+    for i in range(m):
+        if row_piece[i] >= 0:
+            continue
+        for f in range(-1, flips.shape[0]):
+            start[:] = q[i]
+            if f >= 0:
+                flip_triple(start, flips[f])
+                if turned_into(start, lower, upper, inside) and \
+                        _near(inside, points, count, link, periodic) >= 0:
+                    continue  # a curve already traced
+            first_piece = -1
+            closed = False
+            for way in (1.0, -1.0):
+                if closed or count >= full:
+                    break
+                x[:] = start
+                cur = -1
+                if turned_into(x, lower, upper, inside):
+                    if first_piece < 0:
+                        first_piece = pieces
+                        pieces += 1
+                    cur = first_piece
+                    if way > 0:
+                        count = _record(inside, cur, q, periodic, link, points, piece, count,
+                                        row_piece, parent)
+                h = step
+                for s in range(max_steps):
+                    if (timed and monotonic() > deadline) or count >= full:
+                        break
+                    prev[:] = x
+                    if not advance(frames, x, heading, s == 0, way, h, p, r, jac, minor, v):
+                        break
+                    predicted[:] = x
+                    if not correct(frames, lo, up, free, x, pos, rot, True, tol_p, tol_o,
+                                   max_step, p, r, jac, jm, a, err, xs) or \
+                            angle_distance(x, predicted, free) > DRIFT * h:
+                        if h < step / 2 ** (HALVINGS - 0.5):
+                            break
+                        x[:] = prev  # near a singularity: the step halved, the same heading
+                        h /= 2
+                        continue
+                    h = min(step, 2 * h)
+                    if s >= 2 and angle_distance(x, start, turns) < link:
+                        if cur >= 0 and first_piece >= 0:
+                            union(parent, cur, first_piece)
+                        closed = True
+                        break
+                    if turned_into(x, lower, upper, inside):
+                        if cur < 0:
+                            cur = pieces
+                            pieces += 1
+                        count = _record(inside, cur, q, periodic, link, points, piece, count,
+                                        row_piece, parent)
+                    else:
+                        cur = -1
+    for k in range(count):
+        piece[k] = root(parent, piece[k])
+    for i in range(m):
+        if row_piece[i] >= 0:
+            row_piece[i] = root(parent, row_piece[i])
+    return count
+
+
+@njit('int64(float64[:, ::1], int64[::1], int64, float64[:, ::1], int64[::1], boolean[::1], '
+      'float64, int64, float64[:, ::1], int64[::1])', cache=CACHE, nogil=True)
+def spread_points(points, piece, count, q, row_piece, periodic, spacing, per_piece, out,
+                  out_piece):  # pragma: no cover (compiled)
+    """Points of the atlas far apart on each piece, for solutions the known ones are not.
+
+    Of the first ``count`` recorded ``points`` (:func:`trace_atlas`), a piece no row of ``q``
+    lies on first gets its middle recorded point; then, in recorded order, a point is taken
+    when at least ``spacing`` [rad] from every row of its piece and every point taken on it,
+    up to ``per_piece`` per piece. Written to ``out`` (K, 7), their pieces to ``out_piece``.
+
+    Returns:
+        how many points were written (at most K).
+    """
+    k = 0
+    taken = np.zeros(count + 1, dtype=np.int64)  # per piece (numbers are recorded indices)
+    known = np.zeros(count + 1, dtype=np.bool_)
+    for i in range(q.shape[0]):
+        if 0 <= row_piece[i] <= count:
+            known[row_piece[i]] = True
+    first = np.full(count + 1, -1)
+    last = np.full(count + 1, -1)
+    for j in range(count):
+        f = piece[j]
+        if first[f] < 0:
+            first[f] = j
+        last[f] = j
+    for f in range(count + 1):  # the middle of each piece no row lies on
+        if first[f] < 0 or known[f] or k >= out.shape[0]:
+            continue
+        mid = (first[f] + last[f]) // 2
+        while piece[mid] != f:
+            mid += 1
+        out[k] = points[mid]
+        out_piece[k] = f
+        taken[f] += 1
+        k += 1
+    for j in range(count):
+        if k >= out.shape[0]:
+            break
+        f = piece[j]
+        if taken[f] >= per_piece:
+            continue
+        far = True
+        for i in range(q.shape[0]):
+            if row_piece[i] == f and angle_distance(points[j], q[i], periodic) < spacing:
+                far = False
+                break
+        if far:
+            for e in range(k):
+                if out_piece[e] == f and angle_distance(points[j], out[e], periodic) < spacing:
+                    far = False
+                    break
+        if far:
+            out[k] = points[j]
+            out_piece[k] = f
+            taken[f] += 1
+            k += 1
+    return k
+
+
+@njit('int64[::1](float64[:, ::1], int64[::1], int64, float64[:, ::1], boolean[::1], float64)',
+      cache=CACHE, nogil=True)
+def atlas_pieces(points, piece, count, q, periodic, link):  # pragma: no cover (compiled)
+    """The piece of each row of ``q``: its nearest recorded point's within ``link``, or -1."""
+    out = np.full(q.shape[0], -1)
+    for i in range(q.shape[0]):
+        best = link
+        for j in range(count):
+            d = angle_distance(q[i], points[j], periodic)
+            if d < best:
+                best = d
+                out[i] = piece[j]
+                if d < 0.1 * link:
+                    break
+    return out
