@@ -14,7 +14,7 @@ import torch
 
 from sik_ros.artifacts import check_robot_manifest
 from sik_ros.errors import ArtifactMismatch, CorruptArtifact
-from sik_ros.eval.shipped import check_shipped
+from sik_ros.eval.shipped import BASELINE_FILES, check_shipped
 from sik_ros.kinematics.robot import Robot
 from sik_ros.learning.checkpoints import load_checkpoint, model_from_checkpoint
 from sik_ros.learning.models import make_goal, ModelConfig, Normalizer
@@ -22,9 +22,6 @@ from sik_ros.learning.provenance import trained_summary
 from sik_ros.solver import GoalModel, SelectiveIK
 from sik_ros.tables.index_table import PriorTable
 
-#: Baseline files looked for in a ``--baselines`` directory.
-BASELINE_FILES = {'psik': 'psik.pt', 'fcn': 'fcn.pt', 'fcn_uni': 'fcn_uni.pt',
-                  'anfis': 'anfis.pt'}
 #: Model kind each baseline file must hold.
 BASELINE_KINDS = {'psik': 'psik', 'fcn': 'fcn', 'fcn_uni': 'fcn', 'anfis': 'anfis'}
 #: Prior draws standing in for the table of a PSIK model given without one.
