@@ -2,7 +2,7 @@
 
 A ``--baselines`` folder holds ``psik/`` (a bundle with its own table) or ``psik.pt`` (a PSIK
 model alone: its candidate indices are then draws from its prior, see
-:class:`sik_ros.tables.index_table.PriorTable`), and the single-solution models ``fcn.pt``,
+:class:`sik_ros.tables.prior_table.PriorTable`), and the single-solution models ``fcn.pt``,
 ``fcn_uni.pt`` and ``anfis.pt`` (:class:`Baseline`).
 """
 
@@ -20,7 +20,7 @@ from sik_ros.learning.checkpoints import load_checkpoint, model_from_checkpoint
 from sik_ros.learning.models import make_goal, ModelConfig, Normalizer
 from sik_ros.learning.provenance import trained_summary
 from sik_ros.solver import GoalModel, SelectiveIK
-from sik_ros.tables.index_table import PriorTable
+from sik_ros.tables.prior_table import PriorTable
 
 #: Model kind each baseline file must hold.
 BASELINE_KINDS = {'psik': 'psik', 'fcn': 'fcn', 'fcn_uni': 'fcn', 'anfis': 'anfis'}
