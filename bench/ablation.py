@@ -49,7 +49,7 @@ from sik_ros.solver.candidates import (oriented_postures, starting_postures,  # 
                                        table_candidates)
 from sik_ros.solver.context import Goal, POSE  # noqa: E402
 from sik_ros.tables.dataset import Dataset  # noqa: E402
-from sik_ros.tables.index_table import farthest_point_subset  # noqa: E402
+from sik_ros.tables.point_sets import farthest_point_subset  # noqa: E402
 from sik_ros.tables.seed_table import SeedTable  # noqa: E402
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))

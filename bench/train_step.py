@@ -21,7 +21,8 @@ import torch  # noqa: E402
 
 from sik_ros.kinematics.robots import load_robot  # noqa: E402
 from sik_ros.learning.models import ModelConfig, PRESETS  # noqa: E402
-from sik_ros.learning.training import TrainConfig, Trainer  # noqa: E402
+from sik_ros.learning.train_config import TrainConfig  # noqa: E402
+from sik_ros.learning.training import Trainer  # noqa: E402
 from sik_ros.tables.dataset import collect  # noqa: E402
 
 from report import add_json_argument, write_json  # noqa: E402,I100 (bench/report.py)

@@ -84,8 +84,8 @@ def ship(args: argparse.Namespace) -> int:
 def draw_curves(folder: Path, path: Path) -> Path:
     """Validation distance and loss against step of every model shipped in ``folder``."""
     from sik_ros.eval import plots
-    from sik_ros.eval.baselines import BASELINE_FILES
     from sik_ros.eval.paper import NAMES
+    from sik_ros.eval.shipped import BASELINE_FILES
     from sik_ros.learning.checkpoints import load_checkpoint
     files = {name: folder / f for name, f in BASELINE_FILES.items()}
     files['psik'] = folder / 'psik' / 'sik_position.pt'

@@ -29,7 +29,8 @@ _EXPORTS = {
     'JointLimitMargin': 'sik_ros.solver.objectives',
     'Manipulability': 'sik_ros.solver.objectives', 'Objective': 'sik_ros.solver.objectives',
     'ObstacleClearance': 'sik_ros.solver.objectives',
-    'SeedDistance': 'sik_ros.solver.objectives',
+    'SeedDistance': 'sik_ros.solver.objectives', 'Sum': 'sik_ros.solver.objectives',
+    'Weighted': 'sik_ros.solver.objectives',
 }
 
 __all__ = sorted(_EXPORTS)

@@ -46,10 +46,11 @@ def uniform_small(panda, tmp_path_factory):
 def build_tiny_bundle(robot, dataset, out, steps=400):
     """Train tiny SIK position and pose models on ``dataset`` and bundle them with their tables."""
     from sik_ros.bundles.bundle import build_bundle
+    from sik_ros.defaults import TableConfig
     from sik_ros.learning.checkpoints import export_model
     from sik_ros.learning.models import ModelConfig, PRESETS
-    from sik_ros.learning.training import TrainConfig, Trainer
-    from sik_ros.tables.index_table import TableConfig
+    from sik_ros.learning.train_config import TrainConfig
+    from sik_ros.learning.training import Trainer
     models = {}
     for goal, latent in (('position', 4), ('pose', 1)):
         cfg = ModelConfig(goal=goal, latent_dim=latent, encoder=PRESETS['small'][0],

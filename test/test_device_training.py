@@ -18,7 +18,8 @@ from sik_ros.learning.checkpoints import load_checkpoint, model_from_checkpoint
 from sik_ros.learning.generated_data import GeneratedData
 from sik_ros.learning.models import ModelConfig, PRESETS
 from sik_ros.learning.provenance import trained_summary
-from sik_ros.learning.training import TrainConfig, Trainer
+from sik_ros.learning.train_config import TrainConfig
+from sik_ros.learning.training import Trainer
 from sik_ros.learning.training_data import (default_normalizer, distinct_positions,
                                             TrainData)
 

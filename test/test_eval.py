@@ -12,9 +12,10 @@ from sik_ros.cli.eval import main
 from sik_ros.eval import Baseline, load_baselines, position_errors
 from sik_ros.learning.checkpoints import export_model
 from sik_ros.learning.models import ModelConfig, PRESETS
-from sik_ros.learning.training import TrainConfig, Trainer
+from sik_ros.learning.train_config import TrainConfig
+from sik_ros.learning.training import Trainer
 from sik_ros.solver import SelectiveIK
-from sik_ros.tables.index_table import PriorTable
+from sik_ros.tables.prior_table import PriorTable
 
 pytestmark = pytest.mark.slow
 

@@ -7,9 +7,10 @@ import numpy as np
 import pytest
 from served import check_served
 
+from sik_ros.defaults import TableConfig
 from sik_ros.errors import ArtifactMismatch, CorruptArtifact
 from sik_ros.kinematics.robots import load_robot
-from sik_ros.tables.index_table import IndexTable, TableConfig
+from sik_ros.tables.index_table import IndexTable
 from sik_ros.tables.point_sets import (farthest_point_subset, GRAM_ROWS, pairwise_distances,
                                        SAME_DISTANCE)
 

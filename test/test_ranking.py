@@ -125,8 +125,8 @@ def test_objectives_import_from_the_top_level():
     import sik_ros.objectives as top
     from sik_ros.solver import objectives
     names = ['ElbowHeight', 'FromFunction', 'JointLimitMargin', 'Manipulability', 'Objective',
-             'ObstacleClearance', 'SeedDistance']
+             'ObstacleClearance', 'SeedDistance', 'Sum', 'Weighted']
     for name in names:
         assert getattr(top, name) is getattr(objectives, name) is getattr(sik_ros, name)
         assert name in sik_ros.__all__
-    assert len(names) == 7
+    assert len(names) == 9 and sorted(names) == top.__all__

@@ -8,9 +8,11 @@ import numpy as np
 import pytest
 from served import check_served
 
+from sik_ros.defaults import TableConfig
 from sik_ros.errors import CorruptArtifact, InvalidArgument
 from sik_ros.learning.indexing import mark_realised
-from sik_ros.tables.index_table import IndexTable, PriorTable, TableConfig
+from sik_ros.tables.index_table import IndexTable
+from sik_ros.tables.prior_table import PriorTable
 
 
 def three_cells():

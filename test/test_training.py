@@ -13,7 +13,8 @@ from sik_ros.errors import ArtifactMismatch, CorruptArtifact, TrainingDiverged
 from sik_ros.kinematics.robot import find_frame
 from sik_ros.learning.checkpoints import export_model, load_checkpoint, model_from_checkpoint
 from sik_ros.learning.models import ModelConfig, PRESETS
-from sik_ros.learning.training import TrainConfig, Trainer
+from sik_ros.learning.train_config import TrainConfig
+from sik_ros.learning.training import Trainer
 
 pytestmark = pytest.mark.slow
 
@@ -173,8 +174,8 @@ def test_two_gloo_processes_train_in_sync_and_the_checkpoint_serves(
     import json
     import os
     from sik_ros.bundles.bundle import build_bundle
+    from sik_ros.defaults import TableConfig
     from sik_ros.solver import SelectiveIK
-    from sik_ros.tables.index_table import TableConfig
     out = tmp_path / 'ddp'
     env = {**os.environ, 'OMP_NUM_THREADS': '1'}
     run = subprocess.run(
@@ -317,7 +318,7 @@ def test_a_psik_starts_from_a_sik_model_with_a_standardised_index(panda, uniform
     gives SIK's posture for each row's own index, the log-variance starts at its small value,
     and the KL weight rises over ``kl_anneal`` steps.
     """
-    from sik_ros.learning.training import kl_weight_at
+    from sik_ros.learning.train_config import kl_weight_at
     from sik_ros.learning.warm_start import PSIK_LOGVAR_START
     a = trainer(panda, uniform_small, tmp_path / 'a', steps=20)
     a.run()

@@ -17,12 +17,13 @@ from typing import Any, Callable, Dict, Mapping, Optional, Tuple, Union
 
 from sik_ros.artifacts import (atomic_write, check_robot_manifest, FORMAT_VERSION, read_json,
                                robot_section, write_json_atomic)
+from sik_ros.defaults import TableConfig
 from sik_ros.errors import ArtifactMismatch, CorruptArtifact
 from sik_ros.kinematics.robot import Robot
 from sik_ros.kinematics.robots import robot_from_manifest
 from sik_ros.learning.twins import load_twin
 from sik_ros.tables.dataset import Dataset
-from sik_ros.tables.index_table import IndexTable, PostureTable, TableConfig
+from sik_ros.tables.index_table import IndexTable, PostureTable
 from sik_ros.tables.seed_table import default_rows, SeedTable
 
 #: The bundles shipped inside the package, one directory per robot name.

@@ -51,6 +51,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help='training processes at once: 2, the position and pose models side by '
                    'side; 1, one after the other (a build beside other work)')
     p.add_argument('--quiet', action='store_true', help='no progress bars')
+    p.add_argument('--background', action='store_true',
+                   help='a node\'s background build: the lowest priority (nice 19), one core, '
+                   'stopped with the process that started it')
     return p
 
 
@@ -60,6 +63,9 @@ def main(argv: Optional[List[str]] = None) -> int:
     args = parser.parse_args(argv_or_default(argv))
     if args.xacro_arg and not args.urdf:
         parser.error('--xacro-arg needs --urdf')
+    if args.background:
+        from sik_ros.serving.learner import in_background
+        in_background()
 
     def body() -> int:
         from sik_ros.bundles.build import Builder

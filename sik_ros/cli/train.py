@@ -153,7 +153,8 @@ def fitted_schedule(robot, ds, model_cfg, train_cfg, args: argparse.Namespace, o
     rest), its warm-up at most a tenth of it, and unless given, 40 validations and 10
     checkpoints along it.
     """
-    from sik_ros.learning.training import Trainer, with_overrides
+    from sik_ros.learning.train_config import with_overrides
+    from sik_ros.learning.training import Trainer
     probe = Trainer(robot, ds, model_cfg, with_overrides(train_cfg, steps=100),
                     out / 'probe')
     per_step = probe.seconds_per_step()
@@ -176,7 +177,7 @@ def run_configs(args: argparse.Namespace, out: Path):
     """
     from sik_ros.learning.checkpoints import load_checkpoint
     from sik_ros.learning.models import ModelConfig
-    from sik_ros.learning.training import TrainConfig, with_overrides
+    from sik_ros.learning.train_config import TrainConfig, with_overrides
     if args.max_time is not None and args.max_time <= 0:
         raise InvalidArgument(f'--max-time must be positive; got {args.max_time}')
     if args.fit_schedule and args.max_time is None:

@@ -8,12 +8,13 @@ figures), :mod:`~.report` (``results.md``), :mod:`~.summary` (``results.json``) 
 :mod:`~.plots` (the figures' drawing).
 """
 
-from sik_ros.eval.baselines import (Baseline, BASELINE_FILES, BASELINE_KINDS, load_baselines,
-                                    Method, psik_solver, TracIK)
+from sik_ros.eval.baselines import (Baseline, BASELINE_KINDS, load_baselines, Method,
+                                    psik_solver, TracIK)
 from sik_ros.eval.metrics import arm_points, orientation_cosine, position_errors
 from sik_ros.eval.paper import DIVERSITY_TARGETS, PAPER, RADII, SWEEP_TARGET
 from sik_ros.eval.report import report
 from sik_ros.eval.run import machine_info, Results, run_evaluation, Settings
+from sik_ros.eval.shipped import BASELINE_FILES
 from sik_ros.eval.summary import summary, summary_json
 
 __all__ = ['arm_points', 'Baseline', 'BASELINE_FILES', 'BASELINE_KINDS', 'DIVERSITY_TARGETS',

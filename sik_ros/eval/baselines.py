@@ -2,7 +2,7 @@
 
 A ``--baselines`` folder holds ``psik/`` (a bundle with its own table) or ``psik.pt`` (a PSIK
 model alone: its candidate indices are then draws from its prior, see
-:class:`sik_ros.tables.index_table.PriorTable`), and the single-solution models ``fcn.pt``,
+:class:`sik_ros.tables.prior_table.PriorTable`), and the single-solution models ``fcn.pt``,
 ``fcn_uni.pt`` and ``anfis.pt`` (:class:`Baseline`).
 """
 
@@ -14,17 +14,14 @@ import torch
 
 from sik_ros.artifacts import check_robot_manifest
 from sik_ros.errors import ArtifactMismatch, CorruptArtifact
-from sik_ros.eval.shipped import check_shipped
+from sik_ros.eval.shipped import BASELINE_FILES, check_shipped
 from sik_ros.kinematics.robot import Robot
 from sik_ros.learning.checkpoints import load_checkpoint, model_from_checkpoint
 from sik_ros.learning.models import make_goal, ModelConfig, Normalizer
 from sik_ros.learning.provenance import trained_summary
 from sik_ros.solver import GoalModel, SelectiveIK
-from sik_ros.tables.index_table import PriorTable
+from sik_ros.tables.prior_table import PriorTable
 
-#: Baseline files looked for in a ``--baselines`` directory.
-BASELINE_FILES = {'psik': 'psik.pt', 'fcn': 'fcn.pt', 'fcn_uni': 'fcn_uni.pt',
-                  'anfis': 'anfis.pt'}
 #: Model kind each baseline file must hold.
 BASELINE_KINDS = {'psik': 'psik', 'fcn': 'fcn', 'fcn_uni': 'fcn', 'anfis': 'anfis'}
 #: Prior draws standing in for the table of a PSIK model given without one.

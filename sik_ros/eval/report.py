@@ -10,8 +10,8 @@ from typing import Dict, List, Sequence
 
 import numpy as np
 
-from sik_ros.eval.baselines import (Baseline, BASELINE_FILES, has_prior_table, Method,
-                                    PRIOR_DRAWS, single_solution)
+from sik_ros.eval.baselines import (Baseline, has_prior_table, Method, PRIOR_DRAWS,
+                                    single_solution)
 from sik_ros.eval.histories import TrainedModel
 from sik_ros.eval.markdown import fmt, table, verdict
 from sik_ros.eval.paper import NAMES, PAPER
@@ -19,6 +19,7 @@ from sik_ros.eval.report_distance import distance_section
 from sik_ros.eval.report_postures import (diversity_section, indices_section,
                                           obstacle_section, orientation_section)
 from sik_ros.eval.run import Results
+from sik_ros.eval.shipped import BASELINE_FILES
 from sik_ros.learning.provenance import describe
 from sik_ros.solver import SelectiveIK
 

@@ -11,12 +11,13 @@ from typing import Dict, List, Sequence
 
 import numpy as np
 
-from sik_ros.eval.baselines import BASELINE_FILES, Method
+from sik_ros.eval.baselines import Method
 from sik_ros.eval.lookup import MIN_INDICES, POSE_INDICES
 from sik_ros.eval.markdown import fmt, table, verdict
 from sik_ros.eval.metrics import mean_cm
 from sik_ros.eval.paper import NAMES, PAPER, RADII
 from sik_ros.eval.run import Results
+from sik_ros.eval.shipped import BASELINE_FILES
 
 #: The variant compared with the paper, per kind of model.
 PAPER_VARIANT = {'sik': 'lookup', 'psik': 'lookup'}

@@ -1,11 +1,11 @@
 """A folder of trained baselines shipped with a bundle, with a manifest checked on load.
 
-``sik-eval --baselines DIR`` reads the models of :data:`~sik_ros.eval.baselines.BASELINE_FILES`
-(and a ``psik/`` bundle). A shipped folder also holds ``baselines.json``: the robot it was
-trained for and, per baseline, its files with their sizes and sha256. :func:`ship_baselines`
-writes such a folder under a temporary name and renames it into place;
-:func:`check_shipped` tells which baselines' files no longer match the manifest (a truncated
-copy, a half-replaced file), so that they are refused instead of evaluated.
+``sik-eval --baselines DIR`` reads the models of :data:`BASELINE_FILES` (and a ``psik/`` bundle). A
+shipped folder also holds ``baselines.json``: the robot it was trained for and, per baseline, its
+files with their sizes and sha256. :func:`ship_baselines` writes such a folder under a temporary
+name and renames it into place; :func:`check_shipped` tells which baselines' files no longer match
+the manifest (a truncated copy, a half-replaced file), so that they are refused instead of
+evaluated.
 """
 
 from pathlib import Path
@@ -16,6 +16,9 @@ from sik_ros.artifacts import (atomic_directory, file_sha256, FORMAT_VERSION, re
                                robot_section, write_json_atomic)
 from sik_ros.errors import CorruptArtifact, InvalidArgument
 
+#: Baseline files looked for in a ``--baselines`` directory.
+BASELINE_FILES = {'psik': 'psik.pt', 'fcn': 'fcn.pt', 'fcn_uni': 'fcn_uni.pt',
+                  'anfis': 'anfis.pt'}
 #: The manifest's file name.
 MANIFEST = 'baselines.json'
 #: The manifest's ``kind``.
@@ -35,7 +38,7 @@ def ship_baselines(out: Path, models: Mapping[str, Path], psik_bundle: Optional[
     Args:
         out: the folder to write (``sik-eval --baselines``).
         models: ``{name: exported model file}`` for the single-solution baselines and ``psik``
-            (a model alone), names of :data:`~sik_ros.eval.baselines.BASELINE_FILES`.
+            (a model alone), names of :data:`BASELINE_FILES`.
         psik_bundle: a bundle directory with PSIK's model and table (copied as ``psik/``), or
             None.
         robot: the robot manifest the models were trained for.
@@ -45,7 +48,6 @@ def ship_baselines(out: Path, models: Mapping[str, Path], psik_bundle: Optional[
         InvalidArgument: an unknown baseline name or a missing file.
         ArtifactExists: ``out`` exists and ``force`` is false.
     """
-    from sik_ros.eval.baselines import BASELINE_FILES
     unknown = sorted(set(models) - set(BASELINE_FILES))
     if unknown:
         raise InvalidArgument(f'unknown baselines {unknown}; known: {sorted(BASELINE_FILES)}')

@@ -31,7 +31,8 @@ from sik_ros.solver.codec import decode
 from sik_ros.solver.context import Goal, POSITION
 from sik_ros.solver.ranking import posture_mask
 from sik_ros.solver.refine import refine
-from sik_ros.tables.index_table import farthest_point_subset, PostureTable
+from sik_ros.tables.index_table import PostureTable
+from sik_ros.tables.point_sets import farthest_point_subset
 
 #: Per-target distance errors [m] by variant (``lookup``, ``raw_first``, ``refined``, ...).
 Errors = Dict[str, np.ndarray]

@@ -11,12 +11,13 @@ from typing import Callable, Dict, Optional
 import numpy as np
 import torch
 
+from sik_ros.defaults import TableConfig
 from sik_ros.errors import InvalidArgument
 from sik_ros.kinematics.robot import Robot
 from sik_ros.learning.checkpoints import model_from_checkpoint, model_signature
 from sik_ros.learning.models import make_goal, ModelConfig, Normalizer
 from sik_ros.tables.dataset import Dataset, dataset_summary
-from sik_ros.tables.index_table import IndexTable, TableConfig
+from sik_ros.tables.index_table import IndexTable
 
 Progress = Optional[Callable[[int], None]]
 

@@ -24,10 +24,8 @@ from sik_ros.learning.losses import cycle_terms, fk_error, orientation_error_deg
 from sik_ros.learning.models import build_model, kl_normal, ModelConfig, TorchChain
 from sik_ros.learning.provenance import device_name, Provenance
 from sik_ros.learning.swarm import new_swarm, swarm_step
-from sik_ros.learning.train_config import (kl_weight_at, lr_at, SAMPLERS,  # noqa: F401
-                                           TrainConfig, with_overrides)
-from sik_ros.learning.training_data import (data_summary, default_normalizer,  # noqa: F401
-                                            TrainData)
+from sik_ros.learning.train_config import kl_weight_at, lr_at, TrainConfig
+from sik_ros.learning.training_data import data_summary, default_normalizer, TrainData
 from sik_ros.learning.warm_start import (initial_state, makes_variational,
                                          standardise_index)
 from sik_ros.tables.dataset import Dataset

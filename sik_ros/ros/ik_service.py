@@ -1,10 +1,12 @@
 """``~/solve_ik`` and ``~/goal``: one IK request, from message to library call to answer.
 
 :func:`solve_request` checks every field of a ``SolveIK`` request at the edge (frame, goal, seed,
-obstacles, timeout), solves it with the node's solvers and returns the code, message and the
-library's result; :func:`fill_response` puts the ranked solutions into the response. Bad input
-raises a :class:`~sik_ros.errors.SikError` that :class:`~sik_ros.ros.guard.RequestGuard` turns
-into its code.
+obstacles, timeout), solves it with the node's solvers and returns an :class:`Answer`: the code,
+message, library result and goal. :func:`checked_goal` is the one check of a goal's pose
+(``~/solve_ik`` targets and ``~/goal`` goals); :func:`solution_msgs` turns the ranked solutions
+into ``IKSolution`` messages; :func:`solver_settings` gives the solver fields the node's
+parameters set. Bad input raises a :class:`~sik_ros.errors.SikError` that
+:class:`~sik_ros.ros.guard.RequestGuard` turns into its code.
 """
 
 from dataclasses import dataclass

@@ -1,11 +1,12 @@
 """The paper's pipeline for an arm, in the background of a node: collect, train, index, check.
 
-:class:`BackgroundLearner` runs ``sik-build`` for an arm's cache entry in a process of its own,
-at the lowest priority (``nice`` 19) on one core, its training models one after the other
-(``--cores 1``), with checkpoints in the entry's ``build/`` folder (a restarted node resumes the
-build). Only one process builds an entry at a time (the entry's lock); another one waits for its
-bundle. :meth:`BackgroundLearner.poll` says where the build stands and hands over the finished
-bundle once; the caller swaps it in.
+:class:`BackgroundLearner` runs ``sik-build`` for an arm's cache entry in a process of its own, at
+the lowest priority (``nice`` 19) on one core (``sik-build --background`` calls
+:func:`in_background` first), its training models one after the other (``--cores 1``), with
+checkpoints in the entry's ``build/`` folder (a restarted node resumes the build). Only one process
+builds an entry at a time (the entry's lock); another one waits for its bundle.
+:meth:`BackgroundLearner.poll` says where the build stands and hands over the finished bundle once;
+the caller swaps it in.
 """
 
 import ctypes
@@ -28,7 +29,7 @@ CHECK_TARGETS = 50
 PR_SET_PDEATHSIG = 1
 
 
-def _in_background() -> None:
+def in_background() -> None:
     """In the build process, first: lowest priority, one core, gone with its parent.
 
     Its training processes inherit the priority and the core.
@@ -65,11 +66,11 @@ class BackgroundLearner:
     # -- the build process -----------------------------------------------------------------
 
     def _command(self):
-        return [sys.executable, '-m', 'sik_ros.serving.learner', '--urdf', str(self.entry.urdf),
-                '--base', self.base, '--tip', self.tip, '--out', str(self.entry.bundle),
-                '--work', str(self.entry.work), '--time', f'{self.seconds:g}',
-                '--rows', str(self.rows), '--cores', '1', '--check-targets',
-                str(CHECK_TARGETS), '--quiet']
+        return [sys.executable, '-m', 'sik_ros.cli.build', '--background',
+                '--urdf', str(self.entry.urdf), '--base', self.base, '--tip', self.tip,
+                '--out', str(self.entry.bundle), '--work', str(self.entry.work),
+                '--time', f'{self.seconds:g}', '--rows', str(self.rows), '--cores', '1',
+                '--check-targets', str(CHECK_TARGETS), '--quiet']
 
     def _start(self) -> bool:
         """Take the entry's lock and start the build; False when another process holds it."""
@@ -176,14 +177,3 @@ class BackgroundLearner:
         self._release()
         if self.state == 'building':
             self.state = 'stopped'
-
-
-def main(argv=None) -> int:
-    """The build process: :func:`_in_background`, then ``sik-build`` with ``argv``."""
-    _in_background()
-    from sik_ros.cli.build import main as build
-    return build(argv)
-
-
-if __name__ == '__main__':
-    raise SystemExit(main())

@@ -32,13 +32,12 @@ from scipy.spatial import cKDTree
 
 from sik_ros.artifacts import (atomic_write, check_robot_manifest, FORMAT_VERSION, range_codes,
                                range_values)
-from sik_ros.defaults import TableConfig  # noqa: F401 (part of this module's API)
+from sik_ros.defaults import TableConfig
 from sik_ros.errors import ArtifactMismatch, CorruptArtifact, InvalidArgument
 from sik_ros.kernels import as_arg
 from sik_ros.kernels.cells import (best_oriented, cell_rows, CellGrid, MAX_SHELLS,
                                    nearest_cells)
-from sik_ros.tables.point_sets import farthest_point_subset, pairwise_distances  # noqa: F401
-from sik_ros.tables.prior_table import PriorTable  # noqa: F401 (part of this module's API)
+from sik_ros.tables.point_sets import farthest_point_subset
 from sik_ros.tables.reach_grid import ReachGrid
 
 TABLE_KEYS = ('centers', 'offsets', 'indices', 'manifest')
@@ -47,8 +46,9 @@ TABLE_KEYS = ('centers', 'offsets', 'indices', 'manifest')
 class PostureTable(Protocol):
     """What the solver needs of a table of posture indices.
 
-    :class:`IndexTable` (built from a dataset) and :class:`PriorTable` (draws from a PSIK
-    model's prior, for a model that comes without a table) implement it.
+    :class:`IndexTable` (built from a dataset) and
+    :class:`~sik_ros.tables.prior_table.PriorTable` (draws from a PSIK model's prior, for a model
+    that comes without a table) implement it.
 
     Attributes:
         indices: (M, latent) float32 posture indices; a "row" is an index into it.
