@@ -14,17 +14,8 @@ TIERS = (('root',), ('kernels',), ('kinematics',), ('tables',), ('learning',), (
 RANK = {floor: rank for rank, tier in enumerate(TIERS) for floor in tier}
 #: Modules whose floor is not their folder's: the solver's objectives, named at the top.
 FLOOR_OF = {'sik_ros.objectives': 'solver'}
-#: Imports that still reach down the chain, to be removed: the kernels read the periodic
-#: joints' constants (TURN, PER_TURN, LIMIT_SLACK) of kinematics/periodic.py and the chain's
-#: type (SerialChain) of kinematics/chain.py. Delete each edge here once its import is gone.
-KNOWN_DOWNWARD = {
-    ('sik_ros.kernels.chain', 'sik_ros.kinematics.chain'),
-    ('sik_ros.kernels.dls', 'sik_ros.kinematics.periodic'),
-    ('sik_ros.kernels.families', 'sik_ros.kinematics.periodic'),
-    ('sik_ros.kernels.seeds', 'sik_ros.kinematics.periodic'),
-    ('sik_ros.kernels.sets', 'sik_ros.kinematics.periodic'),
-    ('sik_ros.kernels.sweep', 'sik_ros.kinematics.periodic'),
-}
+#: Imports that reach down the chain and are known (none: every one is a failure).
+KNOWN_DOWNWARD = set()
 
 
 def module_name(path: Path) -> str:
