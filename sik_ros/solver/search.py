@@ -65,19 +65,18 @@ def swept(ctx: Context, c: Candidates, goal: Goal, deadline: Deadline) -> np.nda
     """
     robot = ctx.robot
     j = robot.dof - 1
-    values = np.linspace(robot.lower[j], robot.upper[j], SEARCH_SWEEP + 2)[1:-1]
-    # configurations that nearly coincide but for the held joint refine alike
-    others = np.delete(c.q, j, axis=1)
-    starts = c.q[distinct_mask(others, ctx.config.distinct_threshold * START_MERGE)]
+    # configurations alike but for the held joint refine alike
+    starts = c.q[distinct_mask(np.delete(c.q, j, axis=1),
+                               ctx.config.distinct_threshold * START_MERGE)]
     out = []
-    for v in values:
+    for v in np.linspace(robot.lower[j], robot.upper[j], SEARCH_SWEEP + 2)[1:-1]:
         lower, upper = robot.lower.copy(), robot.upper.copy()
         lower[j] = upper[j] = v
         q = starts.copy()
         q[:, j] = v
         r = refine(ctx, q, goal, deadline, SWEEP_ITERATIONS, prune=True, limits=(lower, upper))
         out.append(r.q[converged(r.perr, r.oerr, goal.kind, ctx.config)])
-    return np.concatenate(out)
+    return np.concatenate(out) if out else np.empty((0, robot.dof))
 
 
 def searchable(ctx: Context, goal: Goal) -> bool:
