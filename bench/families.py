@@ -1,14 +1,22 @@
 """Posture families: how many of a pose's families our answers cover, against references.
 
-- **Panda** (``--panda-poses``): the analytic solver ``frankik`` (He and Liu's geometric IK, up
-  to 4 solutions per value of joint 7) swept over joint 7 on a fine grid; its solutions at
-  neighbouring values linked when close give the pose's families (connected pieces of the
-  self-motion within the limits). Ours (16 asked) cover a family when one of our exact
-  solutions lies on it; TRAC-IK restarts from random seeds for the same wall time as ours are
-  counted alike. Our solutions on no family of the reference count apart (``frankik`` misses
-  some configurations). Also: whether our ``family`` labels agree with the reference's (pairs
-  of our solutions on one reference family labelled alike, and on two labelled apart), and
-  whether the first answers come from as many families.
+- **Panda** (``--panda-poses`` per seed of ``--seeds``, ``--near-singular`` of them drawn near
+  a singularity): the pose's families are the connected pieces of its self-motion within the
+  limits, swept over joint 7 on a fine grid (``--q7-samples``): the analytic solver
+  ``frankik`` (He and Liu's geometric IK, up to 4 solutions per value of joint 7), completed
+  by a numerical sweep with joint 7 held (``--held-starts`` random starts per value, and the
+  solutions at the neighbouring value continued: frankik leaves out a branch of joint 4).
+  Solutions at neighbouring values within 0.3 rad are linked; where one has no neighbour, the
+  interval is halved (five times at most), and two curves that end in one finest interval
+  meet there (a fold). A piece along which joint 7 hardly moves is no piece to a sweep over
+  it: verified paths (``--no-paths`` leaves them out) follow the curve from every family's
+  ends, each point checked by Pinocchio's FK, and join the families they reach. Ours (16
+  asked; with the family search, the default, and without it, each pose both ways in turn)
+  cover a family when one of our exact solutions lies within 0.25 rad of a sample of it;
+  TRAC-IK restarts from random seeds for the same wall time as ours are counted alike. Our
+  solutions on no family of the reference count apart. Also: whether our ``family`` labels
+  agree with the reference's (pairs of our solutions on one reference family labelled alike,
+  and on two labelled apart), and whether the first answers come from as many families.
 - **An arm of six joints** (``--arm-bundle``): the pose's branches (exact solutions with every
   angle wrapped to one turn, 0.1 rad apart) known from the union of ours and of ``--restarts``
   TRAC-IK restarts per pose; the share ours return, and the poses where ours return all.
@@ -45,6 +53,8 @@ EDGE = 0.01
 #: Step of a verified path between the reference's families [rad], and most steps each way.
 PATH_STEP = 0.05
 PATH_STEPS = 400
+#: Uniform draws among which the poses near a singularity are chosen.
+SINGULAR_DRAWS = 2000
 #: Two solutions at one value of joint 7 closer than this are one [rad].
 SAME_SAMPLE = 0.01
 #: Branches of an arm of six joints: wrapped solutions closer than this are one [rad].
@@ -342,7 +352,7 @@ def panda_row(ik: SelectiveIK, res, p: np.ndarray, r: np.ndarray, ref_q: np.ndar
 
 
 def panda_summary(rows: List[Dict], q7_samples: int, family_search: bool) -> Dict:
-    """The figures of one configuration over every pose."""
+    """The figures of one configuration over the poses of ``rows``."""
     with_ref = [x for x in rows if x['known']]
     known = sum(x['known'] for x in with_ref)
     pairs = max(sum(x['pairs'] for x in rows), 1)
@@ -365,61 +375,100 @@ def panda_summary(rows: List[Dict], q7_samples: int, family_search: bool) -> Dic
     }
 
 
-def panda(args) -> Dict:
-    """The Panda against frankik's families (and, with ``--family-search``, with the search).
+def pose_draws(ik: SelectiveIK, seed: int, count: int, near: int) -> np.ndarray:
+    """Configurations (count, n) whose FK are the poses.
 
-    With the search, each pose is solved by both configurations in turn (which first
-    alternates per pose), the peer's budget the default's time.
+    ``count - near`` drawn uniformly within the limits, then ``near`` near a singularity: the
+    ``near`` of :data:`SINGULAR_DRAWS` uniform draws whose Jacobian has the smallest least
+    singular value.
+    """
+    rng = np.random.default_rng(seed)
+    robot = ik.robot
+    q = rng.uniform(robot.lower, robot.upper, (count - near, robot.dof))
+    if near <= 0:
+        return q
+    pool = rng.uniform(robot.lower, robot.upper, (SINGULAR_DRAWS, robot.dof))
+    _, _, jac = robot.jacobian_batch(pool)
+    least = np.linalg.svd(jac, compute_uv=False)[:, -1]
+    return np.concatenate([q, pool[np.argsort(least)[:near]]])
+
+
+def panda(args) -> Dict:
+    """The Panda against the reference's families, with the family search and without it.
+
+    Each pose is solved both ways in turn (which first alternates per pose), the peer's
+    budget the default's (the search's) time; on the poses of each of ``--seeds``.
     """
     ik = SelectiveIK.load('panda')
     ik.solve(*ik.fk(np.zeros(7)), num_solutions=16)  # warm
-    variants = [False, True] if args.family_search else [False]
+    variants = [True, False]
     for v in variants:
         ik.configure(family_search=v)
         ik.solve(*ik.fk(np.full(7, 0.1)), num_solutions=16)
     ref = Frankik(ik, args.q7_samples, args.held_starts, not args.no_paths)
     tracik = TracIK(ik.robot)
-    rng = np.random.default_rng(args.seed)
-    seeds = np.random.default_rng(args.seed + 100)  # the peer's: apart from the poses' draws
     rows = {v: [] for v in variants}
-    for t in range(args.panda_poses):
-        q0 = rng.uniform(ik.robot.lower, ik.robot.upper)
-        pos, quat = ik.fk(q0)
-        p, r = ik.robot.fk_rot(q0[None])
-        p, r = p[0], r[0]
-        ref_q, ref_label, sweep_s = ref.families(p, r)
-        answers = {}
-        for v in (variants if t % 2 == 0 else variants[::-1]):
-            ik.configure(family_search=v)
-            answers[v] = ik.solve(pos, quat, num_solutions=16)
-        # TRAC-IK from random seeds for the default's wall time
-        t_budget, t0 = answers[False].elapsed, time.perf_counter()
-        peer = set()
-        while time.perf_counter() - t0 < t_budget:
-            ok, q = tracik.solve(pos, quat, seeds.uniform(ik.robot.lower, ik.robot.upper))
-            if ok and exact(ik, q, p, r):
-                f = on_family(q, ref_q, ref_label)
-                if f >= 0:
-                    peer.add(f)
-        for v in variants:
-            row = panda_row(ik, answers[v], p, r, ref_q, ref_label)
-            row.update(peer=len(peer), sweep_s=sweep_s)
-            rows[v].append(row)
-            print(f'panda {t:3d}{" search" if v else ""}: frankik {row["known"]} families; '
-                  f'ours {row["ours"]} (+{row["beyond"]} beyond), num_families '
-                  f'{row["num_families"]}, labels {row["agree"]}/{row["pairs"]}, TRAC-IK '
-                  f'{len(peer)}; {row["time_s"] * 1e3:.1f} ms, sweep {sweep_s * 1e3:.1f} ms',
-                  flush=True)
-    out = panda_summary(rows[False], args.q7_samples, False)
-    if args.family_search:
-        out['search'] = panda_summary(rows[True], args.q7_samples, True)
-        out['search']['time_ratio_median'] = float(np.median(
-            [b['time_s'] / a['time_s'] for a, b in zip(rows[False], rows[True])]))
-    for name, o in (('panda', out), ('panda, family search', out.get('search'))):
-        if o:
-            shown = [(k, v) for k, v in o.items() if not isinstance(v, dict)]
-            print(f'{name}: ' + ', '.join(f'{k} {v:.3g}' if isinstance(v, float) else f'{k} {v}'
-                                          for k, v in shown))
+    seeds_out = {}
+    for seed in [int(x) for x in args.seeds.split(',')]:
+        draws = pose_draws(ik, seed, args.panda_poses, args.near_singular)
+        peer_seeds = np.random.default_rng(seed + 100)  # the peer's: apart from the poses'
+        first = len(rows[True])
+        for t, q0 in enumerate(draws):
+            pos, quat = ik.fk(q0)
+            p, r = ik.robot.fk_rot(q0[None])
+            p, r = p[0], r[0]
+            ref_q, ref_label, sweep_s = ref.families(p, r)
+            answers = {}
+            for v in (variants if t % 2 == 0 else variants[::-1]):
+                ik.configure(family_search=v)
+                answers[v] = ik.solve(pos, quat, num_solutions=16)
+            # TRAC-IK from random seeds for the default's wall time
+            t_budget, t0 = answers[True].elapsed, time.perf_counter()
+            peer = set()
+            while time.perf_counter() - t0 < t_budget:
+                ok, q = tracik.solve(pos, quat,
+                                     peer_seeds.uniform(ik.robot.lower, ik.robot.upper))
+                if ok and exact(ik, q, p, r):
+                    f = on_family(q, ref_q, ref_label)
+                    if f >= 0:
+                        peer.add(f)
+            near = t >= len(draws) - args.near_singular
+            for v in variants:
+                row = panda_row(ik, answers[v], p, r, ref_q, ref_label)
+                row.update(peer=len(peer), sweep_s=sweep_s, near_singular=near)
+                rows[v].append(row)
+                print(f'panda seed {seed} pose {t:3d}{" near-singular" if near else ""}'
+                      f'{"" if v else " search off"}: reference {row["known"]} families; '
+                      f'ours {row["ours"]} (+{row["beyond"]} beyond), num_families '
+                      f'{row["num_families"]}, labels {row["agree"]}/{row["pairs"]}, TRAC-IK '
+                      f'{len(peer)}; {row["time_s"] * 1e3:.1f} ms, reference '
+                      f'{sweep_s * 1e3:.0f} ms', flush=True)
+        seeds_out[str(seed)] = {('default' if v else 'off'): panda_summary(
+            rows[v][first:], args.q7_samples, v) for v in variants}
+    out = {('default' if v else 'off'): panda_summary(rows[v], args.q7_samples, v)
+           for v in variants}
+    out['near_singular'] = {('default' if v else 'off'): panda_summary(
+        [x for x in rows[v] if x['near_singular']], args.q7_samples, v) for v in variants}
+    out['seeds'] = seeds_out
+    out['time_ratio_median'] = float(np.median(
+        [b['time_s'] / a['time_s'] for a, b in zip(rows[False], rows[True])]))
+    out['near_singular_poses'] = args.near_singular
+    out['held_starts'], out['paths'] = args.held_starts, not args.no_paths
+    for seed, o in seeds_out.items():
+        for name, x in o.items():
+            print(f'panda seed {seed} {name}: coverage {x["coverage"]:.3f}, every family on '
+                  f'{x["poses_all"]}/{x["poses_with_reference"]}, time median '
+                  f'{x["time_median_ms"]:.2f} ms')
+    for name in ('default', 'off'):
+        o = out[name]
+        shown = [(k, v) for k, v in o.items() if not isinstance(v, dict)]
+        print(f'panda {name}: ' + ', '.join(
+            f'{k} {v:.3g}' if isinstance(v, float) else f'{k} {v}' for k, v in shown))
+        o = out['near_singular'][name]
+        print(f'panda {name}, near-singular poses: coverage {o["coverage"]:.3f}, every family '
+              f'on {o["poses_all"]}/{o["poses_with_reference"]}')
+    print(f'panda: time with the search / without, median of pairs: '
+          f'{out["time_ratio_median"]:.2f}')
     return out
 
 
@@ -512,13 +561,14 @@ def main(argv=None) -> int:
                         help='TRAC-IK restarts per pose of the six-joint arm')
     parser.add_argument('--distinct', type=float, default=None,
                         help='the six-joint arm\'s distinct_threshold (default: the solver\'s)')
-    parser.add_argument('--family-search', action='store_true',
-                        help='the Panda also with SolverConfig.family_search on (each pose '
-                        'solved both ways in turn)')
-    parser.add_argument('--seed', type=int, default=0)
+    parser.add_argument('--seeds', default='10,11,12',
+                        help='the Panda\'s sets of poses, one per seed')
+    parser.add_argument('--near-singular', type=int, default=8,
+                        help='of each set\'s poses, those drawn near a singularity')
+    parser.add_argument('--seed', type=int, default=0, help='the six-joint arm\'s poses')
     add_json_argument(parser)
     args = parser.parse_args(argv)
-    results = {'seed': args.seed}
+    results = {'seed': args.seed, 'seeds': args.seeds}
     if args.panda_poses > 0:
         results['panda'] = panda(args)
     if args.arm_bundle and args.arm_poses > 0:

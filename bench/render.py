@@ -584,25 +584,33 @@ def _stream_summary(rows: List[dict]) -> List[str]:
 
 
 def render_families(data: dict) -> str:
-    """bench/families.py: posture families covered, against frankik and TRAC-IK."""
+    """bench/families.py: posture families covered, against the reference and TRAC-IK."""
     r = data['results']
     rows = []
     p = r.get('panda')
+
+    def labels(x: dict) -> str:
+        return (f'{pct(x["label_agreement"])} ({pct(x["label_split"])} split, '
+                f'{pct(x["label_merged"])} joined)')
     if p:
-        rows.append(['Panda (7)', f'frankik over joint 7 ({p["q7_samples"]} values), '
-                     f'{p["poses_with_reference"]} poses', num(p['known_mean'], 2),
-                     f'**{pct(p["coverage"])}**', pct(p['all_families'], 0),
-                     f'{pct(p["peer_coverage"])} (same time)',
-                     f'{pct(p["label_agreement"])} ({pct(p["label_split"])} split, '
-                     f'{pct(p["label_merged"])} joined)', f'{num(p["time_median_ms"])} ms'])
-    q = (p or {}).get('search')
-    if q:
-        rows.append(['Panda, `family_search` on', 'the same poses, each solved both ways in '
-                     'turn', num(q['known_mean'], 2), f'**{pct(q["coverage"])}**',
-                     pct(q['all_families'], 0), NA,
-                     f'{pct(q["label_agreement"])} ({pct(q["label_split"])} split, '
-                     f'{pct(q["label_merged"])} joined)',
-                     f'{num(q["time_median_ms"])} ms ({num(q["time_ratio_median"], 2)}x)'])
+        d, o, ns = p['default'], p['off'], p['near_singular']
+        ref = (f'frankik and a held-joint sweep over joint 7 ({d["q7_samples"]} values), '
+               f'verified paths; {d["poses_with_reference"]} poses, {len(p["seeds"])} seeds')
+        rows.append(['Panda (7), default (family search)', ref, num(d['known_mean'], 2),
+                     f'**{pct(d["coverage"])}**',
+                     f'{pct(d["all_families"], 0)} ({d["poses_all"]})',
+                     f'{pct(d["peer_coverage"])} (same time)', labels(d),
+                     f'{num(d["time_median_ms"])} ms ({num(p["time_ratio_median"], 2)}x)'])
+        rows.append(['Panda, `family_search` off', 'the same poses, each solved both ways in '
+                     'turn', num(o['known_mean'], 2), f'**{pct(o["coverage"])}**',
+                     f'{pct(o["all_families"], 0)} ({o["poses_all"]})', NA, labels(o),
+                     f'{num(o["time_median_ms"])} ms'])
+        rows.append(['Panda, default, near-singular poses only',
+                     f'{ns["default"]["poses_with_reference"]} of the poses above',
+                     num(ns['default']['known_mean'], 2),
+                     f'**{pct(ns["default"]["coverage"])}**',
+                     f'{pct(ns["default"]["all_families"], 0)} '
+                     f'({ns["default"]["poses_all"]})', NA, labels(ns['default']), NA])
     a = r.get('arm')
     if a:
         rows.append([f'{a["arm"]} ({a["dof"]})', f'ours ∪ {a["restarts"]} TRAC-IK restarts, '
@@ -616,13 +624,19 @@ def render_families(data: dict) -> str:
                      NA])
     note = ''
     if p:
-        note = (f'\n\nPanda: {num(p["beyond_mean"], 1)} of our 16 solutions per pose lie on no '
-                f'family of frankik\'s sweep (configurations it misses); the first answers '
-                f'came from as many reference families as the answer covers on '
-                f'{pct(p["first_k"], 0)} of the poses (our labels join '
-                f'{pct(p["label_merged"])} of the pairs the reference keeps apart); frankik\'s '
-                f'sweep took {num(p["sweep_median_ms"], 1)} ms per pose.')
-    return ('16 solutions asked per pose (FK of configurations drawn uniformly within the '
+        per_seed = '; '.join(
+            f'seed {k}: {pct(v["default"]["coverage"])}, every family on '
+            f'{v["default"]["poses_all"]}/{v["default"]["poses_with_reference"]} '
+            f'(off: {pct(v["off"]["coverage"])}, {v["off"]["poses_all"]})'
+            for k, v in p['seeds'].items())
+        note = (f'\n\nPanda per seed (default, with `family_search` off in brackets): '
+                f'{per_seed}. {p["near_singular_poses"]} poses of each seed are near a '
+                f'singularity (the least singular values of 2,000 uniform draws). '
+                f'{num(d["beyond_mean"], 2)} of our 16 solutions per pose lie on no family of '
+                f'the reference; the first answers came from as many reference families as '
+                f'the answer covers on {pct(d["first_k"], 0)} of the poses; the reference took '
+                f'{num(d["sweep_median_ms"] / 1e3, 1)} s per pose.')
+    return ('16 solutions asked per pose (FK of configurations drawn within the '
             'limits); a family counts as found when one of our exact solutions lies on it.\n\n'
             + table(['arm', 'families known from', 'known (mean)', 'ours found',
                      'poses with all', 'TRAC-IK found', 'our labels agree', 'time/call'], rows)

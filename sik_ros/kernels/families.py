@@ -113,7 +113,8 @@ def trace_labels(frames, lower, upper, periodic, q, pos, rot, step, max_steps, l
                 if timed and monotonic() > deadline:
                     return roots(parent)
                 prev[:] = x
-                if not advance(frames, x, heading, s == 0, way, step, p, r, jac, minor, v):
+                if not advance(frames, x, heading, s == 0, way, step, p, r, jac, minor, v,
+                               s > 0):
                     break
                 _into_limits(x, lower, upper, periodic)
                 if not correct(frames, lower, upper, periodic, x, pos, rot, True, tol_p,

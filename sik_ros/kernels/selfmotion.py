@@ -42,7 +42,10 @@ HALVINGS = 3
 @njit(cache=CACHE, nogil=True)
 def correct(frames, lower, upper, periodic, x, pos, rot, pose, tol_p, tol_o, max_step,
             p, r, jac, jm, a, err, xs):  # pragma: no cover (compiled)
-    """``x`` corrected onto the goal in place; whether it met the tolerances within limits."""
+    """``x`` corrected onto the goal in place; whether it met the tolerances within limits.
+
+    ``p``, ``r`` and ``jac`` are left those of ``x`` (a predictor may step from them).
+    """
     dims = 6 if pose else 3
     for _ in range(CORRECTIONS):
         place(frames, x, p, r, jac, True)
@@ -51,7 +54,7 @@ def correct(frames, lower, upper, periodic, x, pos, rot, pose, tol_p, tol_o, max
             return True
         limited_step(x, jac, err, dims, lower, upper, periodic, True, CORRECT_DAMPING2,
                      max_step, jm, a, xs)
-    place(frames, x, p, r, jac, False)
+    place(frames, x, p, r, jac, True)
     pe, oe = goal_error(pos, rot, pose, p, r, err)
     return pe < tol_p and (not pose or oe < tol_o)
 
@@ -74,13 +77,16 @@ def _step_along(x, v, heading, first, way, h):  # pragma: no cover (compiled)
 
 
 @njit(cache=CACHE, nogil=True)
-def advance(frames, x, heading, first, way, h, p, r, jac, minor, v):  # pragma: no cover
+def advance(frames, x, heading, first, way, h, p, r, jac, minor, v,
+            placed):  # pragma: no cover (compiled)
     """The predictor: ``x`` moved ``h`` [rad] along the null vector of its Jacobian.
 
     The unit null vector (of a 6 x 7 Jacobian) is signed as ``way`` on the ``first`` step,
-    then to keep ``heading`` (updated). Returns False where the Jacobian is singular.
+    then to keep ``heading`` (updated). ``placed``: ``jac`` is already that of ``x`` (a
+    corrector's last). Returns False where the Jacobian is singular.
     """
-    place(frames, x, p, r, jac, True)
+    if not placed:
+        place(frames, x, p, r, jac, True)
     if not null_vector7(jac, minor, v):
         return False
     _step_along(x, v, heading, first, way, h)
@@ -195,12 +201,15 @@ def trace_atlas(frames, lower, upper, periodic, q, flips, pos, rot, step, max_st
                         count = _record(inside, cur, q, periodic, link, points, piece, count,
                                         row_piece, parent)
                 h = step
+                placed = False
                 for s in range(max_steps):
                     if (timed and monotonic() > deadline) or count >= full:
                         break
                     prev[:] = x
-                    if not advance(frames, x, heading, s == 0, way, h, p, r, jac, minor, v):
+                    if not advance(frames, x, heading, s == 0, way, h, p, r, jac, minor, v,
+                                   placed):
                         break
+                    placed = False
                     predicted[:] = x
                     if not correct(frames, lo, up, free, x, pos, rot, True, tol_p, tol_o,
                                    max_step, p, r, jac, jm, a, err, xs) or \
@@ -211,6 +220,7 @@ def trace_atlas(frames, lower, upper, periodic, q, flips, pos, rot, step, max_st
                         h /= 2
                         continue
                     h = min(step, 2 * h)
+                    placed = True
                     if s >= 2 and angle_distance(x, start, turns) < link:
                         if cur >= 0 and first_piece >= 0:
                             union(parent, cur, first_piece)

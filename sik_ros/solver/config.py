@@ -208,9 +208,11 @@ class SolverConfig:
             cell's centre when the table was built, ``sik-index --postures``) instead of
             decoding the candidates at the goal at every call; raw answers
             (``refine=False``) are always decoded at the goal.
-        walk_rounds: pose goals: while fewer than ``num_solutions`` (plus the margin above)
-            distinct exact solutions are found, up to this many rounds of steps along the
-            self-motion manifolds of the found ones (0 disables it): each solution, moved
+        walk_rounds: pose goals of redundant arms the family search does not follow (8 or
+            more joints, or ``family_search`` off): while fewer than ``num_solutions`` (plus
+            the margin above) distinct exact solutions are found, up to this many rounds of
+            steps along the self-motion manifolds of the found ones (0 disables it): each
+            solution, moved
             ``walk_step`` [rad] along the null space of its Jacobian (both ways from the
             refined solutions, then onwards), is refined for at most ``walk_iterations``
             iterations; the new exact solutions at least ``distinct_threshold`` from every
@@ -234,10 +236,11 @@ class SolverConfig:
             :mod:`sik_ros.solver.families`) instead of filling ``num_solutions`` with more
             solutions of the families already given.
         family_search: pose goals of a 7-joint arm asking for more than one solution: follow
-            the found solutions' self-motion curves past the joint limits for the families
-            the limits part from them (:mod:`sik_ros.solver.search`). Off by default: on the
-            Panda it covers 85 % of an analytic sweep's families instead of 74 % at about
-            1.6x the time of a 16-solution call (docs/benchmarks.md).
+            the self-motion curves of the solutions found (and of starts with the last joint
+            held across its range) past the joint limits, every piece within the limits a
+            family, and give points far apart on each (:mod:`sik_ros.solver.search`), in
+            place of the walk. On by default; off, a call walks instead and covers fewer of
+            a pose's families (docs/benchmarks.md).
     """
 
     position_tolerance: float = 1e-4
