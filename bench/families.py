@@ -472,6 +472,56 @@ def panda(args) -> Dict:
     return out
 
 
+def redundant(args) -> Dict:
+    """A 7-joint arm with no analytic reference: the search against it off, labels traced.
+
+    Each pose solved with the family search (the default) and without it in turn: success,
+    exact solutions, families found, time; and the default's labels against the curves traced
+    within the limits from its solutions (``families.traced``): pairs on one curve labelled
+    apart (split), pairs of one label on two curves (joined).
+    """
+    from sik_ros.deadline import NO_DEADLINE
+    from sik_ros.kinematics.rotations import quaternion_matrix
+    from sik_ros.solver import families
+    from sik_ros.solver.context import Goal
+    ik = SelectiveIK.load(args.redundant_bundle)
+    robot = ik.robot
+    variants = {True: ik, False: ik.with_config(family_search=False)}
+    for v in variants.values():
+        v.solve(*ik.fk((robot.lower + robot.upper) / 2), num_solutions=16)  # warm
+    rng = np.random.default_rng(args.seed + 2)
+    rows = {True: [], False: []}
+    split = joined = pairs = 0
+    for t in range(args.redundant_poses):
+        pos, quat = ik.fk(rng.uniform(robot.lower, robot.upper))
+        for v in ((True, False) if t % 2 == 0 else (False, True)):
+            res = variants[v].solve(pos, quat, num_solutions=16)
+            exact = [s for s in res.solutions if s.converged]
+            rows[v].append((res.success, len(exact), res.num_families, res.elapsed))
+            if v and len(exact) > 1:
+                goal = Goal(np.asarray(pos, float), quaternion_matrix(quat))
+                traced = families.traced(ik.context, np.array([s.q for s in exact]), goal,
+                                         NO_DEADLINE)
+                for i in range(len(exact)):
+                    for j in range(i + 1, len(exact)):
+                        ours = exact[i].family == exact[j].family
+                        curve = traced[i] == traced[j]
+                        split += curve and not ours
+                        joined += ours and not curve
+                        pairs += 1
+    out = {'arm': robot.name, 'dof': robot.dof, 'poses': args.redundant_poses}
+    for v, name in ((True, 'default'), (False, 'off')):
+        a = np.array(rows[v], dtype=float)
+        out[name] = {'success': float(a[:, 0].mean()), 'exact_median': float(np.median(a[:, 1])),
+                     'families_mean': float(a[:, 2].mean()),
+                     'time_median_ms': float(np.median(a[:, 3]) * 1e3)}
+    out['time_ratio_median'] = float(np.median(
+        [a[3] / b[3] for a, b in zip(rows[True], rows[False])]))
+    out['label_pairs'], out['label_split'], out['label_joined'] = pairs, split, joined
+    print(f'{robot.name}: ' + ', '.join(f'{k} {v}' for k, v in out.items()))
+    return out
+
+
 def branches(q: List[np.ndarray], periodic: np.ndarray) -> np.ndarray:
     """Branch labels of solutions (every angle wrapped to one turn)."""
     if not q:
@@ -555,6 +605,9 @@ def main(argv=None) -> int:
     parser.add_argument('--no-paths', action='store_true',
                         help='the reference\'s families without the verified paths that join '
                         'them')
+    parser.add_argument('--redundant-bundle', default='',
+                        help='bundle of another 7-joint arm (no analytic reference)')
+    parser.add_argument('--redundant-poses', type=int, default=60)
     parser.add_argument('--arm-bundle', default='', help='bundle of an arm of six joints')
     parser.add_argument('--arm-poses', type=int, default=60)
     parser.add_argument('--restarts', type=int, default=300,
@@ -571,6 +624,8 @@ def main(argv=None) -> int:
     results = {'seed': args.seed, 'seeds': args.seeds}
     if args.panda_poses > 0:
         results['panda'] = panda(args)
+    if args.redundant_bundle and args.redundant_poses > 0:
+        results['redundant'] = redundant(args)
     if args.arm_bundle and args.arm_poses > 0:
         results['arm'] = arm(args)
     write_json(args.json, 'families', results)

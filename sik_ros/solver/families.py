@@ -92,7 +92,8 @@ def roots(ctx: Context, c: Candidates, goal: Goal, deadline: Deadline,
     """(M,) int64: the family root of each exact candidate of ``c`` (a row of ``c``), -1 else.
 
     With an ``atlas`` of the pose (:class:`~sik_ros.solver.search.Atlas`), a family is one of
-    its pieces (a row on none is a family of its own); else :func:`labels`.
+    its pieces; rows on none of them (found after the search) and every row without an
+    atlas are linked by :func:`labels`.
     """
     out = np.full(len(c), -1, dtype=np.int64)
     rows = np.flatnonzero(c.exact)
@@ -104,7 +105,11 @@ def roots(ctx: Context, c: Candidates, goal: Goal, deadline: Deadline,
     pieces = atlas.pieces_of(c.q[rows], ctx.robot.periodic)
     first = {}
     for row, piece in zip(rows.tolist(), pieces.tolist()):
-        out[row] = row if piece < 0 else first.setdefault(piece, row)
+        if piece >= 0:
+            out[row] = first.setdefault(piece, row)
+    off = rows[pieces < 0]  # found after the search (restarts for a free solution)
+    if len(off):
+        out[off] = off[labels(ctx, c.q[off], goal, deadline)]
     return out
 
 
