@@ -636,6 +636,18 @@ def render_families(data: dict) -> str:
                 f'the reference; the first answers came from as many reference families as '
                 f'the answer covers on {pct(d["first_k"], 0)} of the poses; the reference took '
                 f'{num(d["sweep_median_ms"] / 1e3, 1)} s per pose.')
+    x = r.get('redundant')
+    if x:
+        d, o = x['default'], x['off']
+        note += (f'\n\n{x["arm"]} ({x["dof"]} joints, no analytic reference; {x["poses"]} '
+                 f'poses, each solved both ways in turn): success {pct(d["success"])} and '
+                 f'{pct(o["success"])}, exact solutions median {num(d["exact_median"], 0)} and '
+                 f'{num(o["exact_median"], 0)}, families found per pose '
+                 f'{num(d["families_mean"], 2)} with the search and {num(o["families_mean"], 2)} '
+                 f'without, {num(d["time_median_ms"])} against {num(o["time_median_ms"])} ms a '
+                 f'call ({num(x["time_ratio_median"], 2)}x, paired); the default labels against '
+                 f'the curves traced within the limits: {x["label_split"]} of '
+                 f'{x["label_pairs"]} pairs split, {x["label_joined"]} joined.')
     return ('16 solutions asked per pose (FK of configurations drawn within the '
             'limits); a family counts as found when one of our exact solutions lies on it.\n\n'
             + table(['arm', 'families known from', 'known (mean)', 'ours found',
