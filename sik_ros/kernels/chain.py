@@ -198,6 +198,31 @@ def _det6(a):  # pragma: no cover (compiled)
     return det
 
 
+@njit(f'int64[::1]({F3}, {F2}, int64[::1], float64[::1], boolean)', cache=CACHE, nogil=True)
+def branch_codes(frames, q, joints, centres, determinant):  # pragma: no cover (compiled)
+    """Each row's branch code (M,) of configurations ``q`` (M, n) [rad].
+
+    Bit k: ``sin(q[joints[k]] - centres[k]) > 0``; with ``determinant`` (a 6 x 6 Jacobian),
+    the next bit: the Jacobian's determinant is positive
+    (:class:`~sik_ros.kinematics.branches.BranchSigns`).
+    """
+    m, n = q.shape
+    out = np.zeros(m, dtype=np.int64)
+    p, r = np.empty(3), np.empty((3, 3))
+    jac = np.empty((6, n))
+    for i in range(m):
+        code = 0
+        for k in range(joints.shape[0]):
+            if math.sin(q[i, joints[k]] - centres[k]) > 0.0:
+                code |= 1 << k
+        if determinant:
+            place(frames, q[i], p, r, jac, True)
+            if _det6(jac) > 0.0:
+                code |= 1 << joints.shape[0]
+        out[i] = code
+    return out
+
+
 @njit(cache=CACHE, nogil=True)
 def null_vector7(jac, minor, v):  # pragma: no cover (compiled)
     """``v`` (7,): the unit null vector of a 6 x 7 Jacobian ``jac``; False if (nearly) singular.

@@ -367,3 +367,41 @@ def predict_rows(q, jac, djac, move, dims, lam2, lower, upper,
                     s += jm[i, j] * x[i]
                 acc[j] += s
                 out[k, t, j] = min(max(acc[j], lower[j]), upper[j])
+
+
+@njit(f'void({F3}, {F1}, {F1}, boolean[::1], {F2}, int64[::1], {F1}, {F2}, float64, float64, '
+      f'float64, float64, float64, int64, {F1}, {F1}, {F1})', cache=CACHE, nogil=True)
+def polish_rows(frames, lower, upper, periodic, q, rows, pos, rot, tol_p, tol_o, lam2,
+                max_step, weight, iterations, perr, oerr, moved):  # pragma: no cover (compiled)
+    """Rows ``rows`` of ``q`` (M, n) taken closer onto a pose goal, in place where it helps.
+
+    Each row takes damped least squares steps (damping squared ``lam2``, within the limits,
+    periodic joints turned back past a limit) until its errors are under ``tol_p`` [m] and
+    ``tol_o`` [rad], at most ``iterations`` steps. It is kept only where its score (``perr +
+    weight * oerr``) ends lower than it was, with ``perr``, ``oerr`` (M,) updated; ``moved``
+    (len(rows),): how far each kept row moved [rad] (0 where it was left as it was).
+    """
+    n = q.shape[1]
+    p, r = np.empty(3), np.empty((3, 3))
+    jac, jm, a = np.empty((6, n)), np.empty((6, n)), np.empty((6, 6))
+    err, x = np.empty(6), np.empty(6)
+    qi = np.empty(n)
+    for k in range(rows.shape[0]):
+        row = rows[k]
+        moved[k] = 0.0
+        for j in range(n):
+            qi[j] = q[row, j]
+        pe, oe = perr[row], oerr[row]
+        for it in range(iterations + 1):
+            place(frames, qi, p, r, jac, True)
+            pe, oe = goal_error(pos, rot, True, p, r, err)
+            if (pe < tol_p and oe < tol_o) or it == iterations:
+                break
+            limited_step(qi, jac, err, 6, lower, upper, periodic, True, lam2, max_step,
+                         jm, a, x)
+        if pe + weight * oe < perr[row] + weight * oerr[row]:
+            d = 0.0
+            for j in range(n):
+                d += (qi[j] - q[row, j]) ** 2
+                q[row, j] = qi[j]
+            perr[row], oerr[row], moved[k] = pe, oe, math.sqrt(d)

@@ -48,17 +48,19 @@ def axis_key(origin, rot, inverse, position, quaternion, scale):  # pragma: no c
 
 
 @njit('float64[:, ::1](' + TREE_TYPES + ', float64[:, ::1], float64[::1], float64[::1], '
-      'float64, boolean, float64, float64, int64, int64, float64, int64, float64, int64, '
-      'float64)', cache=CACHE, nogil=True)
+      'float64, boolean, float64, float64, int64, int64, int64, float64, int64, float64, '
+      'int64, float64)', cache=CACHE, nogil=True)
 def table_starts(points, nodes, split, low, high, depth, columns, base_q, key, other, azimuth,
-                 turn_first, lower, upper, k, wanted, eps, count, spacing, at_least,
+                 turn_first, lower, upper, k, wanted, most, eps, count, spacing, at_least,
                  same):  # pragma: no cover (compiled)
     """Up to ``count`` of the ``k`` table rows nearest a key, far apart (the table's starts).
 
     ``base_q``: the table's configurations in the tree's leaf order. With ``turn_first``, the
     rows' first joints are turned by ``azimuth`` (a whole turn added or taken off where that
     brings them within ``lower``..``upper``), rows that still do not fit are passed over, and
-    the look-up goes further (``wanted`` doubled) until ``k`` fit. The far-apart ones are chosen
+    the look-up goes further (``wanted`` doubled) until ``k`` fit, at most to the ``most``
+    nearest rows (fewer than ``k`` then: the rows beyond are far from the key, and a look-up
+    that far costs a large share of the table). The far-apart ones are chosen
     by :func:`farthest_rows` over the joints' cosines and sines (``spacing``, ``at_least``,
     ``same``), the nearest row first.
     """
@@ -82,9 +84,9 @@ def table_starts(points, nodes, split, low, high, depth, columns, base_q, key, o
                 q[m, j] = base_q[rows[i], j]
             q[m, 0] = v
             m += 1
-        if not turn_first or m >= k or wanted >= total:
+        if not turn_first or m >= k or wanted >= min(total, most):
             break
-        wanted = min(2 * wanted, total)
+        wanted = min(2 * wanted, total, most)
     if m == 0 or count < 1:
         return np.empty((0, n))
     ends = np.empty((m, 2 * n))

@@ -25,6 +25,7 @@ from typing import Tuple
 import numpy as np
 
 from sik_ros.kernels.angles import flip_rows
+from sik_ros.kernels.chain import branch_codes
 from sik_ros.kinematics.robot import Robot
 
 #: Angles of each joint tried as a singular angle (a grid over one turn).
@@ -33,8 +34,6 @@ GRID = 72
 SAMPLES = 8
 #: Smallest over largest singular value under which a Jacobian counts as singular.
 SINGULAR = 1e-6
-#: Configurations whose codes are computed at once (the Jacobians' memory).
-CHUNK = 50_000
 
 
 @dataclass(frozen=True)
@@ -56,22 +55,26 @@ class BranchSigns:
         """How many codes there are: two per sign."""
         return 2 ** (len(self.joints) + int(self.determinant))
 
+    @functools.cached_property
+    def joint_array(self) -> np.ndarray:
+        """``joints`` as an int64 array (K,)."""
+        return np.array(self.joints, dtype=np.int64)
+
+    @functools.cached_property
+    def centre_array(self) -> np.ndarray:
+        """``centres`` as a float64 array (K,) [rad]."""
+        return np.array(self.centres, dtype=float)
+
     def codes(self, robot: Robot, q: np.ndarray) -> np.ndarray:
         """(M,) int64: the branch code of each configuration ``q`` (M, n) [rad].
 
         Bit k (k < len(joints)): the k-th sign joint on the side ``sin(q_j - c_j) > 0``; the
-        next bit: a positive determinant of the Jacobian.
+        next bit: a positive determinant of the Jacobian (compiled:
+        :func:`~sik_ros.kernels.chain.branch_codes`).
         """
-        q = np.atleast_2d(np.asarray(q, dtype=float))
-        out = np.zeros(len(q), dtype=np.int64)
-        for bit, (j, c) in enumerate(zip(self.joints, self.centres)):
-            out |= (np.sin(q[:, j] - c) > 0).astype(np.int64) << bit
-        if self.determinant:
-            bit = len(self.joints)
-            for start in range(0, len(q), CHUNK):
-                _, _, jac = robot.jacobian_batch(q[start:start + CHUNK])
-                out[start:start + CHUNK] |= (np.linalg.det(jac) > 0).astype(np.int64) << bit
-        return out
+        q = np.ascontiguousarray(np.atleast_2d(np.asarray(q, dtype=float)))
+        return branch_codes(robot.frames, q, self.joint_array, self.centre_array,
+                            self.determinant)
 
 
 def branch_signs(robot: Robot, seed: int = 0) -> BranchSigns:

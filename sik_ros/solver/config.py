@@ -78,8 +78,21 @@ SEARCH_PER_PIECE = 4
 SEARCH_SWEEP = 2
 SWEEP_ITERATIONS = 20
 #: Seed-table starts refined for each branch code no exact solution of an isolated pose goal
-#: has (:func:`sik_ros.solver.explore.other_branches`).
+#: has (:func:`sik_ros.solver.branches.other_branches`).
 BRANCH_CODE_STARTS = 2
+#: A solution whose branch sign joint is within this of its singular angle (``|sin(q_j -
+#: c_j)|``, about radians near it) gets a start on the branch across that joint, for a code
+#: still missing (:func:`sik_ros.solver.branches.mirrored`).
+NEIGHBOUR_REACH = 0.3
+#: The exact rows of an isolated pose goal are taken onto their solutions
+#: (:func:`sik_ros.solver.branches.polished`): to this share of the tolerances, in at most this
+#: many steps, with this damping (low enough to step along a nearly singular direction).
+POLISH_FACTOR = 1e-3
+POLISH_ITERATIONS = 6
+POLISH_DAMPING = 1e-5
+#: A polished row moved less than this [rad] (a tenth of ``SAME_BRANCH``) stays on its branch
+#: unchecked: one solution with where it was by the solver's own rule.
+POLISH_MOVED = 0.01
 #: Most 2 pi equivalents added per solution (periodic joints): one joint turned, then two.
 EQUIVALENTS_PER_SOLUTION = 16
 #: Algorithm 2's move of one index element, as a share of its range in the table.

@@ -1,7 +1,8 @@
 """More solutions than the table's postures give: branch starts, restarts, the self-motion walk.
 
 :func:`seed_starts` (from the bundle's seed table) or :func:`branch_starts` (uniform random)
-give the isolated pose solutions of arms with six joints or fewer a start per branch.
+give the isolated pose solutions of arms with six joints or fewer a start per branch
+(:mod:`sik_ros.solver.branches` gives starts for the branches they miss).
 :func:`restart` starts again from perturbed and random configurations when no candidate
 converged. :func:`walk` moves found pose solutions along the null space of their Jacobian (the
 self-motion manifold of a redundant arm at a 6-d pose) and refines them back onto the goal, for
@@ -15,17 +16,14 @@ import zlib
 import numpy as np
 
 from sik_ros.deadline import Deadline
-from sik_ros.kernels.angles import turned_rows
 from sik_ros.kernels.chain import null_directions
 from sik_ros.kernels.selfmotion import step_rows
-from sik_ros.kinematics.branches import flip, robot_flips
 from sik_ros.kinematics.periodic import equivalents
 from sik_ros.solver.batch import Candidates
-from sik_ros.solver.config import (BRANCH_CODE_STARTS, EQUIVALENTS_PER_SOLUTION,
-                                   RESTART_SPREAD, RESTARTS)
+from sik_ros.solver.config import EQUIVALENTS_PER_SOLUTION, RESTART_SPREAD, RESTARTS
 from sik_ros.solver.context import Context, Goal
-from sik_ros.solver.ranking import assess, converged, distinct_mask, pose_score
-from sik_ros.solver.refine import refine, Refined
+from sik_ros.solver.ranking import assess, distinct_mask, pose_score
+from sik_ros.solver.refine import refine
 from sik_ros.tables.point_sets import pairwise_distances
 from sik_ros.tables.seed_table import SeedTable
 
@@ -87,36 +85,6 @@ def seed_starts(ctx: Context, goal: Goal, seeds: SeedTable, count: int,
     q = seeds.starts(goal.position, goal.quaternion, count, ctx.config.seed_neighbours)
     inf = np.full(len(q), np.inf)
     return Candidates(q, unindexed(q, latent), inf, inf, np.zeros(len(q), dtype=bool))
-
-
-def other_branches(ctx: Context, goal: Goal, seeds: SeedTable, r: Refined,
-                   deadline: Deadline) -> Refined:
-    """``r`` (refined starts of an isolated pose goal) and starts on the branches it missed.
-
-    Each exact row's branch code (:mod:`sik_ros.kinematics.branches`) is read; for every code
-    none has, the seed table's rows of that code nearest the goal pose
-    (:meth:`~sik_ros.tables.seed_table.SeedTable.branch_starts`, :data:`BRANCH_CODE_STARTS`
-    of them) are refined and appended. The nearest rows of the whole table can all lie on a
-    few branches; a code's own rows lie on its branch wherever the goal is.
-    """
-    signs, robot = seeds.signs, ctx.robot
-    if signs is None:
-        return r
-    exact = converged(r.perr, r.oerr, goal.kind, ctx.config)
-    found = set(signs.codes(robot, r.q[exact]).tolist()) if exact.any() else set()
-    starts = [seeds.branch_starts(goal.position, goal.quaternion, code, BRANCH_CODE_STARTS,
-                                  ctx.config.seed_neighbours)
-              for code in range(signs.count) if code not in found]
-    if starts and exact.any():  # an exact flip of a found branch (a spherical wrist) is one
-        # every angle turned by whole turns into its limits (the same placement), else dropped
-        for a in robot_flips(robot):
-            q = flip(r.q[exact], a)
-            starts.append(q[turned_rows(q, robot.lower, robot.upper, q)])
-    if not starts or deadline.expired():
-        return r
-    more = refine(ctx, np.concatenate(starts), goal, deadline)
-    return Refined(np.concatenate([r.q, more.q]), np.concatenate([r.perr, more.perr]),
-                   np.concatenate([r.oerr, more.oerr]), r.cut_short or more.cut_short)
 
 
 def periodic_equivalents(ctx: Context, c: Candidates,

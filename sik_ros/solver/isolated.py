@@ -3,14 +3,15 @@
 An arm with six joints or fewer reaches a pose on a few isolated branches (one or two for the
 SO-100 and the Z1 within their limits, up to eight for a UR5). With the bundle's seed table,
 no seed, no obstacles and the default objective, a call is: the seed table's starts near the
-goal pose, refined; the exact ones, one per posture; ranked by closeness to the joint limits,
-self-collision checked in that order. :func:`every_branch` does just that in three compiled
-calls (:func:`~sik_ros.kernels.sets.exact_by_margin` for the last steps) and the collision
-checks, where the general stages of :mod:`sik_ros.solver.pipeline` carry candidate batches
-through some thirty NumPy calls this case does not need. Its answers are the general stages'
-(``bench/answers.py`` compares them); arms with periodic joints take the general ranking
-(2 pi equivalents), and a goal no start reaches exactly goes on to the general stages'
-restarts with the starts already refined.
+goal pose, refined (with starts for the branches they missed, and the exact ones polished onto
+their solutions: :mod:`sik_ros.solver.branches`); the exact ones, one per posture; ranked by
+closeness to the joint limits, self-collision checked in that order. :func:`every_branch` does
+just that in a few compiled calls (:func:`~sik_ros.kernels.sets.exact_by_margin` for the last
+steps) and the collision checks, where the general stages of :mod:`sik_ros.solver.pipeline`
+carry candidate batches through some thirty NumPy calls this case does not need. Its answers
+are the general stages' (``bench/answers.py`` compares them); arms with periodic joints take
+the general ranking (2 pi equivalents), and a goal no start reaches exactly goes on to the
+general stages' restarts with the starts already refined.
 """
 
 import functools
@@ -21,10 +22,11 @@ import numpy as np
 from sik_ros.deadline import Deadline
 from sik_ros.kernels.sets import exact_by_margin
 from sik_ros.solver.batch import Candidates
+from sik_ros.solver.branches import other_branches, polished
 from sik_ros.solver.codec import encode
 from sik_ros.solver.config import ORIENTATION_WEIGHT
 from sik_ros.solver.context import Context, Goal
-from sik_ros.solver.explore import other_branches, unindexed
+from sik_ros.solver.explore import unindexed
 from sik_ros.solver.families import number, same_solution
 from sik_ros.solver.ranking import assess
 from sik_ros.solver.refine import refine, Refined
@@ -41,7 +43,10 @@ def every_branch(ctx: Context, goal: Goal, seeds: SeedTable, num: int,
     """The best ``num`` branches from the seed table's starts near a pose goal.
 
     The starts are refined (all of them; with ``enough``, until as many distinct ones are
-    exact). The exact ones, taken by their goal error, one per posture
+    exact; without, starts for the branches they missed follow and the exact rows are polished
+    onto their solutions: :func:`~sik_ros.solver.branches.other_branches`,
+    :func:`~sik_ros.solver.branches.polished`). The exact ones, taken by their goal error, one
+    per posture
     (``distinct_threshold`` apart), are ranked by
     :class:`~sik_ros.solver.objectives.JointLimitMargin`,
     those free of self-collision first, each checked in that order until ``num`` free ones are
@@ -52,7 +57,7 @@ def every_branch(ctx: Context, goal: Goal, seeds: SeedTable, num: int,
     q = seeds.starts(goal.position, goal.quaternion, cfg.seed_starts, cfg.seed_neighbours)
     r = refine(ctx, q, goal, deadline, enough=enough)
     if enough is None:  # every branch: starts for those the table's nearest rows missed
-        r = other_branches(ctx, goal, seeds, r, deadline)
+        r = polished(ctx, goal, seeds.signs, other_branches(ctx, goal, seeds, r, deadline))
     keep = np.empty(0, dtype=np.int64)
     if not robot.periodic.any():
         keep, cost = exact_by_margin(r.q, r.perr, r.oerr, cfg.position_tolerance,

@@ -27,14 +27,15 @@ from sik_ros.kinematics.periodic import nearest_turns
 from sik_ros.solver import families
 from sik_ros.solver.adjust import adjust_index, adjust_raw
 from sik_ros.solver.batch import Candidates
+from sik_ros.solver.branches import other_branches, polished
 from sik_ros.solver.call import Call, LEAN, make_call, REFINED, spare
 from sik_ros.solver.candidates import (oriented_postures, own_index, starting_postures,
                                        table_candidates)
 from sik_ros.solver.codec import decode
 from sik_ros.solver.config import FAR_ITERATIONS, FREE_RESTARTS, FREE_ROUNDS, START_MERGE
 from sik_ros.solver.context import Context, Goal, POSE, POSITION
-from sik_ros.solver.explore import (branch_starts, other_branches, periodic_equivalents,
-                                    restart, seed_starts, unindexed, walk)
+from sik_ros.solver.explore import (branch_starts, periodic_equivalents, restart, seed_starts,
+                                    unindexed, walk)
 from sik_ros.solver.isolated import every_branch
 from sik_ros.solver.objectives import Objective
 from sik_ros.solver.ranking import (assess, best_distinct, by_score, distinct_mask,
@@ -212,7 +213,8 @@ def refine_all(ctx: Context, call: Call,
                prune=call.seeds is None, enough=call.enough)
     z = c.z
     if call.seeds is not None and call.enough is None:  # every branch: starts for those missed
-        r = other_branches(ctx, goal, call.seeds, r, deadline)
+        r = polished(ctx, goal, call.seeds.signs,
+                     other_branches(ctx, goal, call.seeds, r, deadline))
         z = np.concatenate([z, unindexed(r.q[len(z):], z.shape[1])])
     c = assess(r.q, z, r.perr, r.oerr, goal.kind, cfg)
     return more_starts(ctx, call, c, r.cut_short)

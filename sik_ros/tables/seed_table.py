@@ -55,6 +55,10 @@ NEIGHBOURS = 100
 #: Relative slack of the KD-tree look-up (each row found within 1.5 times the distance of the
 #: true k-th nearest): nearly the exact look-up's rows in half its time.
 LOOKUP_EPS = 0.5
+#: A look-up whose nearest rows cannot take the goal's azimuth (a first joint short of a whole
+#: turn) goes at most to this many times ``neighbours`` rows (the rows of a branch the goal has
+#: not, within the limits, can lie that far: some seconds to look up the whole table).
+LOOKUP_MOST = 8
 #: Starts no nearer each other than this (distance of their joints' cosines and sines, about
 #: radians when near), at least ``START_LEAST`` of them: nearer ones reach the same solution.
 START_SPACING = 1.2
@@ -173,7 +177,8 @@ class SeedTable:
         # START_SPACING, which head for one solution (at least START_LEAST of them)
         return table_starts(*tree.arrays(), base_q, key, other, azimuth,
                             self._axis is not None, float(self._lower), float(self._upper),
-                            int(k), int(wanted), LOOKUP_EPS, int(count), START_SPACING,
+                            int(k), int(wanted), max(int(wanted), LOOKUP_MOST * int(k)),
+                            LOOKUP_EPS, int(count), START_SPACING,
                             START_LEAST, SAME_DISTANCE)
 
     def turned_key(self, position: np.ndarray, quaternion: np.ndarray
