@@ -8,11 +8,11 @@ from sik_ros.eval.index_properties import index_properties_lines
 from sik_ros.eval.markdown import fmt, table, verdict
 from sik_ros.eval.metrics import mean_cm
 from sik_ros.eval.obstacle import NoObstacleCase
+from sik_ros.eval.orientation_study import ORIENTED_POOL
 from sik_ros.eval.paper import LETTERS, NAMES, PAPER
 from sik_ros.eval.raw_pose import raw_pose_lines
 from sik_ros.eval.report_distance import pose_lookup_lines
 from sik_ros.eval.run import Results
-from sik_ros.eval.studies import ORIENTED_POOL
 
 
 def diversity_section(res: Results) -> List[str]:

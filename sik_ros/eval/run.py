@@ -19,12 +19,12 @@ from sik_ros.eval.histories import bundle_histories, latent_study, LatentRun, Tr
 from sik_ros.eval.index_properties import index_properties, IndexProperties
 from sik_ros.eval.lookup import LookupErrors, pose_lookup
 from sik_ros.eval.obstacle import NoObstacleCase, obstacle_study, ObstacleCase
+from sik_ros.eval.orientation_study import Orientation, orientation_study
 from sik_ros.eval.paper import LETTERS, NAMES, PAPER, RADII, VARIANTS
 from sik_ros.eval.raw_pose import raw_pose_study, RawPose, SEED, TARGETS
 from sik_ros.eval.studies import (distance_error_study, DistanceErrors, diversity_study,
-                                  DiversityTarget, element_sweep, Orientation,
-                                  orientation_study, sphere_targets, SphereTargets, Sweep,
-                                  workspace_targets)
+                                  DiversityTarget, element_sweep, sphere_targets,
+                                  SphereTargets, Sweep, workspace_targets)
 from sik_ros.eval.timing import Timing, timing_study
 from sik_ros.solver import SelectiveIK
 

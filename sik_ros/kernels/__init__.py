@@ -22,7 +22,8 @@ def as_arg(a, dtype=np.float64) -> np.ndarray:
 
 
 from sik_ros.kernels.chain import chain_frames, fk_many, jac_many  # noqa: E402,I100
-from sik_ros.kernels.dls import follow_rows, refine_rows  # noqa: E402
+from sik_ros.kernels.dls import refine_rows  # noqa: E402
+from sik_ros.kernels.follow import follow_rows  # noqa: E402
 from sik_ros.kernels.mlp import mlp_rows, pack_layers  # noqa: E402
 
 __all__ = ['as_arg', 'chain_frames', 'fk_many', 'follow_rows', 'jac_many', 'mlp_rows',

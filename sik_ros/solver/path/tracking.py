@@ -6,7 +6,7 @@ import numpy as np
 
 from sik_ros.deadline import Deadline
 from sik_ros.kernels import as_arg
-from sik_ros.kernels.dls import predict_rows
+from sik_ros.kernels.follow import predict_rows
 from sik_ros.kinematics.rotations import rotation_log
 from sik_ros.solver.config import TRACK_ITERATIONS
 from sik_ros.solver.context import Context, Goal
