@@ -166,6 +166,48 @@ def test_isolated_branches_are_not_merged_as_near_postures(ur5_bundle, bundled):
         assert len(set(postures.tolist())) == keep
 
 
+def test_near_solutions_of_two_atlas_pieces_are_both_kept(bundled):
+    """Two exact rows nearer than distinct_threshold stay two when the atlas parts them.
+
+    A small family beside a large one, parted from it by a joint limit, keeps its solution;
+    two rows of one piece (or with no atlas) are one posture.
+    """
+    from sik_ros.solver.search import Atlas
+    ik = bundled
+    q0 = (ik.robot.lower + ik.robot.upper) / 2
+    q = np.stack([q0, q0 + 0.2 / np.sqrt(ik.robot.dof)])
+    pos, quat = ik.fk(q0)
+    goal = Goal(np.asarray(pos, float), quaternion_matrix(quat))
+    c = Candidates(q, np.zeros((2, 4), np.float32), np.zeros(2), np.zeros(2),
+                   np.ones(2, dtype=bool))
+    assert ik.config.distinct_threshold > 0.2
+    assert len(distinct_postures(ik.context, c, goal, None)) == 1
+    two = Atlas(q.copy(), np.array([0, 1]), 0.05)
+    assert len(distinct_postures(ik.context, c, goal, None, two)) == 2
+    one = Atlas(q.copy(), np.array([0, 0]), 0.05)
+    assert len(distinct_postures(ik.context, c, goal, None, one)) == 1
+
+
+def test_every_searched_family_comes_before_a_second_solution(bundled):
+    """With the search, each family's best comes before any family's second, colliding or not.
+
+    As an analytic solver's answer holds every family: one that touches the arm itself
+    comes in the answer, reported so, before a second solution of a free one.
+    """
+    colliding_firsts = 0
+    for pos, quat in pose_goals(bundled, 12, seed=5):
+        res = bundled.solve(pos, quat, num_solutions=16)
+        labels = [s.family for s in res.solutions if s.converged]
+        k = len(set(labels))
+        assert sorted(labels[:k]) == list(range(k))
+        # a colliding family's best, before free seconds
+        colliding_firsts += sum(s.tier != 0 for s in res.solutions[:k] if s.converged) and \
+            any(s.tier == 0 for s in res.solutions[k:])
+        if res.num_families <= 16:
+            assert k == res.num_families
+    assert colliding_firsts >= 1  # these draws hold such families
+
+
 def test_firsts_marks_each_familys_first_row_in_order():
     """The compiled and the general marking agree: a family's first row in the given order."""
     rng = np.random.default_rng(2)

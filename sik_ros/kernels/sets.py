@@ -13,6 +13,9 @@ import numpy as np
 from sik_ros.kernels._cache import CACHE
 from sik_ros.kernels.angles import PER_TURN, TURN
 
+#: :func:`distinct_rows`' ``groups`` for rows in no group.
+NO_GROUPS = np.empty(0, dtype=np.int64)
+
 
 @njit('int64[::1](float64[:, ::1], int64, int64, float64, int64, float64)', cache=CACHE,
       nogil=True)
@@ -53,20 +56,25 @@ def farthest_rows(points, k, first, spacing, at_least, same):  # pragma: no cove
     return chosen[:count].copy()
 
 
-@njit('boolean[::1](float64[:, ::1], float64, int64, boolean[::1])', cache=CACHE, nogil=True)
-def distinct_rows(q, threshold, cols, periodic):  # pragma: no cover (compiled)
+@njit('boolean[::1](float64[:, ::1], float64, int64, boolean[::1], int64[::1])', cache=CACHE,
+      nogil=True)
+def distinct_rows(q, threshold, cols, periodic, groups):  # pragma: no cover (compiled)
     """Keep-mask of rows (in order) at least ``threshold`` from every earlier kept one [rad].
 
     Over the first ``cols`` columns; a ``periodic`` joint's difference is taken at its nearest
-    2 pi turn.
+    2 pi turn. ``groups`` (M,): rows of two different groups (both >= 0: two posture
+    families) are never one; -1, or an empty array, compares with every row.
     """
     m = q.shape[0]
     keep = np.zeros(m, dtype=np.bool_)
     t2 = threshold * threshold
+    grouped = groups.shape[0] == m
     for i in range(m):
         ok = True
         for j in range(i):
             if not keep[j]:
+                continue
+            if grouped and groups[i] >= 0 and groups[j] >= 0 and groups[i] != groups[j]:
                 continue
             s = 0.0
             for c in range(cols):
@@ -140,7 +148,8 @@ def exact_by_margin(q, perr, oerr, position_tolerance, orientation_tolerance, we
         if perr[i] <= position_tolerance and oerr[i] <= orientation_tolerance:
             _insert(rows, score, k, i, perr[i] + weight * oerr[i])
             k += 1
-    keep = distinct_rows(q[rows[:k]], threshold, n, np.zeros(n, dtype=np.bool_))
+    keep = distinct_rows(q[rows[:k]], threshold, n, np.zeros(n, dtype=np.bool_),
+                         np.empty(0, dtype=np.int64))
     out = np.empty(k, dtype=np.int64)
     cost = np.empty(k)
     kept = 0

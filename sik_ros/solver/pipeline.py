@@ -38,7 +38,7 @@ from sik_ros.solver.explore import (branch_starts, periodic_equivalents, restart
                                     unindexed, walk)
 from sik_ros.solver.isolated import every_branch
 from sik_ros.solver.objectives import Objective
-from sik_ros.solver.ranking import (assess, best_distinct, by_score, distinct_mask,
+from sik_ros.solver.ranking import (assess, by_score, distinct_mask,
                                     from_solutions, merge, pose_score, rank)
 from sik_ros.solver.refine import errors, refine
 from sik_ros.solver.results import IKResult, Solution
@@ -75,12 +75,14 @@ def initial_postures(ctx: Context, goal: Goal, num: int, q_seed: Optional[np.nda
 
 
 def distinct_postures(ctx: Context, c: Candidates, goal: Goal,
-                      q_seed: Optional[np.ndarray]) -> Candidates:
+                      q_seed: Optional[np.ndarray], atlas: Optional[Atlas] = None) -> Candidates:
     """Stage 4 before ranking: the exact candidates (all when none is), one per posture.
 
     With periodic joints each candidate first takes the 2 pi turns nearest the seed (or the
     middle of the joint ranges), a posture found at several turns (from different starts)
-    is kept once, nearest the seed, and its equivalents within the limits are added.
+    is kept once, nearest the seed, and its equivalents within the limits are added. With the
+    search's ``atlas``, solutions on two of its pieces (two families) are never one, however
+    near: a small family beside a large one, parted by a joint limit, keeps its solutions.
     """
     cfg = ctx.config
     threshold = cfg.distinct_threshold
@@ -91,18 +93,29 @@ def distinct_postures(ctx: Context, c: Candidates, goal: Goal,
     ignore_last = ctx.ignores_last(goal.kind)
     periodic = ctx.robot.periodic
     if not periodic.any():
-        return best_distinct(c, threshold, ignore_last)
+        c = by_score(c)
+        return c.take(distinct_mask(c.q, threshold, ignore_last,
+                                    groups=pieces(ctx, c, atlas)))
     centre = turns_centre(ctx, q_seed)
     q = nearest_turns(ctx.robot, c.q, centre)
     # exact ones nearest the seed first (of nearly one posture, the one kept), then by score
     near = np.linalg.norm(q - centre, axis=1)
     c = Candidates(q, c.z, c.perr, c.oerr, c.exact).take(
         np.lexsort((np.where(c.exact, near, pose_score(c.perr, c.oerr)), ~c.exact)))
-    c = c.take(distinct_mask(c.q, threshold, ignore_last, periodic))
+    c = c.take(distinct_mask(c.q, threshold, ignore_last, periodic, pieces(ctx, c, atlas)))
     # postures apart however turned: so are their equivalents (a whole turn from each other
     # on some joint the distance counts: a last joint it leaves out is not turned), so they
     # need only their order (no pairwise check)
     return by_score(periodic_equivalents(ctx, c, ignore_last=ignore_last))
+
+
+def pieces(ctx: Context, c: Candidates, atlas: Optional[Atlas]) -> Optional[np.ndarray]:
+    """(M,) int64: the atlas piece of each exact row of ``c`` (-1: none), or None without one."""
+    if atlas is None:
+        return None
+    out = atlas.pieces_of(c.q, ctx.robot.periodic)
+    out[~c.exact] = -1
+    return out
 
 
 def seed_posture_first(ctx: Context, goal: Goal, own: Candidates, sols: List[Solution],
@@ -167,14 +180,22 @@ def solve(ctx: Context, goal: Goal, num: int, q_seed: Optional[np.ndarray],
         if goal.kind == POSE:  # Algorithm 2 on the tip pose error: still decoded postures
             c = adjust_raw(ctx, goal, c, num, q_seed is not None, call.deadline)
         own = c.take(np.arange(1)) if q_seed is not None and objective is None else None
-    c = distinct_postures(ctx, c, goal, q_seed)
+    c = distinct_postures(ctx, c, goal, q_seed, atlas)
     fam = family_roots(ctx, call, c, atlas)
     sols = rank(ctx, c, q_seed, obstacles, objective, limit=num, deadline=deadline,
-                families=fam, branches_first=call.isolated)
+                families=fam, families_first=every_family(call, atlas))
     if own is not None:
         sols = seed_posture_first(ctx, goal, own, sols, q_seed, obstacles, num, deadline)
     sols, fam, cut = free_rounds(ctx, call, c, sols, fam, atlas)
     return finish(ctx, call, sols, timed_out or cut, fam)
+
+
+def every_family(call: Call, atlas: Optional[Atlas]) -> bool:
+    """Whether the candidates hold every family of the pose, each to come before a second.
+
+    The branches of an isolated pose goal, and the pieces of the search's atlas.
+    """
+    return call.isolated or atlas is not None
 
 
 def family_roots(ctx: Context, call: Call, c: Candidates,
@@ -289,10 +310,10 @@ def free_rounds(ctx: Context, call: Call, c: Candidates, sols: List[Solution],
             break
         more, cut = restart(ctx, c, goal, deadline, keep=FREE_RESTARTS, stream=stream)
         timed_out = timed_out or cut
-        c = distinct_postures(ctx, more, goal, call.q_seed)
+        c = distinct_postures(ctx, more, goal, call.q_seed, atlas)
         fam = family_roots(ctx, call, c, atlas)
         sols = rank(ctx, c, call.q_seed, call.obstacles, call.objective, limit=call.num,
-                    deadline=deadline, families=fam, branches_first=call.isolated)
+                    deadline=deadline, families=fam, families_first=every_family(call, atlas))
     return sols, fam, timed_out
 
 
@@ -318,7 +339,7 @@ def finish(ctx: Context, call: Call, sols: List[Solution], timed_out: bool,
                 c = from_solutions(sols)
                 fam = families.roots(ctx, c, goal, deadline)
                 sols = rank(ctx, c, call.q_seed, obstacles, call.objective, deadline=deadline,
-                            families=fam, branches_first=call.isolated)
+                            families=fam, families_first=call.isolated)
             sols = sols[:call.num]
     if fam is None and call.num == 1:  # one solution: its own family, the one known
         fam = [0] if sols and sols[0].converged else []

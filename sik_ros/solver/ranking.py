@@ -14,7 +14,7 @@ import numpy as np
 
 from sik_ros.deadline import Deadline, NO_DEADLINE
 from sik_ros.kernels import as_arg
-from sik_ros.kernels.sets import distinct_rows
+from sik_ros.kernels.sets import distinct_rows, NO_GROUPS
 from sik_ros.kinematics.collision import Obstacle
 from sik_ros.kinematics.periodic import posture_keys
 from sik_ros.solver.batch import Candidates
@@ -45,20 +45,22 @@ def assess(q: np.ndarray, z: np.ndarray, perr: np.ndarray, oerr: np.ndarray, kin
 
 
 def distinct_mask(q: np.ndarray, threshold: float, ignore_last: bool = False,
-                  periodic: Optional[np.ndarray] = None) -> np.ndarray:
+                  periodic: Optional[np.ndarray] = None,
+                  groups: Optional[np.ndarray] = None) -> np.ndarray:
     """Greedy keep-mask of rows (in their order) at least ``threshold`` apart [rad].
 
     With ``ignore_last`` the last joint is left out of the distance (for position goals, when
     it only turns the tool about its own axis: :meth:`Context.ignores_last`). With
     ``periodic`` (n,) bool, those joints' differences are taken at their nearest 2 pi turns:
-    rows apart however turned.
+    rows apart however turned. With ``groups`` (M,) int, rows of two posture families (two
+    groups >= 0) are kept however near: two solutions no motion within the limits joins.
     """
     if len(q) < 2:
         return np.ones(len(q), dtype=bool)
     n = q.shape[1]
     turns = np.zeros(n, dtype=bool) if periodic is None else as_arg(periodic, bool)
-    return distinct_rows(as_arg(q), float(threshold),
-                         n - 1 if ignore_last else n, turns)
+    return distinct_rows(as_arg(q), float(threshold), n - 1 if ignore_last else n, turns,
+                         NO_GROUPS if groups is None else as_arg(groups, np.int64))
 
 
 def posture_mask(ctx: Context, q: np.ndarray, kind: str,
@@ -109,7 +111,7 @@ def rank(ctx: Context, c: Candidates, q_seed: Optional[np.ndarray],
          limit: Optional[int] = None, deadline: Deadline = NO_DEADLINE,
          self_collision: Optional[np.ndarray] = None,
          families: Optional[np.ndarray] = None,
-         branches_first: bool = False) -> List[Solution]:
+         families_first: bool = False) -> List[Solution]:
     """Solutions ranked best first; with ``limit``, only the best ``limit`` of them.
 
     The order is lexicographic: tier (free and exact, free and inexact, colliding or
@@ -127,11 +129,12 @@ def rank(ctx: Context, c: Candidates, q_seed: Optional[np.ndarray],
     :func:`sik_ros.solver.families.roots`): within a tier the best of each family (by the
     order above, colliding ones last) ranks before every second solution of a family, so the
     first answers cover the families; each solution's ``family`` is its root (numbered later
-    by :func:`sik_ros.solver.families.number`). With ``branches_first`` (the isolated
-    solutions of a pose of an arm of six joints or fewer: its branches, as an analytic solver
-    gives them) the best of each family ranks before every second solution whatever its tier:
-    a branch that touches the arm itself still comes before a 2 pi equivalent of a free one,
-    in the colliding tier and reported so.
+    by :func:`sik_ros.solver.families.number`). With ``families_first`` (every family of the
+    pose known, as an analytic solver gives them: the branches of an arm of six joints or
+    fewer, the search's pieces of a 7-joint arm's self-motion) the best of each family ranks
+    before every second solution whatever its tier: a family that touches the arm itself
+    still comes before a second solution of a free one, in the colliding tier and reported
+    so.
     """
     if len(c) == 0:
         return []
@@ -158,7 +161,7 @@ def rank(ctx: Context, c: Candidates, q_seed: Optional[np.ndarray],
 
     def order(colliding: np.ndarray) -> np.ndarray:
         tier = np.where(colliding, COLLIDING, np.where(inexact, FREE_INEXACT, FREE_EXACT))
-        if branches_first:
+        if families_first:
             return np.lexsort((within, equivalent, tier, repeat, inexact))
         return np.lexsort((within, equivalent, repeat, inexact, tier))
 
