@@ -15,6 +15,8 @@ here:
   and :func:`atlas_pieces` the piece of any solution.
 """
 
+import math
+
 from numba import njit
 import numpy as np
 
@@ -34,6 +36,8 @@ FREE = 1e9
 #: Most a trace's corrector may move a predicted point, as a share of the step: farther, it
 #: may have landed on another curve passing near (the step is halved).
 DRIFT = 0.5
+#: Recorded points closer than this share of the step are one point: their pieces are one.
+SAME_POINT = 0.6
 #: Times a trace's step is halved where the corrector fails (near a singularity) before the
 #: trace ends there.
 HALVINGS = 3
@@ -135,6 +139,51 @@ def _record(inside, cur, q, periodic, link, points, piece, count, row_piece,
     return count
 
 
+@njit(cache=CACHE, nogil=True)
+def _crossed(x, prev, flips):  # pragma: no cover (compiled)
+    """Whether a step from ``prev`` to ``x`` took a flip's middle joint through 0 or pi.
+
+    No self-motion curve does (there the flip's triple is singular, and its twin curve
+    passes near): the corrector landed on the twin.
+    """
+    for f in range(flips.shape[0]):
+        if math.sin(x[flips[f] + 1]) * math.sin(prev[flips[f] + 1]) < 0.0:
+            return True
+    return False
+
+
+@njit(cache=CACHE, nogil=True)
+def _twins(path, length, flips, lower, upper, periodic, link, q, points, piece, count,
+           row_piece, parent, pieces, y, inside):  # pragma: no cover (compiled)
+    """The twins of a closed traced curve recorded: its exact flips, curves of their own.
+
+    ``path[:length]``: the curve's points in order, free of the limits. Twin ``t`` (1 .. 2^F
+    - 1) flips the triples of its set bits (``flips``); its points within the limits are
+    recorded as the trace's are, its last piece joined to its first (the twin closes too).
+    Returns the count and the pieces numbered.
+    """
+    for t in range(1, 1 << flips.shape[0]):
+        cur, first = -1, -1
+        for k in range(length):
+            y[:] = path[k]
+            for f in range(flips.shape[0]):
+                if t >> f & 1:
+                    flip_triple(y, flips[f])
+            if turned_into(y, lower, upper, inside):
+                if cur < 0:
+                    cur = pieces
+                    pieces += 1
+                    if k == 0:
+                        first = cur
+                count = _record(inside, cur, q, periodic, link, points, piece, count,
+                                row_piece, parent)
+            else:
+                cur = -1
+        if cur >= 0 and first >= 0:
+            union(parent, cur, first)
+    return count, pieces
+
+
 @njit('int64(float64[:, :, ::1], float64[::1], float64[::1], boolean[::1], float64[:, ::1], '
       'int64[::1], float64[::1], float64[:, ::1], float64, int64, float64, float64, float64, '
       'float64, float64, float64[:, ::1], int64[::1], int64[::1])', cache=CACHE, nogil=True)
@@ -145,17 +194,19 @@ def trace_atlas(frames, lower, upper, periodic, q, flips, pos, rot, step, max_st
 
     ``q`` (M, 7): exact solutions at the pose (position ``pos`` (3,) [m], rotation ``rot``
     (3, 3), tolerances ``tol_p`` [m], ``tol_o`` [rad]). From each row no earlier trace passed
-    (within ``link`` [rad]), and from its exact flips (``flips``: the first joints of
-    :func:`~sik_ros.kinematics.branches.exact_flips`' triples; configurations at the same
-    pose, maybe on another curve, skipped when on a recorded one), the curve is followed both
-    ways in steps of ``step`` [rad] *free of the limits* (:func:`advance`, then
-    :func:`correct`; the step halved up to :data:`HALVINGS` times where the corrector fails
-    or moves the point more than :data:`DRIFT` steps, near a singularity or another curve)
-    until it closes on its start (every angle modulo a turn), fails or has taken
-    ``max_steps``. Every point, its angles turned by whole turns into the
-    limits where they fit, is recorded in ``points`` (P, 7) with its piece in ``piece``
-    (P,): consecutive points within the limits are one piece, and pieces a row or a closed
-    curve joins are one. ``row_piece`` (M,): each row's piece (-1: none reached it). Piece
+    (within ``link`` [rad]) the curve is followed both ways in steps of ``step`` [rad] *free
+    of the limits* (:func:`advance`, then :func:`correct`; the step halved up to
+    :data:`HALVINGS` times where the corrector fails or moves the point more than
+    :data:`DRIFT` steps, near a singularity or another curve) until it closes on its start
+    (every angle modulo a turn), fails or has taken ``max_steps``. Every point, its angles
+    turned by whole turns into the limits where they fit, is recorded in ``points`` (P, 7)
+    with its piece in ``piece`` (P,): consecutive points within the limits are one piece,
+    and pieces a row or a closed curve joins are one. The arm's exact flips (``flips``: the
+    first joints of :func:`~sik_ros.kinematics.branches.exact_flips`' triples) map a curve
+    onto its twins, other curves at the pose: a closed curve's twins are recorded from its
+    points flipped (:func:`_twins`), without a trace; where a trace does not close (it ends
+    near a singularity), the row's flips are traced as rows are, unless they lie on a
+    recorded curve. ``row_piece`` (M,): each row's piece (-1: none reached it). Piece
     numbers are resolved to the smallest of their joined set. Past ``deadline`` (a
     :func:`~sik_ros.kernels.clock.monotonic` time) no trace goes on.
 
@@ -169,7 +220,8 @@ def trace_atlas(frames, lower, upper, periodic, q, flips, pos, rot, step, max_st
     jac, jm = np.empty((6, n)), np.empty((6, n))
     a, err, xs, minor = np.empty((6, 6)), np.empty(6), np.empty(6), np.empty((6, 6))
     v, heading, x, prev = np.empty(n), np.empty(n), np.empty(n), np.empty(n)
-    start, inside, predicted = np.empty(n), np.empty(n), np.empty(n)
+    start, inside, predicted, y = np.empty(n), np.empty(n), np.empty(n), np.empty(n)
+    path = np.empty((max_steps + 1, n))
     parent = np.arange(points.shape[0])
     row_piece[:] = -1
     count, pieces = 0, 0
@@ -178,15 +230,19 @@ def trace_atlas(frames, lower, upper, periodic, q, flips, pos, rot, step, max_st
     for i in range(m):
         if row_piece[i] >= 0:
             continue
+        twinned = False
         for f in range(-1, flips.shape[0]):
             start[:] = q[i]
             if f >= 0:
+                if twinned:
+                    break  # the flips' curves are recorded
                 flip_triple(start, flips[f])
                 if turned_into(start, lower, upper, inside) and \
                         _near(inside, points, count, link, periodic) >= 0:
                     continue  # a curve already traced
             first_piece = -1
             closed = False
+            length = 0
             for way in (1.0, -1.0):
                 if closed or count >= full:
                     break
@@ -200,6 +256,9 @@ def trace_atlas(frames, lower, upper, periodic, q, flips, pos, rot, step, max_st
                     if way > 0:
                         count = _record(inside, cur, q, periodic, link, points, piece, count,
                                         row_piece, parent)
+                if way > 0:
+                    path[0] = x
+                    length = 1
                 h = step
                 placed = False
                 for s in range(max_steps):
@@ -213,7 +272,8 @@ def trace_atlas(frames, lower, upper, periodic, q, flips, pos, rot, step, max_st
                     predicted[:] = x
                     if not correct(frames, lo, up, free, x, pos, rot, True, tol_p, tol_o,
                                    max_step, p, r, jac, jm, a, err, xs) or \
-                            angle_distance(x, predicted, free) > DRIFT * h:
+                            angle_distance(x, predicted, free) > DRIFT * h or \
+                            _crossed(x, prev, flips):
                         if h < step / 2 ** (HALVINGS - 0.5):
                             break
                         x[:] = prev  # near a singularity: the step halved, the same heading
@@ -226,6 +286,9 @@ def trace_atlas(frames, lower, upper, periodic, q, flips, pos, rot, step, max_st
                             union(parent, cur, first_piece)
                         closed = True
                         break
+                    if way > 0 and length < path.shape[0]:
+                        path[length] = x
+                        length += 1
                     if turned_into(x, lower, upper, inside):
                         if cur < 0:
                             cur = pieces
@@ -234,6 +297,18 @@ def trace_atlas(frames, lower, upper, periodic, q, flips, pos, rot, step, max_st
                                         row_piece, parent)
                     else:
                         cur = -1
+            if f < 0 and closed and flips.shape[0] > 0:
+                count, pieces = _twins(path, length, flips, lower, upper, periodic, link, q,
+                                       points, piece, count, row_piece, parent, pieces, y,
+                                       inside)
+                twinned = True
+    # a curve recorded twice (traced through a point where two curves nearly meet, near a
+    # singularity, from one and from the other): its two records are one
+    same = SAME_POINT * step
+    for k in range(count):
+        for j in range(k):
+            if piece[j] != piece[k] and angle_distance(points[k], points[j], periodic) < same:
+                union(parent, piece[j], piece[k])
     for k in range(count):
         piece[k] = root(parent, piece[k])
     for i in range(m):

@@ -67,11 +67,12 @@ FREE_RESTARTS = 16
 FREE_ROUNDS = 3
 #: The family search (:mod:`sik_ros.solver.search`): the tracer's step along a self-motion
 #: curve [rad], most steps each way, how near a traced point a solution is on its piece
-#: [rad], most points recorded, most new points a call and per piece, and the values of the
+#: [rad] (a step: by a limit, a piece's last point within it may lie that far from a
+#: solution), most points recorded, most new points a call and per piece, and the values of the
 #: last joint it holds for starts on other curves (:func:`sik_ros.solver.search.swept`).
 SEARCH_STEP = 0.25
 SEARCH_STEPS = 400
-SEARCH_LINK = 0.2
+SEARCH_LINK = 0.25
 SEARCH_RECORDED = 4096
 SEARCH_POINTS = 64
 SEARCH_PER_PIECE = 4
