@@ -78,6 +78,9 @@ SEARCH_POINTS = 64
 SEARCH_PER_PIECE = 4
 SEARCH_SWEEP = 2
 SWEEP_ITERATIONS = 20
+#: Most candidates the sweep holds at each value (those farthest apart): on two sets of 40
+#: poses 6 to 20 reached the same families, 4 fewer (docs/design.md).
+SWEEP_STARTS = 8
 #: Seed-table starts refined for each branch code no exact solution of an isolated pose goal
 #: has (:func:`sik_ros.solver.branches.other_branches`).
 BRANCH_CODE_STARTS = 2

@@ -23,11 +23,12 @@ import numpy as np
 from sik_ros.deadline import Deadline
 from sik_ros.kernels import as_arg
 from sik_ros.kernels.selfmotion import atlas_pieces, spread_points, trace_atlas
+from sik_ros.kernels.sets import farthest_rows
 from sik_ros.kinematics.branches import robot_flips
 from sik_ros.solver.batch import Candidates
 from sik_ros.solver.config import (SEARCH_LINK, SEARCH_PER_PIECE, SEARCH_POINTS,
                                    SEARCH_RECORDED, SEARCH_STEP, SEARCH_STEPS, SEARCH_SWEEP,
-                                   START_MERGE, SWEEP_ITERATIONS)
+                                   START_MERGE, SWEEP_ITERATIONS, SWEEP_STARTS)
 from sik_ros.solver.context import Context, Goal, POSE
 from sik_ros.solver.explore import unindexed
 from sik_ros.solver.ranking import assess, converged, distinct_mask
@@ -58,16 +59,19 @@ def swept(ctx: Context, c: Candidates, goal: Goal, deadline: Deadline) -> np.nda
     """Exact solutions with the last joint held at values across its range.
 
     As an analytic solver sweeping it finds them: at each of :data:`SEARCH_SWEEP` values,
-    evenly inside the range, every candidate's configuration (the table's postures, refined
-    or not, those alike but for the held joint once) with that value, refined with the joint
-    held. They land on curves of the self-motion the candidates' own refinement may not
-    reach (docs/design.md).
+    evenly inside the range, the candidates' configurations (the table's postures, refined
+    or not, those alike but for the held joint once, at most :data:`SWEEP_STARTS` of them
+    farthest apart) with that value, refined with the joint held. They land on curves of the
+    self-motion the candidates' own refinement may not reach (docs/design.md).
     """
     robot = ctx.robot
     j = robot.dof - 1
     # configurations alike but for the held joint refine alike
     starts = c.q[distinct_mask(np.delete(c.q, j, axis=1),
                                ctx.config.distinct_threshold * START_MERGE)]
+    if len(starts) > SWEEP_STARTS:
+        starts = starts[farthest_rows(as_arg(np.delete(starts, j, axis=1)), SWEEP_STARTS, 0,
+                                      0.0, 0, 0.0)]
     out = []
     for v in np.linspace(robot.lower[j], robot.upper[j], SEARCH_SWEEP + 2)[1:-1]:
         lower, upper = robot.lower.copy(), robot.upper.copy()
