@@ -241,3 +241,34 @@ def test_a_branch_across_a_sign_joint_starts_from_its_neighbour(ur5, signs):
         assert np.linalg.norm(r.q[0] - q0) > 0.1
         checked += 1
     assert checked == 2
+
+
+def test_singular_angles_with_a_joint_held_find_the_pandas_elbow_off_the_grid():
+    """Joint 7 held, the Panda's elbow stretched is a singular angle, though on no grid.
+
+    The stretch, found apart from the Jacobian: the angle of joint 4 at which the distance
+    between the shoulder (joint 2's origin, where axes 1-3 meet) and the wrist (joint 6's
+    origin, where axes 5 and 6 meet) is largest, by Pinocchio's joint placements. Every angle
+    found makes the Jacobian less column 7 singular at configurations other than those drawn
+    to find it; none does without a joint held.
+    """
+    import pinocchio as pin
+    from sik_ros.kinematics.branches import GRID, singular_angles, worst_ratio
+    from sik_ros.kinematics.robots import load_robot
+    panda = load_robot('panda')
+    data = panda.model.createData()
+    q4 = np.linspace(panda.lower[3], panda.upper[3], 20001)
+    distance = []
+    for x in q4:
+        pin.forwardKinematics(panda.model, data, np.r_[0.3, 0.2, -0.4, x, 0.5, 1.0, 0.1])
+        distance.append(np.linalg.norm(data.oMi[6].translation - data.oMi[2].translation))
+    stretch = q4[int(np.argmax(distance))]
+    angles = singular_angles(panda, 6)
+    elbow = [c for j, c in angles if j == 3]
+    assert any(abs(np.sin(c - stretch)) < 1e-3 for c in elbow)
+    assert np.min(np.abs(np.mod(stretch, 2 * np.pi / GRID) - np.array([0, 2 * np.pi / GRID]))) \
+        > 1e-3  # off the grid
+    others = np.random.default_rng(9).uniform(panda.lower, panda.upper, (20, 7))
+    for j, c in angles:
+        assert worst_ratio(panda, others, np.arange(6), j, c) < 1e-5
+        assert worst_ratio(panda, others, np.arange(7), j, c) > 1e-3

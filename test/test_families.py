@@ -307,3 +307,59 @@ def test_family_search_finds_more_families(bundled):
             tip = bundled.robot.pin_placement(s.q)
             assert np.linalg.norm(tip.translation - pos) <= cfg.position_tolerance
     assert more >= 2
+
+
+def test_mirrored_solutions_are_exact_and_reach_the_elbows_other_side(bundled):
+    """Solutions mirrored across the held arm's singular angles refine onto the pose.
+
+    Each is exact (Pinocchio FK) and within the limits; on some poses the search's answer
+    has solutions on both sides of the Panda's elbow stretched where the answer without it
+    has one side only: curves the table's starts do not reach.
+    """
+    from sik_ros.solver.search import mirrored, robot_mirrors
+    robot, cfg, ctx = bundled.robot, bundled.config, bundled.context
+    joints, centres = robot_mirrors(robot)
+    assert 3 in joints.tolist() and 6 not in joints.tolist()  # the elbow; never the held one
+    assert 1 not in joints.tolist()  # the shoulder flip's middle joint: its twins are traced
+    stretch = centres[joints == 3][0]
+    plain = bundled.with_config(family_search=False)
+    sides, found = 0, 0
+    for k, (pos, quat) in enumerate(pose_goals(bundled, 30, seed=7)):
+        res = plain.solve(pos, quat, num_solutions=16)
+        q = np.ascontiguousarray([s.q for s in res.solutions if s.converged])
+        goal = Goal(np.asarray(pos, float), quaternion_matrix(quat))
+        for x in mirrored(ctx, q, goal, NO_DEADLINE) if k < 10 else ():
+            tip = robot.pin_placement(x)
+            assert np.linalg.norm(tip.translation - pos) <= cfg.position_tolerance
+            assert np.all(x >= robot.lower) and np.all(x <= robot.upper)
+            found += 1
+        full = bundled.solve(pos, quat, num_solutions=16)
+
+        def side(r):
+            return {bool(np.sin(s.q[3] - stretch) > 0) for s in r.solutions if s.converged}
+        sides += len(side(full)) > len(side(res))
+    assert found >= 12 and sides >= 2
+
+
+def test_every_piece_of_the_atlas_has_a_candidate(bundled):
+    """The search's candidates lie on every piece of its atlas.
+
+    A piece that only a mirrored start reached gets a point of its own, as one that no found
+    solution lies on does.
+    """
+    from sik_ros.solver.explore import unindexed
+    from sik_ros.solver.ranking import assess
+    from sik_ros.solver.search import search
+    robot, cfg, ctx = bundled.robot, bundled.config, bundled.context
+    plain = bundled.with_config(family_search=False)
+    pieces = 0
+    for pos, quat in pose_goals(bundled, 12, seed=21):
+        res = plain.solve(pos, quat, num_solutions=16)
+        q = np.ascontiguousarray([s.q for s in res.solutions if s.converged])
+        goal = Goal(np.asarray(pos, float), quaternion_matrix(quat))
+        c = assess(q, unindexed(q, 2), np.zeros(len(q)), np.zeros(len(q)), 'pose', cfg)
+        out, atlas = search(ctx, c, goal, NO_DEADLINE)
+        on = set(atlas.pieces_of(out.q[out.exact], robot.periodic).tolist())
+        assert set(atlas.pieces.tolist()) <= on
+        pieces += len(set(atlas.pieces.tolist()))
+    assert pieces >= 24

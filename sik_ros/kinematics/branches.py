@@ -34,6 +34,11 @@ GRID = 72
 SAMPLES = 8
 #: Smallest over largest singular value under which a Jacobian counts as singular.
 SINGULAR = 1e-6
+#: The ratio under which a grid angle is refined as a singular angle (it grows with the
+#: distance from one: under it within a grid step of the Panda's elbow), and how much finer
+#: the grid about it is (the Panda's elbow has two 0.044 rad apart).
+NEAR_SINGULAR = 0.02
+FINE = 8
 
 
 @dataclass(frozen=True)
@@ -85,20 +90,71 @@ def branch_signs(robot: Robot, seed: int = 0) -> BranchSigns:
     with that angle; the smallest such angle in ``[0, pi)`` is its centre. The determinant
     counts for a 6 x 6 Jacobian.
     """
-    rng = np.random.default_rng(seed)
-    q = rng.uniform(robot.lower, robot.upper, (SAMPLES, robot.dof))
+    q = np.random.default_rng(seed).uniform(robot.lower, robot.upper, (SAMPLES, robot.dof))
+    columns = np.arange(robot.dof)
     joints, centres = [], []
     for j in range(robot.dof):
         for c in np.linspace(0.0, np.pi, GRID // 2, endpoint=False):
-            qc = q.copy()
-            qc[:, j] = c
-            _, _, jac = robot.jacobian_batch(qc)
-            s = np.linalg.svd(jac, compute_uv=False)
-            if np.all(s[:, -1] <= SINGULAR * s[:, 0]):
+            if worst_ratio(robot, q, columns, j, c) <= SINGULAR:
                 joints.append(j)
                 centres.append(float(c))
                 break
     return BranchSigns(tuple(joints), tuple(centres), robot.dof == 6)
+
+
+def worst_ratio(robot: Robot, q: np.ndarray, columns: np.ndarray, j: int, c: float) -> float:
+    """The Jacobian's columns ``columns`` nearest singular, with joint ``j`` at ``c`` [rad].
+
+    The largest ratio of the smallest to the largest singular value over the configurations
+    ``q`` (M, n), each with joint ``j`` set to ``c``.
+    """
+    qc = q.copy()
+    qc[:, j] = c
+    s = np.linalg.svd(robot.jacobian_batch(qc)[2][:, :, columns], compute_uv=False)
+    return float(np.max(s[:, -1] / s[:, 0]))
+
+
+def singular_angles(robot: Robot, held: int, seed: int = 0) -> Tuple[Tuple[int, float], ...]:
+    """The angles at which one joint alone makes the arm, joint ``held`` fixed, singular.
+
+    Joint ``held`` fixed, a 7-joint arm is a 6-joint one, whose branches at a pose these
+    angles part (:func:`branch_signs`): the Panda's elbow stretched (joint 4 at about -0.47
+    rad, off any grid) is one. Over a grid of :data:`GRID` angles of each other joint across
+    a turn, the others drawn at random (:data:`SAMPLES`): where the Jacobian less column
+    ``held`` comes near singular (:func:`worst_ratio` a local least under
+    :data:`NEAR_SINGULAR`), a grid :data:`FINE` times finer across the two steps about it
+    parts angles close together, and each of its local leasts is refined (bounded scalar
+    minimisation) and kept where the ratio falls under :data:`SINGULAR`.
+
+    Returns:
+        (joint, angle [rad] in ``[-pi, pi)``) pairs, by joint and angle; a joint may have
+        several (two singular angles need not lie half a turn apart).
+    """
+    from scipy.optimize import minimize_scalar
+    q = np.random.default_rng(seed).uniform(robot.lower, robot.upper, (SAMPLES, robot.dof))
+    columns = np.flatnonzero(np.arange(robot.dof) != held)
+
+    def leasts(angles: np.ndarray, ratios: np.ndarray, closed: bool) -> np.ndarray:
+        before = np.roll(ratios, 1) if closed else np.r_[np.inf, ratios[:-1]]
+        after = np.roll(ratios, -1) if closed else np.r_[ratios[1:], np.inf]
+        return angles[(ratios < NEAR_SINGULAR) & (ratios <= before) & (ratios <= after)]
+    step = 2 * np.pi / GRID
+    coarse = -np.pi + np.arange(GRID) * step
+    found = set()
+    for j in columns:
+        ratio = functools.partial(worst_ratio, robot, q, columns, j)
+        for c in leasts(coarse, np.array([ratio(c) for c in coarse]), True):
+            fine = np.linspace(c - step, c + step, 2 * FINE + 1)
+            for f in leasts(fine, np.array([ratio(x) for x in fine]), False):
+                best = minimize_scalar(ratio, bounds=(f - step / FINE, f + step / FINE),
+                                       method='bounded', options={'xatol': 1e-12})
+                if best.fun <= SINGULAR:
+                    found.add((int(j), float(np.mod(best.x + np.pi, 2 * np.pi) - np.pi)))
+    unique = []
+    for j, c in sorted(found):
+        if not unique or unique[-1][0] != j or c - unique[-1][1] > 1e-6:
+            unique.append((j, c))
+    return tuple(unique)
 
 
 def exact_flips(robot: Robot, seed: int = 0) -> Tuple[int, ...]:

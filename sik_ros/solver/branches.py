@@ -124,16 +124,21 @@ def mirrored(ctx: Context, signs: BranchSigns, q: np.ndarray) -> np.ndarray:
 def mirror_bits(robot: Robot, signs: BranchSigns) -> np.ndarray:
     """The sign joints (their bits, int64) whose mirror about the singular angle can fit.
 
-    An angle mirrored about its joint's singular angle, turned by whole turns, within the
-    joint's limits for some angle within them (at one of 360 angles across them): the Z1's
-    wrist (limits +-1.34 rad about its singular angle pi/2 away) has none.
+    :func:`fits_mirrored`: the Z1's wrist (limits +-1.34 rad about its singular angle pi/2
+    away) has none.
     """
-    fits = []
-    for j, c in zip(signs.joints, signs.centres):
-        lower, upper = robot.lower[j], robot.upper[j]
-        mirror = 2 * c - np.linspace(lower, upper, 360)
-        fits.append(bool(np.any(lower + np.mod(mirror - lower, TURN) <= upper)))
+    fits = [fits_mirrored(robot, j, c) for j, c in zip(signs.joints, signs.centres)]
     return np.flatnonzero(np.array(fits, dtype=bool)).astype(np.int64)
+
+
+def fits_mirrored(robot: Robot, j: int, c: float) -> bool:
+    """Whether joint ``j``'s angle mirrored about ``c`` [rad] can fit its limits.
+
+    Mirrored and turned by whole turns, for some angle within them (one of 360 across them).
+    """
+    lower, upper = robot.lower[j], robot.upper[j]
+    mirror = 2 * c - np.linspace(lower, upper, 360)
+    return bool(np.any(lower + np.mod(mirror - lower, TURN) <= upper))
 
 
 def polished(ctx: Context, goal: Goal, signs: Optional[BranchSigns], r: Refined) -> Refined:

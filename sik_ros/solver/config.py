@@ -68,19 +68,16 @@ FREE_ROUNDS = 3
 #: The family search (:mod:`sik_ros.solver.search`): the tracer's step along a self-motion
 #: curve [rad], most steps each way, how near a traced point a solution is on its piece
 #: [rad] (a step: by a limit, a piece's last point within it may lie that far from a
-#: solution), most points recorded, most new points a call and per piece, and the values of the
-#: last joint it holds for starts on other curves (:func:`sik_ros.solver.search.swept`).
+#: solution), most points recorded, most new points a call and per piece.
 SEARCH_STEP = 0.25
 SEARCH_STEPS = 400
 SEARCH_LINK = 0.25
 SEARCH_RECORDED = 4096
 SEARCH_POINTS = 64
 SEARCH_PER_PIECE = 4
-SEARCH_SWEEP = 2
-SWEEP_ITERATIONS = 20
-#: Most candidates the sweep holds at each value (those farthest apart): on two sets of 40
-#: poses 6 to 20 reached the same families, 4 fewer (docs/design.md).
-SWEEP_STARTS = 8
+#: Most iterations refining a start across a singular angle of the arm with its last joint
+#: held (:func:`sik_ros.solver.search.mirrored`).
+MIRROR_ITERATIONS = 20
 #: Seed-table starts refined for each branch code no exact solution of an isolated pose goal
 #: has (:func:`sik_ros.solver.branches.other_branches`).
 BRANCH_CODE_STARTS = 2

@@ -6,29 +6,34 @@ the families near where they start; an analytic solver sweeping one joint finds 
 :func:`search` does what the sweep does from the solutions found: each one's curve is
 followed *past* the limits until it closes (:func:`sik_ros.kernels.selfmotion.trace_atlas`),
 so pieces that the limits part from it are reached; curves through none of them are reached
-from a sweep of the last joint (:func:`swept`) and through the arm's exact flips
-(:func:`sik_ros.kinematics.branches.exact_flips`: a spherical shoulder turned over), where
-it has them. The traced points within the limits are the pose's
-:class:`Atlas`: its pieces are the families (the labels of :mod:`sik_ros.solver.families`),
-and points far apart on each join the candidates, so a call gets its distinct solutions from
-every family without walking (:func:`sik_ros.solver.explore.walk`). Its points are exact (the
-tracer's corrector meets the tolerances).
+through the arm's exact flips (:func:`sik_ros.kinematics.branches.exact_flips`: a spherical
+shoulder turned over), where it has them, and from the solutions mirrored across the singular
+angles of the arm with its last joint held (:func:`mirrored`: at one value of that joint, the
+other branches an analytic solver sweeping it finds, such as the elbow's other side). The
+traced points within the limits are the pose's :class:`Atlas`: its pieces are the families
+(the labels of :mod:`sik_ros.solver.families`), and points far apart on each join the
+candidates, so a call gets its distinct solutions from every family without walking
+(:func:`sik_ros.solver.explore.walk`). Its points are exact (the tracer's corrector meets the
+tolerances).
 """
 
 from dataclasses import dataclass
-from typing import Optional, Tuple
+import functools
+from typing import List, Optional, Tuple
 
 import numpy as np
 
 from sik_ros.deadline import Deadline
 from sik_ros.kernels import as_arg
+from sik_ros.kernels.angles import turned_rows
 from sik_ros.kernels.selfmotion import atlas_pieces, spread_points, trace_atlas
-from sik_ros.kernels.sets import farthest_rows
-from sik_ros.kinematics.branches import robot_flips
+from sik_ros.kinematics.branches import robot_flips, singular_angles
+from sik_ros.kinematics.robot import Robot
 from sik_ros.solver.batch import Candidates
-from sik_ros.solver.config import (SEARCH_LINK, SEARCH_PER_PIECE, SEARCH_POINTS,
-                                   SEARCH_RECORDED, SEARCH_STEP, SEARCH_STEPS, SEARCH_SWEEP,
-                                   START_MERGE, SWEEP_ITERATIONS, SWEEP_STARTS)
+from sik_ros.solver.branches import fits_mirrored
+from sik_ros.solver.config import (MIRROR_ITERATIONS, SEARCH_LINK, SEARCH_PER_PIECE,
+                                   SEARCH_POINTS, SEARCH_RECORDED, SEARCH_STEP, SEARCH_STEPS,
+                                   START_MERGE)
 from sik_ros.solver.context import Context, Goal, POSE
 from sik_ros.solver.explore import unindexed
 from sik_ros.solver.ranking import assess, converged, distinct_mask
@@ -55,32 +60,51 @@ class Atlas:
                             as_arg(periodic, bool), self.link)
 
 
-def swept(ctx: Context, c: Candidates, goal: Goal, deadline: Deadline) -> np.ndarray:
-    """Exact solutions with the last joint held at values across its range.
+@functools.lru_cache(maxsize=16)
+def robot_mirrors(robot: Robot) -> Tuple[np.ndarray, np.ndarray]:
+    """The joints (int64) and angles [rad] the search mirrors solutions about, once per arm.
 
-    As an analytic solver sweeping it finds them: at each of :data:`SEARCH_SWEEP` values,
-    evenly inside the range, the candidates' configurations (the table's postures, refined
-    or not, those alike but for the held joint once, at most :data:`SWEEP_STARTS` of them
-    farthest apart) with that value, refined with the joint held. They land on curves of the
-    self-motion the candidates' own refinement may not reach (docs/design.md).
+    The singular angles of the arm with its last joint held
+    (:func:`~sik_ros.kinematics.branches.singular_angles`) whose mirror can fit the joint's
+    limits (:func:`~sik_ros.solver.branches.fits_mirrored`), one of two half a turn apart
+    (the same mirror), less the middle joint of an exact flip: mirrored, it gives the flip's
+    curve, recorded as a twin.
+    """
+    flips = robot_flips(robot)
+    pairs: List[Tuple[int, float]] = []
+    for j, c in singular_angles(robot, robot.dof - 1):
+        if j in flips + 1 or not fits_mirrored(robot, j, c):
+            continue
+        if not any(k == j and abs(np.sin(c - b)) < 1e-6 for k, b in pairs):
+            pairs.append((j, c))
+    return (np.array([j for j, _ in pairs], dtype=np.int64),
+            np.array([c for _, c in pairs], dtype=float))
+
+
+def mirrored(ctx: Context, q: np.ndarray, goal: Goal, deadline: Deadline) -> np.ndarray:
+    """Exact solutions across the held arm's singular angles from solutions ``q`` (M, 7).
+
+    With its last joint held, a 7-joint arm's solutions are a 6-joint arm's branches, which
+    singular angles part (:func:`robot_mirrors`: the Panda's elbow stretched and its wrist);
+    a curve of the self-motion on the branch across one from a found solution is one no start
+    of the table's may reach. Each solution with the joint mirrored about the angle (turned
+    into the limits; rows that do not fit dropped; those within ``distinct_threshold`` times
+    :data:`START_MERGE` of an earlier one once) is a start there, refined with every joint
+    free (:data:`MIRROR_ITERATIONS` at most).
     """
     robot = ctx.robot
-    j = robot.dof - 1
-    # configurations alike but for the held joint refine alike
-    starts = c.q[distinct_mask(np.delete(c.q, j, axis=1),
-                               ctx.config.distinct_threshold * START_MERGE)]
-    if len(starts) > SWEEP_STARTS:
-        starts = starts[farthest_rows(as_arg(np.delete(starts, j, axis=1)), SWEEP_STARTS, 0,
-                                      0.0, 0, 0.0)]
-    out = []
-    for v in np.linspace(robot.lower[j], robot.upper[j], SEARCH_SWEEP + 2)[1:-1]:
-        lower, upper = robot.lower.copy(), robot.upper.copy()
-        lower[j] = upper[j] = v
-        q = starts.copy()
-        q[:, j] = v
-        r = refine(ctx, q, goal, deadline, SWEEP_ITERATIONS, prune=True, limits=(lower, upper))
-        out.append(r.q[converged(r.perr, r.oerr, goal.kind, ctx.config)])
-    return np.concatenate(out) if out else np.empty((0, robot.dof))
+    joints, centres = robot_mirrors(robot)
+    if not len(q) or not len(joints):
+        return np.empty((0, robot.dof))
+    starts = []
+    for j, c in zip(joints, centres):
+        m = q.copy()
+        m[:, j] = 2 * c - m[:, j]
+        starts.append(m[turned_rows(m, robot.lower, robot.upper, m)])
+    m = np.concatenate(starts)
+    m = m[distinct_mask(m, ctx.config.distinct_threshold * START_MERGE)]
+    r = refine(ctx, m, goal, deadline, MIRROR_ITERATIONS, prune=True)
+    return r.q[converged(r.perr, r.oerr, goal.kind, ctx.config)]
 
 
 def searchable(ctx: Context, goal: Goal) -> bool:
@@ -101,8 +125,8 @@ def search(ctx: Context, c: Candidates, goal: Goal,
         return c, None
     cfg, robot = ctx.config, ctx.robot
     periodic = as_arg(robot.periodic, bool)
-    held = swept(ctx, c, goal, deadline)
-    known = as_arg(np.concatenate([c.q[c.exact], held]))
+    found = c.q[c.exact]
+    known = as_arg(np.concatenate([found, mirrored(ctx, found, goal, deadline)]))
     points = np.empty((SEARCH_RECORDED, robot.dof))
     piece = np.empty(SEARCH_RECORDED, dtype=np.int64)
     row_piece = np.empty(len(known), dtype=np.int64)
@@ -115,7 +139,8 @@ def search(ctx: Context, c: Candidates, goal: Goal,
         return c, None
     out = np.empty((SEARCH_POINTS, robot.dof))
     out_piece = np.empty(SEARCH_POINTS, dtype=np.int64)
-    k = spread_points(points, piece, count, known, row_piece, periodic,
+    n = len(found)  # the candidates': a piece only a mirrored start reached gets its middle
+    k = spread_points(points, piece, count, known[:n], row_piece[:n], periodic,
                       float(cfg.distinct_threshold), SEARCH_PER_PIECE, out, out_piece)
     atlas = Atlas(points[:count].copy(), piece[:count].copy(), SEARCH_LINK)
     if k == 0:

@@ -99,7 +99,10 @@ class SelectiveIK:
         return replace(self.config, **changes)
 
     def warm_up(self) -> float:
-        """Solve one of each kind of request once (position, pose, an obstacle, a short path).
+        """Solve one of each kind of request once.
+
+        Position and pose goals: one solution, several (the family search's parts), an
+        obstacle, a short path.
 
         The first calls of an instance allocate its working memory (and the first of a process
         its allocator arenas): a server warms its solvers before it accepts requests, so that
@@ -115,6 +118,7 @@ class SelectiveIK:
         for goal in self.goals:
             rot = quat if goal == 'pose' else None
             self.solve(pos, rot, seed=q, timeout=1.0)
+            self.solve(pos, rot, num_solutions=2, timeout=1.0)  # the family search's parts
             self.solve(pos, rot, obstacles=[ball], timeout=1.0)
             line = pos + np.linspace(0.0, 0.02, 3)[:, None] * [0.0, 0.0, 1.0]
             self.solve_path(line, None if rot is None else np.repeat(quat[None], 3, 0), seed=q,
