@@ -124,18 +124,22 @@ def _near(x, rows, count, link, periodic):  # pragma: no cover (compiled)
 
 @njit(cache=CACHE, nogil=True)
 def _record(inside, cur, q, periodic, link, points, piece, count, row_piece,
-            parent):  # pragma: no cover (compiled)
-    """A point within the limits recorded on piece ``cur``, the rows near it joined to it."""
+            row_dist):  # pragma: no cover (compiled)
+    """A point within the limits recorded on piece ``cur``; rows near it take its piece.
+
+    A row within ``link`` of it takes its piece when it is the row's nearest recorded point
+    yet (``row_dist``): a row between two curves that pass near (by a singularity) lies on
+    one of them and joins neither to the other.
+    """
     if count < points.shape[0]:
         points[count] = inside
         piece[count] = cur
         count += 1
     for k in range(q.shape[0]):
-        if angle_distance(inside, q[k], periodic) < link:
-            if row_piece[k] < 0:
-                row_piece[k] = cur
-            else:
-                union(parent, row_piece[k], cur)
+        d = angle_distance(inside, q[k], periodic)
+        if d < link and d < row_dist[k]:
+            row_piece[k] = cur
+            row_dist[k] = d
     return count
 
 
@@ -154,7 +158,7 @@ def _crossed(x, prev, flips):  # pragma: no cover (compiled)
 
 @njit(cache=CACHE, nogil=True)
 def _twins(path, length, flips, lower, upper, periodic, link, q, points, piece, count,
-           row_piece, parent, pieces, y, inside):  # pragma: no cover (compiled)
+           row_piece, row_dist, parent, pieces, y, inside):  # pragma: no cover (compiled)
     """The twins of a closed traced curve recorded: its exact flips, curves of their own.
 
     ``path[:length]``: the curve's points in order, free of the limits. Twin ``t`` (1 .. 2^F
@@ -176,7 +180,7 @@ def _twins(path, length, flips, lower, upper, periodic, link, q, points, piece, 
                     if k == 0:
                         first = cur
                 count = _record(inside, cur, q, periodic, link, points, piece, count,
-                                row_piece, parent)
+                                row_piece, row_dist)
             else:
                 cur = -1
         if cur >= 0 and first >= 0:
@@ -201,12 +205,13 @@ def trace_atlas(frames, lower, upper, periodic, q, flips, pos, rot, step, max_st
     (every angle modulo a turn), fails or has taken ``max_steps``. Every point, its angles
     turned by whole turns into the limits where they fit, is recorded in ``points`` (P, 7)
     with its piece in ``piece`` (P,): consecutive points within the limits are one piece,
-    and pieces a row or a closed curve joins are one. The arm's exact flips (``flips``: the
+    and pieces a closed curve joins are one. The arm's exact flips (``flips``: the
     first joints of :func:`~sik_ros.kinematics.branches.exact_flips`' triples) map a curve
     onto its twins, other curves at the pose: a closed curve's twins are recorded from its
     points flipped (:func:`_twins`), without a trace; where a trace does not close (it ends
     near a singularity), the row's flips are traced as rows are, unless they lie on a
-    recorded curve. ``row_piece`` (M,): each row's piece (-1: none reached it). Piece
+    recorded curve. ``row_piece`` (M,): each row's piece, that of its nearest recorded point
+    within ``link`` (-1: none reached it). Piece
     numbers are resolved to the smallest of their joined set. Past ``deadline`` (a
     :func:`~sik_ros.kernels.clock.monotonic` time) no trace goes on.
 
@@ -224,6 +229,7 @@ def trace_atlas(frames, lower, upper, periodic, q, flips, pos, rot, step, max_st
     path = np.empty((max_steps + 1, n))
     parent = np.arange(points.shape[0])
     row_piece[:] = -1
+    row_dist = np.full(m, np.inf)
     count, pieces = 0, 0
     timed = deadline < np.inf
     full = points.shape[0]
@@ -255,7 +261,7 @@ def trace_atlas(frames, lower, upper, periodic, q, flips, pos, rot, step, max_st
                     cur = first_piece
                     if way > 0:
                         count = _record(inside, cur, q, periodic, link, points, piece, count,
-                                        row_piece, parent)
+                                        row_piece, row_dist)
                 if way > 0:
                     path[0] = x
                     length = 1
@@ -294,13 +300,13 @@ def trace_atlas(frames, lower, upper, periodic, q, flips, pos, rot, step, max_st
                             cur = pieces
                             pieces += 1
                         count = _record(inside, cur, q, periodic, link, points, piece, count,
-                                        row_piece, parent)
+                                        row_piece, row_dist)
                     else:
                         cur = -1
             if f < 0 and closed and flips.shape[0] > 0:
                 count, pieces = _twins(path, length, flips, lower, upper, periodic, link, q,
-                                       points, piece, count, row_piece, parent, pieces, y,
-                                       inside)
+                                       points, piece, count, row_piece, row_dist, parent,
+                                       pieces, y, inside)
                 twinned = True
     # a curve recorded twice (traced through a point where two curves nearly meet, near a
     # singularity, from one and from the other): its two records are one
