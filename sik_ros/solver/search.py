@@ -4,7 +4,7 @@ A 7-joint arm reaches a pose along one-dimensional self-motion curves; the joint
 them into the pose's posture families. The table's postures and refinement find solutions on
 the families near where they start; an analytic solver sweeping one joint finds every piece.
 :func:`search` does what the sweep does from the solutions found: each one's curve is
-followed *past* the limits until it closes (:func:`sik_ros.kernels.selfmotion.trace_atlas`),
+followed *past* the limits until it closes (:func:`sik_ros.kernels.atlas.trace_atlas`),
 so pieces that the limits part from it are reached; curves through none of them are reached
 through the arm's exact flips (:func:`sik_ros.kinematics.branches.exact_flips`: a spherical
 shoulder turned over), where it has them, and from the solutions mirrored across the singular
@@ -26,7 +26,7 @@ import numpy as np
 from sik_ros.deadline import Deadline
 from sik_ros.kernels import as_arg
 from sik_ros.kernels.angles import turned_rows
-from sik_ros.kernels.selfmotion import atlas_pieces, spread_points, trace_atlas
+from sik_ros.kernels.atlas import atlas_pieces, spread_points, trace_atlas
 from sik_ros.kinematics.branches import robot_flips, singular_angles
 from sik_ros.kinematics.robot import Robot
 from sik_ros.solver.batch import Candidates

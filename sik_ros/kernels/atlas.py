@@ -1,0 +1,318 @@
+"""Compiled atlas of a redundant arm's self-motion at a pose: its curves traced into pieces.
+
+- :func:`trace_atlas`: each known solution's curve (and its exact flips') followed *past* the
+  limits until it closes, with the step of :mod:`sik_ros.kernels.selfmotion`, every point
+  within the limits recorded with its piece: the pose's atlas. Its pieces are the families;
+- :func:`spread_points`: points far apart on each piece;
+- :func:`atlas_pieces`: the piece of any solution.
+"""
+
+import math
+
+from numba import njit
+import numpy as np
+
+from sik_ros.kernels._cache import CACHE
+from sik_ros.kernels.angles import angle_distance, flip_triple, turned_into
+from sik_ros.kernels.clock import monotonic
+from sik_ros.kernels.selfmotion import advance, correct
+from sik_ros.kernels.sets import root, union
+
+#: A free joint's bounds while a curve is followed past the limits [rad].
+FREE = 1e9
+#: Most a trace's corrector may move a predicted point, as a share of the step: farther, it
+#: may have landed on another curve passing near (the step is halved).
+DRIFT = 0.5
+#: Recorded points closer than this share of the step are one point: their pieces are one.
+SAME_POINT = 0.6
+#: Times a trace's step is halved where the corrector fails (near a singularity) before the
+#: trace ends there.
+HALVINGS = 3
+
+
+@njit(cache=CACHE, nogil=True)
+def _near(x, rows, count, link, periodic):  # pragma: no cover (compiled)
+    """The first of the first ``count`` rows within ``link`` of ``x``, or -1."""
+    for k in range(count):
+        if angle_distance(x, rows[k], periodic) < link:
+            return k
+    return -1
+
+
+@njit(cache=CACHE, nogil=True)
+def _record(inside, cur, q, periodic, link, points, piece, count, row_piece,
+            row_dist):  # pragma: no cover (compiled)
+    """A point within the limits recorded on piece ``cur``; rows near it take its piece.
+
+    A row within ``link`` of it takes its piece when it is the row's nearest recorded point
+    yet (``row_dist``): a row between two curves that pass near (by a singularity) lies on
+    one of them and joins neither to the other.
+    """
+    if count < points.shape[0]:
+        points[count] = inside
+        piece[count] = cur
+        count += 1
+    for k in range(q.shape[0]):
+        d = angle_distance(inside, q[k], periodic)
+        if d < link and d < row_dist[k]:
+            row_piece[k] = cur
+            row_dist[k] = d
+    return count
+
+
+@njit(cache=CACHE, nogil=True)
+def _crossed(x, prev, flips):  # pragma: no cover (compiled)
+    """Whether a step from ``prev`` to ``x`` took a flip's middle joint through 0 or pi.
+
+    No self-motion curve does (there the flip's triple is singular, and its twin curve
+    passes near): the corrector landed on the twin.
+    """
+    for f in range(flips.shape[0]):
+        if math.sin(x[flips[f] + 1]) * math.sin(prev[flips[f] + 1]) < 0.0:
+            return True
+    return False
+
+
+@njit(cache=CACHE, nogil=True)
+def _twins(path, length, flips, lower, upper, periodic, link, q, points, piece, count,
+           row_piece, row_dist, parent, pieces, y, inside):  # pragma: no cover (compiled)
+    """The twins of a closed traced curve recorded: its exact flips, curves of their own.
+
+    ``path[:length]``: the curve's points in order, free of the limits. Twin ``t`` (1 .. 2^F
+    - 1) flips the triples of its set bits (``flips``); its points within the limits are
+    recorded as the trace's are, its last piece joined to its first (the twin closes too).
+    Returns the count and the pieces numbered.
+    """
+    for t in range(1, 1 << flips.shape[0]):
+        cur, first = -1, -1
+        for k in range(length):
+            y[:] = path[k]
+            for f in range(flips.shape[0]):
+                if t >> f & 1:
+                    flip_triple(y, flips[f])
+            if turned_into(y, lower, upper, inside):
+                if cur < 0:
+                    cur = pieces
+                    pieces += 1
+                    if k == 0:
+                        first = cur
+                count = _record(inside, cur, q, periodic, link, points, piece, count,
+                                row_piece, row_dist)
+            else:
+                cur = -1
+        if cur >= 0 and first >= 0:
+            union(parent, cur, first)
+    return count, pieces
+
+
+@njit('int64(float64[:, :, ::1], float64[::1], float64[::1], boolean[::1], float64[:, ::1], '
+      'int64[::1], float64[::1], float64[:, ::1], float64, int64, float64, float64, float64, '
+      'float64, float64, float64[:, ::1], int64[::1], int64[::1])', cache=CACHE, nogil=True)
+def trace_atlas(frames, lower, upper, periodic, q, flips, pos, rot, step, max_steps, link,
+                tol_p, tol_o, max_step, deadline, points, piece,
+                row_piece):  # pragma: no cover (compiled)
+    """The atlas of a 7-joint arm's self-motion at a pose through its known solutions ``q``.
+
+    ``q`` (M, 7): exact solutions at the pose (position ``pos`` (3,) [m], rotation ``rot``
+    (3, 3), tolerances ``tol_p`` [m], ``tol_o`` [rad]). From each row no earlier trace passed
+    (within ``link`` [rad]) the curve is followed both ways in steps of ``step`` [rad] *free
+    of the limits* (:func:`advance`, then :func:`correct`; the step halved up to
+    :data:`HALVINGS` times where the corrector fails or moves the point more than
+    :data:`DRIFT` steps, near a singularity or another curve) until it closes on its start
+    (every angle modulo a turn), fails or has taken ``max_steps``. Every point, its angles
+    turned by whole turns into the limits where they fit, is recorded in ``points`` (P, 7)
+    with its piece in ``piece`` (P,): consecutive points within the limits are one piece,
+    and pieces a closed curve joins are one. The arm's exact flips (``flips``: the
+    first joints of :func:`~sik_ros.kinematics.branches.exact_flips`' triples) map a curve
+    onto its twins, other curves at the pose: a closed curve's twins are recorded from its
+    points flipped (:func:`_twins`), without a trace; where a trace does not close (it ends
+    near a singularity), the row's flips are traced as rows are, unless they lie on a
+    recorded curve. ``row_piece`` (M,): each row's piece, that of its nearest recorded point
+    within ``link`` (-1: none reached it). Piece
+    numbers are resolved to the smallest of their joined set. Past ``deadline`` (a
+    :func:`~sik_ros.kernels.clock.monotonic` time) no trace goes on.
+
+    Returns:
+        how many points were recorded (at most P; the traces stop when ``points`` is full).
+    """
+    m, n = q.shape[0], q.shape[1]
+    lo, up = np.full(n, -FREE), np.full(n, FREE)
+    free, turns = np.zeros(n, dtype=np.bool_), np.ones(n, dtype=np.bool_)
+    p, r = np.empty(3), np.empty((3, 3))
+    jac, jm = np.empty((6, n)), np.empty((6, n))
+    a, err, xs, minor = np.empty((6, 6)), np.empty(6), np.empty(6), np.empty((6, 6))
+    v, heading, x, prev = np.empty(n), np.empty(n), np.empty(n), np.empty(n)
+    start, inside, predicted, y = np.empty(n), np.empty(n), np.empty(n), np.empty(n)
+    path = np.empty((max_steps + 1, n))
+    parent = np.arange(points.shape[0])
+    row_piece[:] = -1
+    row_dist = np.full(m, np.inf)
+    count, pieces = 0, 0
+    timed = deadline < np.inf
+    full = points.shape[0]
+    for i in range(m):
+        if row_piece[i] >= 0:
+            continue
+        twinned = False
+        for f in range(-1, flips.shape[0]):
+            start[:] = q[i]
+            if f >= 0:
+                if twinned:
+                    break  # the flips' curves are recorded
+                flip_triple(start, flips[f])
+                if turned_into(start, lower, upper, inside) and \
+                        _near(inside, points, count, link, periodic) >= 0:
+                    continue  # a curve already traced
+            first_piece = -1
+            closed = False
+            length = 0
+            for way in (1.0, -1.0):
+                if closed or count >= full:
+                    break
+                x[:] = start
+                cur = -1
+                if turned_into(x, lower, upper, inside):
+                    if first_piece < 0:
+                        first_piece = pieces
+                        pieces += 1
+                    cur = first_piece
+                    if way > 0:
+                        count = _record(inside, cur, q, periodic, link, points, piece, count,
+                                        row_piece, row_dist)
+                if way > 0:
+                    path[0] = x
+                    length = 1
+                h = step
+                placed = False
+                for s in range(max_steps):
+                    if (timed and monotonic() > deadline) or count >= full:
+                        break
+                    prev[:] = x
+                    if not advance(frames, x, heading, s == 0, way, h, p, r, jac, minor, v,
+                                   placed):
+                        break
+                    placed = False
+                    predicted[:] = x
+                    if not correct(frames, lo, up, free, x, pos, rot, True, tol_p, tol_o,
+                                   max_step, p, r, jac, jm, a, err, xs) or \
+                            angle_distance(x, predicted, free) > DRIFT * h or \
+                            _crossed(x, prev, flips):
+                        if h < step / 2 ** (HALVINGS - 0.5):
+                            break
+                        x[:] = prev  # near a singularity: the step halved, the same heading
+                        h /= 2
+                        continue
+                    h = min(step, 2 * h)
+                    placed = True
+                    if s >= 2 and angle_distance(x, start, turns) < link:
+                        if cur >= 0 and first_piece >= 0:
+                            union(parent, cur, first_piece)
+                        closed = True
+                        break
+                    if way > 0 and length < path.shape[0]:
+                        path[length] = x
+                        length += 1
+                    if turned_into(x, lower, upper, inside):
+                        if cur < 0:
+                            cur = pieces
+                            pieces += 1
+                        count = _record(inside, cur, q, periodic, link, points, piece, count,
+                                        row_piece, row_dist)
+                    else:
+                        cur = -1
+            if f < 0 and closed and flips.shape[0] > 0:
+                count, pieces = _twins(path, length, flips, lower, upper, periodic, link, q,
+                                       points, piece, count, row_piece, row_dist, parent,
+                                       pieces, y, inside)
+                twinned = True
+    # a curve recorded twice (traced through a point where two curves nearly meet, near a
+    # singularity, from one and from the other): its two records are one
+    same = SAME_POINT * step
+    for k in range(count):
+        for j in range(k):
+            if piece[j] != piece[k] and angle_distance(points[k], points[j], periodic) < same:
+                union(parent, piece[j], piece[k])
+    for k in range(count):
+        piece[k] = root(parent, piece[k])
+    for i in range(m):
+        if row_piece[i] >= 0:
+            row_piece[i] = root(parent, row_piece[i])
+    return count
+
+
+@njit('int64(float64[:, ::1], int64[::1], int64, float64[:, ::1], int64[::1], boolean[::1], '
+      'float64, int64, float64[:, ::1], int64[::1])', cache=CACHE, nogil=True)
+def spread_points(points, piece, count, q, row_piece, periodic, spacing, per_piece, out,
+                  out_piece):  # pragma: no cover (compiled)
+    """Points of the atlas far apart on each piece, for solutions the known ones are not.
+
+    Of the first ``count`` recorded ``points`` (:func:`trace_atlas`), a piece no row of ``q``
+    lies on first gets its middle recorded point; then, in recorded order, a point is taken
+    when at least ``spacing`` [rad] from every row of its piece and every point taken on it,
+    up to ``per_piece`` per piece. Written to ``out`` (K, 7), their pieces to ``out_piece``.
+
+    Returns:
+        how many points were written (at most K).
+    """
+    k = 0
+    taken = np.zeros(count + 1, dtype=np.int64)  # per piece (numbers are recorded indices)
+    known = np.zeros(count + 1, dtype=np.bool_)
+    for i in range(q.shape[0]):
+        if 0 <= row_piece[i] <= count:
+            known[row_piece[i]] = True
+    first = np.full(count + 1, -1)
+    last = np.full(count + 1, -1)
+    for j in range(count):
+        f = piece[j]
+        if first[f] < 0:
+            first[f] = j
+        last[f] = j
+    for f in range(count + 1):  # the middle of each piece no row lies on
+        if first[f] < 0 or known[f] or k >= out.shape[0]:
+            continue
+        mid = (first[f] + last[f]) // 2
+        while piece[mid] != f:
+            mid += 1
+        out[k] = points[mid]
+        out_piece[k] = f
+        taken[f] += 1
+        k += 1
+    for j in range(count):
+        if k >= out.shape[0]:
+            break
+        f = piece[j]
+        if taken[f] >= per_piece:
+            continue
+        far = True
+        for i in range(q.shape[0]):
+            if row_piece[i] == f and angle_distance(points[j], q[i], periodic) < spacing:
+                far = False
+                break
+        if far:
+            for e in range(k):
+                if out_piece[e] == f and angle_distance(points[j], out[e], periodic) < spacing:
+                    far = False
+                    break
+        if far:
+            out[k] = points[j]
+            out_piece[k] = f
+            taken[f] += 1
+            k += 1
+    return k
+
+
+@njit('int64[::1](float64[:, ::1], int64[::1], int64, float64[:, ::1], boolean[::1], float64)',
+      cache=CACHE, nogil=True)
+def atlas_pieces(points, piece, count, q, periodic, link):  # pragma: no cover (compiled)
+    """The piece of each row of ``q``: its nearest recorded point's within ``link``, or -1."""
+    out = np.full(q.shape[0], -1)
+    for i in range(q.shape[0]):
+        best = link
+        for j in range(count):
+            d = angle_distance(q[i], points[j], periodic)
+            if d < best:
+                best = d
+                out[i] = piece[j]
+                if d < 0.1 * link:
+                    break
+    return out
