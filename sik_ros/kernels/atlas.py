@@ -13,7 +13,7 @@ from numba import njit
 import numpy as np
 
 from sik_ros.kernels._cache import CACHE
-from sik_ros.kernels.angles import angle_distance, flip_triple, turned_into
+from sik_ros.kernels.angles import angle_distance, flip_triple, TURN, turned_into
 from sik_ros.kernels.clock import monotonic
 from sik_ros.kernels.selfmotion import advance, correct
 from sik_ros.kernels.sets import root, union
@@ -28,6 +28,10 @@ SAME_POINT = 0.6
 #: Times a trace's step is halved where the corrector fails (near a singularity) before the
 #: trace ends there.
 HALVINGS = 3
+#: Outside the limits a trace's step is no longer than how far outside it is (a joint moves no
+#: more than the step), but at least this share of the step: a sliver of a curve within the
+#: limits is seldom stepped over.
+NEAR_LIMITS = 0.5
 
 
 @njit(cache=CACHE, nogil=True)
@@ -58,6 +62,17 @@ def _record(inside, cur, q, periodic, link, points, piece, count, row_piece,
             row_piece[k] = cur
             row_dist[k] = d
     return count
+
+
+@njit(cache=CACHE, nogil=True)
+def _outside_by(x, lower, upper):  # pragma: no cover (compiled)
+    """How far [rad] ``x`` lies outside the limits: its largest joint's, turned (0: inside)."""
+    out = 0.0
+    for j in range(x.shape[0]):
+        v = lower[j] + (x[j] - lower[j]) % TURN
+        if v > upper[j]:
+            out = max(out, min(v - upper[j], lower[j] + TURN - v))
+    return out
 
 
 @njit(cache=CACHE, nogil=True)
@@ -118,7 +133,8 @@ def trace_atlas(frames, lower, upper, periodic, q, flips, pos, rot, step, max_st
     (within ``link`` [rad]) the curve is followed both ways in steps of ``step`` [rad] *free
     of the limits* (:func:`advance`, then :func:`correct`; the step halved up to
     :data:`HALVINGS` times where the corrector fails or moves the point more than
-    :data:`DRIFT` steps, near a singularity or another curve) until it closes on its start
+    :data:`DRIFT` steps, near a singularity or another curve; outside the limits shortened
+    to how far outside it is, :data:`NEAR_LIMITS`) until it closes on its start
     (every angle modulo a turn), fails or has taken ``max_steps``. Every point, its angles
     turned by whole turns into the limits where they fit, is recorded in ``points`` (P, 7)
     with its piece in ``piece`` (P,): consecutive points within the limits are one piece,
@@ -220,6 +236,7 @@ def trace_atlas(frames, lower, upper, periodic, q, flips, pos, rot, step, max_st
                                         row_piece, row_dist)
                     else:
                         cur = -1
+                        h = min(h, max(_outside_by(x, lower, upper), NEAR_LIMITS * step))
             if f < 0 and closed and flips.shape[0] > 0:
                 count, pieces = _twins(path, length, flips, lower, upper, periodic, link, q,
                                        points, piece, count, row_piece, row_dist, parent,

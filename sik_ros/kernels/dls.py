@@ -45,6 +45,18 @@ def goal_error(pos, rot, pose, p, r, err):  # pragma: no cover (compiled)
     return perr, oerr
 
 
+@njit(f'void({F3}, {F2}, {F1}, {F2}, boolean, {F1}, {F1})', cache=CACHE, nogil=True)
+def goal_errors_rows(frames, q, pos, rot, pose, perr, oerr):  # pragma: no cover (compiled)
+    """:func:`goal_error`'s norms for each row of ``q`` (M, n): ``perr``, ``oerr`` (M,).
+
+    The measure refinement reports (``oerr`` 0 unless ``pose``).
+    """
+    p, r, err, no_jac = np.empty(3), np.empty((3, 3)), np.empty(6), np.empty((6, 0))
+    for k in range(q.shape[0]):
+        place(frames, q[k], p, r, no_jac, False)
+        perr[k], oerr[k] = goal_error(pos, rot, pose, p, r, err)
+
+
 @njit(cache=CACHE, nogil=True)
 def damped_solve(jm, err, dims, n, lam2, a, x):  # pragma: no cover (compiled)
     """``x`` (dims,) = (J J^T + lambda^2 I)^-1 ``err`` for ``J`` = ``jm[:dims, :n]``, in place.

@@ -1,8 +1,9 @@
-"""How far tip poses are from a goal: the library's one measure of a goal error.
+"""How far tip poses are from a goal, for poses already computed.
 
-The solver (its refinement's reports, a path's waypoint errors) and the evaluation compute every
-position error [m] and orientation error [rad] outside the compiled kernels with
-:func:`goal_errors`.
+A path's waypoint errors and the evaluation compute position errors [m] and orientation errors
+[rad] of tip poses they hold with :func:`goal_errors`; errors of configurations come from the
+compiled kernels (:func:`sik_ros.solver.refine.errors`, the measure refinement reports). The two
+agree to rounding.
 """
 
 from typing import Optional, Tuple

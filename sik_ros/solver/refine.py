@@ -18,8 +18,7 @@ import numpy as np
 
 from sik_ros.deadline import Deadline, NO_DEADLINE
 from sik_ros.kernels import as_arg, follow_rows, refine_rows
-from sik_ros.kernels.dls import INTS, REALS
-from sik_ros.kinematics.goal_error import goal_errors
+from sik_ros.kernels.dls import goal_errors_rows, INTS, REALS
 from sik_ros.solver.config import (CONVERGE_FACTOR, GIVE_UP_FACTOR, ORIENTATION_WEIGHT,
                                    SolverConfig)
 from sik_ros.solver.context import Context, Goal
@@ -81,9 +80,16 @@ class Evaluation:
 
 
 def errors(ctx: Context, q: np.ndarray, goal: Goal) -> Tuple[np.ndarray, np.ndarray]:
-    """Position errors [m] and orientation errors [rad] (zeros for position goals), (M,)."""
-    p, r = ctx.robot.tip_poses(q, ctx.data)
-    return goal_errors(p, r, goal.position, goal.rotation)
+    """Position errors [m] and orientation errors [rad] (zeros for position goals), (M,).
+
+    The measure the refinement reports (:func:`sik_ros.kernels.dls.goal_errors_rows`).
+    """
+    q = as_arg(q)
+    perr, oerr = np.empty(len(q)), np.empty(len(q))
+    pose = goal.rotation is not None
+    goal_errors_rows(ctx.robot.frames, q, as_arg(goal.position),
+                     as_arg(goal.rotation) if pose else NO_ROTATION, pose, perr, oerr)
+    return perr, oerr
 
 
 def refine(ctx: Context, q: np.ndarray, goal: Goal, deadline: Deadline = NO_DEADLINE,

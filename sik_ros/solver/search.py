@@ -89,8 +89,8 @@ def mirrored(ctx: Context, q: np.ndarray, goal: Goal, deadline: Deadline) -> np.
     a curve of the self-motion on the branch across one from a found solution is one no start
     of the table's may reach. Each solution with the joint mirrored about the angle (turned
     into the limits; rows that do not fit dropped; those within ``distinct_threshold`` times
-    :data:`START_MERGE` of an earlier one once) is a start there, refined with every joint
-    free (:data:`MIRROR_ITERATIONS` at most).
+    :data:`START_MERGE` of a solution of ``q`` or of an earlier one once) is a start there,
+    refined with every joint free (:data:`MIRROR_ITERATIONS` at most).
     """
     robot = ctx.robot
     joints, centres = robot_mirrors(robot)
@@ -101,8 +101,8 @@ def mirrored(ctx: Context, q: np.ndarray, goal: Goal, deadline: Deadline) -> np.
         m = q.copy()
         m[:, j] = 2 * c - m[:, j]
         starts.append(m[turned_rows(m, robot.lower, robot.upper, m)])
-    m = np.concatenate(starts)
-    m = m[distinct_mask(m, ctx.config.distinct_threshold * START_MERGE)]
+    m = np.concatenate([q] + starts)
+    m = m[len(q):][distinct_mask(m, ctx.config.distinct_threshold * START_MERGE)[len(q):]]
     r = refine(ctx, m, goal, deadline, MIRROR_ITERATIONS, prune=True)
     return r.q[converged(r.perr, r.oerr, goal.kind, ctx.config)]
 
