@@ -15,13 +15,42 @@ os.environ.setdefault('OMP_NUM_THREADS', '1')
 #: start a sik_node): every test that uses one is ``e2e``. Other tests carry their markers
 #: themselves (``pytestmark`` or a decorator).
 E2E_FIXTURES = {'graph', 'ur5_bundle'}
+#: Test modules that start slow work in the background once the tests are collected (they
+#: define ``start_background(config, items)`` and ``stop_background()``; test_colcon's build):
+#: their tests run last, so that the work has the whole session to be done in.
+_background_modules = []
+
+
+def _background_module(item):
+    """The module of ``item`` if it starts work in the background, else None."""
+    module = getattr(item, 'module', None)
+    return module if hasattr(module, 'start_background') else None
 
 
 def pytest_collection_modifyitems(config, items):
-    """Mark the tests that use a fixture starting a process as ``e2e``."""
+    """Mark the tests that use a fixture starting a process as ``e2e``; background ones last."""
     for item in items:
         if E2E_FIXTURES & set(getattr(item, 'fixturenames', ())):
             item.add_marker(pytest.mark.e2e)
+    items.sort(key=lambda item: _background_module(item) is not None)
+
+
+def pytest_collection_finish(session):
+    """Start the background work of the modules that have tests to run."""
+    if session.config.option.collectonly:
+        return
+    for item in session.items:
+        module = _background_module(item)
+        if module is not None and module not in _background_modules:
+            _background_modules.append(module)
+            module.start_background(session.config,
+                                    [i for i in session.items if _background_module(i) is module])
+
+
+def pytest_sessionfinish(session):
+    """Stop background work that no test took (the session ended early)."""
+    while _background_modules:
+        _background_modules.pop().stop_background()
 
 
 @pytest.fixture(scope='session')
@@ -81,11 +110,12 @@ def ur5():
 def ur5_bundle(tmp_path_factory):
     """A tiny UR5 bundle made by ``sik-build`` end to end (tiny model, small sampler)."""
     out = tmp_path_factory.mktemp('arms') / 'ur5'
-    # --time 30: about 17 s of training after the other stages' estimate here (13 s), room for
-    # a machine half as fast again (a build refuses to start with under 5 s left to train);
-    # every test of this bundle passed with --time 20, and 40 cost 15 s more for the same checks
+    # --time 22: about 9 s of training after the other stages' estimate (13 s; they take under
+    # 1 s before the training here), room for a machine half as fast again (a build refuses to
+    # start with under 5 s left to train); every test of this bundle passed with --time 20,
+    # and 30 cost 8 s more for the same checks
     cmd = [sys.executable, '-m', 'sik_ros.cli.build', '--robot', 'ur5', '--out', str(out),
-           '--time', '30', '--rows', '20000', '--preset', 'tiny', '--check-targets', '20',
+           '--time', '22', '--rows', '20000', '--preset', 'tiny', '--check-targets', '20',
            '--quiet']
     run = subprocess.run(cmd, capture_output=True, text=True, timeout=300)
     assert run.returncode == 0, run.stderr[-2000:]

@@ -175,8 +175,10 @@ def test_the_device_path_imports_no_pinocchio(blocked_env):
 def test_the_device_recipe_runs_end_to_end_without_pinocchio(panda, blocked_env, tmp_path):
     """scripts/device_train.py (tiny, CPU) trains the Panda models, resumes, brings them back."""
     out, runs = tmp_path / 'out', tmp_path / 'runs'
+    # --budget 1: a second of training per run instead of the tiny recipe's 3 (the path is what
+    # is tested; a run trains one step at least, however short its budget)
     cmd = [sys.executable, str(ROOT / 'scripts/device_train.py'), '--group', 'sik',
-           '--device', 'cpu', '--tiny', '--out', str(out), '--runs', str(runs)]
+           '--device', 'cpu', '--tiny', '--budget', '1', '--out', str(out), '--runs', str(runs)]
     run = subprocess.run(cmd, env=blocked_env, capture_output=True, text=True, timeout=300)
     assert run.returncode == 0, run.stdout[-2000:] + run.stderr[-2000:]
     files = sorted(p.name for p in out.iterdir())
