@@ -267,11 +267,13 @@ def joined_by_paths(robot, p: np.ndarray, r: np.ndarray, ref_q: np.ndarray,
 
     A sweep of joint 7 sees a piece of the self-motion along which joint 7 hardly moves (the
     other six move at one value of it) as no piece at all, and parts the families it joins.
-    From both ends (in joint 7) of every family clear of the limits, the curve is followed
-    both ways within the limits: points :data:`PATH_STEP` apart (null vector of the
-    Jacobian, then damped least squares back onto the pose), each verified by Pinocchio's FK
-    and the limits, none more than two steps from the last; a family whose sample the path
-    passes within :data:`PATH_STEP` is joined to the end's.
+    From both ends (in joint 7) of every family, the curve is followed both ways within the
+    limits: points :data:`PATH_STEP` apart (null vector of the Jacobian, then damped least
+    squares back onto the pose), each verified by Pinocchio's FK and the limits, none more
+    than two steps from the last; a family whose sample the path passes within
+    :data:`PATH_STEP` is joined to the end's. An end near a limit is followed too (the
+    verification stops a path that leaves the limits): a curve can run along a limit, within
+    a few milliradians of it, and on to another family.
 
     Returns:
         the samples (the reference's and the paths' points) and their labels.
@@ -283,12 +285,9 @@ def joined_by_paths(robot, p: np.ndarray, r: np.ndarray, ref_q: np.ndarray,
         while parent[i] != i:
             i = parent[i]
         return i
-    lo, up = robot.lower, robot.upper
     for f in range(labels.max() + 1):
         rows = np.flatnonzero(labels == f)
         for e in (rows[np.argmin(ref_q[rows, 6])], rows[np.argmax(ref_q[rows, 6])]):
-            if np.min(np.minimum(ref_q[e] - lo, up - ref_q[e])) <= EDGE:
-                continue  # an end at a limit: the family ends there
             for way in (1.0, -1.0):
                 x, heading = ref_q[e].copy(), None
                 for _ in range(PATH_STEPS):
