@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Builds the bundled Panda artifacts (sik_ros/bundles/panda/) from the trained runs of
 # scripts/train_bundled.sh: encodes the 30-degree dataset with each model, keeps the distinct
-# posture indices per 5 cm cell, and writes model + table + bundle.json.
+# posture indices per 5 cm cell, and writes model + table + bundle.json (and, for the pose
+# model, the seed table of the family search's starts: 30,000 rows of the dataset).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 PY=${PY:-.venv/bin/python}

@@ -31,6 +31,9 @@ BUILD_BATCH = {'cpu': 2048, 'cuda': 65536}
 MAX_ROWS = 20_000_000
 #: Configurations a seed table keeps by default (6 MB for 6 joints).
 SEED_TABLE_ROWS = 500_000
+#: Configurations the seed table of a 7-joint arm keeps: the family search's starts, far apart
+#: rather than near the goal (0.4 MB; docs/design.md, "Measured choices").
+SEARCH_SEED_TABLE_ROWS = 30_000
 
 
 @dataclass(frozen=True)

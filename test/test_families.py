@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 
 from sik_ros.deadline import NO_DEADLINE
+from sik_ros.defaults import SEARCH_SEED_TABLE_ROWS
 from sik_ros.errors import InvalidArgument
 from sik_ros.kernels.angles import TURN
 from sik_ros.kernels.families import branch_labels
@@ -363,3 +364,30 @@ def test_every_piece_of_the_atlas_has_a_candidate(bundled):
         assert set(atlas.pieces.tolist()) <= on
         pieces += len(set(atlas.pieces.tolist()))
     assert pieces >= 24
+
+
+def test_the_search_starts_from_the_seed_table_too(bundled):
+    """The bundle's seed table gives the search starts no model posture leads to.
+
+    A 7-joint arm's bundle has a small seed table; on a pose two of whose families no model
+    posture reaches, the default answer holds them and one without those starts lacks them,
+    and every curve it found is among the default's (each family a traced curve, as above).
+    """
+    ctx = bundled.context
+    assert bundled.config.family_seed_starts > 0
+    assert len(ctx.models['pose'].seeds) == SEARCH_SEED_TABLE_ROWS
+    with pytest.raises(InvalidArgument, match='family_seed_starts'):
+        SolverConfig(family_seed_starts=-1)
+    pos, quat = bundled.fk(np.array([0.853, 1.326, -1.784, -0.451, 0.541, 0.846, 1.188]))
+    seeded = bundled.solve(pos, quat, num_solutions=16)
+    without = bundled.with_config(family_seed_starts=0).solve(pos, quat, num_solutions=16)
+    assert seeded.num_families >= without.num_families + 2
+    q_seeded = np.array([s.q for s in seeded.solutions if s.converged])
+    q_without = np.array([s.q for s in without.solutions if s.converged])
+    assert len(q_seeded) == len(seeded.solutions)
+    goal = Goal(np.asarray(pos, float), quaternion_matrix(quat))
+    curves = families.traced(ctx, np.concatenate([q_seeded, q_without]), goal, NO_DEADLINE)
+    assert set(curves[len(q_seeded):]) <= set(curves[:len(q_seeded)])
+    for q in q_seeded:
+        tip = bundled.robot.pin_placement(q)
+        assert np.linalg.norm(tip.translation - pos) <= bundled.config.position_tolerance

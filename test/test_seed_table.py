@@ -1,4 +1,4 @@
-"""Seed tables: dataset configurations by tip pose, the starts of isolated pose solutions."""
+"""Seed tables: dataset configurations by tip pose, the starts of pose solutions."""
 
 import json
 import shutil
@@ -6,13 +6,15 @@ import shutil
 import numpy as np
 import pytest
 
+from arm_urdfs import chain_text
 from sik_ros.bundles.bundle import add_to_bundle, load_bundle
+from sik_ros.defaults import SEARCH_SEED_TABLE_ROWS
 from sik_ros.errors import ArtifactMismatch, CorruptArtifact, InvalidArgument
 from sik_ros.kinematics.robots import load_robot
 from sik_ros.solver.ranking import posture_mask
 from sik_ros.tables.dataset import collect
-from sik_ros.tables.seed_table import (default_rows, first_axis, NEIGHBOURS, QUATERNION_SCALE,
-                                       SeedTable)
+from sik_ros.tables.seed_table import (DEFAULT_ROWS, default_rows, first_axis, NEIGHBOURS,
+                                       QUATERNION_SCALE, SeedTable)
 
 
 @pytest.fixture(scope='module')
@@ -185,9 +187,19 @@ def test_isolated_pose_solutions_from_the_seed_table_or_random_starts(ur5_bundle
             assert posture_mask(ik.context, qs, 'pose').all()
 
 
-def test_only_arms_of_six_joints_or_fewer_get_one_by_default(ur5, panda):
-    """Redundant arms walk their self-motion instead: no seed table unless asked for."""
-    assert default_rows(ur5) > 0 and default_rows(panda) is None
+def test_arms_of_up_to_seven_joints_get_one_by_default(ur5, panda, tmp_path):
+    """Six joints or fewer: a large table; seven: a small one; more: none.
+
+    The large one gives isolated branches their starts, the small one the family search's;
+    arms of more joints walk their self-motion.
+    """
+    urdf = tmp_path / 'snake.urdf'
+    urdf.write_text(chain_text(8))
+    snake = load_robot('snake', urdf=str(urdf), base='base', tip='tip')
+    assert snake.dof == 8
+    assert default_rows(ur5) == DEFAULT_ROWS
+    assert default_rows(panda) == SEARCH_SEED_TABLE_ROWS < DEFAULT_ROWS
+    assert default_rows(snake) is None
 
 
 def test_starts_turn_with_the_goal_about_the_first_axis(ur5, table):

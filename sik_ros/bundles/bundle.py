@@ -1,13 +1,13 @@
 """Bundles: a directory with one model and one index table per goal kind, and ``bundle.json``.
 
 ``bundle.json`` names the robot (its manifest: name or URDF, frames, joints) and, per goal kind
-(``position``, ``pose``), the model file and its table; the pose model of an arm with six joints
-or fewer also has a seed table (:mod:`sik_ros.tables.seed_table`); ``trained`` says where, how
-long and on how many samples each model was trained. :func:`build_bundle` makes one from
-trained models and a dataset (``sik-index --bundle`` and the tests use it); :func:`load_bundle`
-reads one back, checking every file against the manifest. A SIK model also gets its NumPy twin
-(``twin``: :mod:`sik_ros.learning.twins`), which a bundle loads from without importing torch;
-a bundle without twins (the bundled Panda's) loads its models through torch.
+(``position``, ``pose``), the model file and its table; the pose model of an arm with seven
+joints or fewer also has a seed table (:mod:`sik_ros.tables.seed_table`); ``trained`` says
+where, how long and on how many samples each model was trained. :func:`build_bundle` makes one
+from trained models and a dataset (``sik-index --bundle`` and the tests use it);
+:func:`load_bundle` reads one back, checking every file against the manifest. A SIK model also
+gets its NumPy twin (``twin``: :mod:`sik_ros.learning.twins`), which a bundle loads from without
+importing torch; a bundle without twins (the bundled Panda's) loads its models through torch.
 """
 
 from dataclasses import dataclass
@@ -200,8 +200,8 @@ def build_bundle(out: Path, robot: Robot, models: Mapping[str, Path], dataset: D
         cfg: the tables' cells.
         orientations: keep each index's tip orientation in the tables.
         progress: called with the rows encoded, chunk by chunk.
-        seed_rows: configurations of the pose model's seed table, for an arm of six joints or
-            fewer (-1: :func:`~sik_ros.tables.seed_table.default_rows`; None or 0: none).
+        seed_rows: configurations of the pose model's seed table, for an arm of seven joints
+            or fewer (-1: :func:`~sik_ros.tables.seed_table.default_rows`; None or 0: none).
 
     Returns:
         ``out``.
@@ -211,7 +211,7 @@ def build_bundle(out: Path, robot: Robot, models: Mapping[str, Path], dataset: D
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     if default_rows(robot) is None:
-        seed_rows = None  # a redundant arm's pose solutions walk its self-motion instead
+        seed_rows = None  # an arm of more than 7 joints: its pose solutions walk instead
     elif seed_rows is not None and seed_rows < 0:
         seed_rows = default_rows(robot)
     for goal, model_file in models.items():

@@ -5,9 +5,9 @@ workspace cell, configurations whose tips lie in it. The solver refines from pos
 networks: a table whose "posture index" is the configuration itself (decoding is the identity,
 encoding too) gives it starts as good as a learned table's (docs/benchmarks.md, "First answers").
 :func:`sweep_models` builds such a table per goal kind in seconds, from uniform samples of the
-joint space sized to a time budget, plus the seed table an arm of six joints or fewer uses for
-pose goals. What needs the network (raw answers, ``refine=False``) is refused by the solver until
-the learned model arrives (:class:`~sik_ros.errors.ModelNotReady`).
+joint space sized to a time budget, plus the seed table an arm of seven joints or fewer uses
+for pose goals. What needs the network (raw answers, ``refine=False``) is refused by the solver
+until the learned model arrives (:class:`~sik_ros.errors.ModelNotReady`).
 """
 
 import math
@@ -23,7 +23,7 @@ from sik_ros.errors import InvalidArgument
 from sik_ros.kinematics.robot import Robot
 from sik_ros.tables.dataset import Dataset
 from sik_ros.tables.index_table import IndexTable
-from sik_ros.tables.seed_table import SeedTable
+from sik_ros.tables.seed_table import default_rows, SeedTable
 
 #: The table of configurations: 5 cm cells (as a learned table's), configurations closer than
 #: 0.25 rad in every joint counted once, at most 24 far apart per cell.
@@ -84,14 +84,16 @@ def sweep_models(robot: Robot, seconds: float = 3.0, rows: Optional[int] = None,
 
     Returns:
         a :class:`GoalModel` per goal kind (``model`` None), sharing one table; the pose goal
-        of an arm of six joints or fewer also gets a seed table.
+        of an arm of seven joints or fewer also gets a seed table
+        (:func:`~sik_ros.tables.seed_table.default_rows`).
     """
     if not (isinstance(seconds, (int, float)) and math.isfinite(seconds) and seconds > 0):
         raise InvalidArgument(f'seconds must be a positive number; got {seconds!r}')
     rows = sweep_rows(robot, seconds) if rows is None else rows
     ds = sweep_dataset(robot, rows, seed)
     table = configuration_table(robot, ds)
-    seeds = SeedTable.build(robot, ds, min(len(ds), SWEEP_SEED_ROWS), seed) \
-        if robot.dof <= 6 else None
+    most = default_rows(robot)
+    seeds = SeedTable.build(robot, ds, min(len(ds), SWEEP_SEED_ROWS, most), seed) \
+        if most else None
     return {goal: GoalModel(None, None, None, table, seeds if goal == 'pose' else None)
             for goal in GOALS}

@@ -5,7 +5,7 @@ import time
 from typing import List, Optional
 
 from sik_ros.cli import argv_or_default, Parser, run_cli
-from sik_ros.defaults import SEED_TABLE_ROWS, TableConfig
+from sik_ros.defaults import SEARCH_SEED_TABLE_ROWS, SEED_TABLE_ROWS, TableConfig
 from sik_ros.errors import ArtifactExists, InvalidArgument
 
 
@@ -34,10 +34,11 @@ def build_parser() -> argparse.ArgumentParser:
                    'models; pose-goal models cannot)')
     p.add_argument('--bundle', help='also add model and table to this bundle directory')
     p.add_argument('--seeds', type=int,
-                   help='with --bundle and a pose-goal model of an arm of six joints or '
+                   help='with --bundle and a pose-goal model of an arm of seven joints or '
                    'fewer: configurations of the seed table written into the bundle, where its '
-                   f'pose solutions start (default: {SEED_TABLE_ROWS:,}; 0: none new, a seed '
-                   'table the bundle has stays); ignored otherwise')
+                   f'pose solutions start (default: {SEED_TABLE_ROWS:,} for six joints or '
+                   f'fewer, {SEARCH_SEED_TABLE_ROWS:,} for seven; 0: none new, a seed table the '
+                   'bundle has stays); ignored otherwise')
     p.add_argument('--force', action='store_true', help='replace an existing --out')
     p.add_argument('--quiet', action='store_true', help='no progress bar')
     return p

@@ -17,6 +17,7 @@ from sik_ros.kinematics.collision import Obstacle
 from sik_ros.solver.config import SolverConfig
 from sik_ros.solver.context import Context, Goal, POSE
 from sik_ros.solver.objectives import Objective
+from sik_ros.solver.search import searchable
 from sik_ros.tables.seed_table import SeedTable
 
 #: The routes of a call: every branch of an isolated pose goal from the seed table's starts
@@ -38,6 +39,10 @@ class Call:
         far: the goal is farther than ``reach_margin`` from every table cell (out of reach).
         seeds: the seed table giving isolated pose solutions their starts, or None.
         isolated: a reachable, refined pose goal of an arm with six joints or fewer.
+        search: the family search follows the self-motion of the solutions found (a
+            reachable, refined pose goal of a 7-joint arm asking for several solutions, not
+            a path's starts: :mod:`sik_ros.solver.search`).
+        search_seeds: the seed table giving the search's call starts of its own, or None.
         one_per_family: at most one solution per posture family.
         route: :data:`LEAN`, :data:`REFINED` or :data:`RAW`.
         enough: distinct exact solutions after which refinement stops, or None (every start
@@ -57,6 +62,8 @@ class Call:
     far: bool
     seeds: Optional[SeedTable]
     isolated: bool
+    search: bool
+    search_seeds: Optional[SeedTable]
     one_per_family: bool
     route: str
     enough: Optional[int]
@@ -88,6 +95,11 @@ def make_call(ctx: Context, goal: Goal, num: int, q_seed: Optional[np.ndarray],
     # has one, else drawn at random
     isolated = goal.kind == POSE and not far and ctx.robot.dof <= 6 and refined
     seeds = ctx.models[goal.kind].seeds if isolated and cfg.seed_starts > 0 else None
+    # the family search traces the curves through the solutions found; the seed table's
+    # starts reach curves that no model posture leads to
+    search = num > 1 and refined and not far and not first_found and searchable(ctx, goal)
+    search_seeds = ctx.models[goal.kind].seeds if search and cfg.family_seed_starts > 0 \
+        else None
     per_family = cfg.one_per_family if one_per_family is None else one_per_family
     # ranked by the default objective, the first distinct exact solutions found are as good
     # as any: refinement stops once there are enough (with ``first_found`` also with a seed,
@@ -99,10 +111,11 @@ def make_call(ctx: Context, goal: Goal, num: int, q_seed: Optional[np.ndarray],
     if isolated and (seeds is not None or cfg.branch_restarts > 0) and num != 1:
         enough = None
     call = Call(goal, num, q_seed, obstacles, refined, objective, deadline, first_found, one,
-                single, far, seeds, isolated, per_family, RAW, enough)
+                single, far, seeds, isolated, search, search_seeds, per_family, RAW, enough)
     route = RAW if not refined else LEAN if lean(call) else REFINED
     return Call(goal, num, q_seed, obstacles, refined, objective, deadline, first_found, one,
-                single, far, seeds, isolated, per_family, route, enough)
+                single, far, seeds, isolated, search, search_seeds, per_family, route,
+                enough)
 
 
 def lean(call: Call) -> bool:

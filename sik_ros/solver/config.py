@@ -243,18 +243,22 @@ class SolverConfig:
             configurations nearest the goal pose chosen far apart in joint space (no two
             within ``seed_table.START_SPACING``, at least ``START_LEAST``), in place of
             the oriented and table postures and of the ``branch_restarts`` random ones (0: those
-            instead). Redundant arms get none (docs/design.md).
+            instead). 7-joint arms: ``family_seed_starts``.
         seed_neighbours: the configurations nearest the goal pose (by tip position [m] and
             0.3 m per unit of quaternion distance) that those are chosen among.
         one_per_family: return at most one solution per posture family (the best of each,
             :mod:`sik_ros.solver.families`) instead of filling ``num_solutions`` with more
             solutions of the families already given.
         family_search: pose goals of a 7-joint arm asking for more than one solution: follow
-            the self-motion curves of the solutions found (and of starts with the last joint
-            held across its range) past the joint limits, every piece within the limits a
-            family, and give points far apart on each (:mod:`sik_ros.solver.search`), in
-            place of the walk. On by default; off, a call walks instead and covers fewer of
-            a pose's families (docs/benchmarks.md).
+            the self-motion curves of the solutions found (and of their mirrors across the
+            arm's singular angles with the last joint held) past the joint limits, every
+            piece within the limits a family, and give points far apart on each
+            (:mod:`sik_ros.solver.search`), in place of the walk. On by default; off, a call
+            walks instead and covers fewer of a pose's families (docs/benchmarks.md).
+        family_seed_starts: those calls' starts from the bundle's seed table (7-joint arms
+            have a small one, :func:`~sik_ros.tables.seed_table.default_rows`): up to this
+            many, chosen as ``seed_starts`` are, refined with the model's postures; curves
+            no model posture leads to are traced from them (0: none).
     """
 
     position_tolerance: float = 1e-4
@@ -292,6 +296,7 @@ class SolverConfig:
     seed_neighbours: int = 100
     one_per_family: bool = False
     family_search: bool = True
+    family_seed_starts: int = 16
 
     def __post_init__(self):
         """Reject values the solver cannot work with.
@@ -314,7 +319,7 @@ class SolverConfig:
                           ('stall_window', 0), ('stall_after', 0), ('early_stop_margin', -1),
                           ('walk_rounds', 0), ('walk_iterations', 1), ('max_obstacles', 0),
                           ('max_waypoints', 1), ('branch_restarts', 0), ('seed_starts', 0),
-                          ('seed_neighbours', 1)):
+                          ('seed_neighbours', 1), ('family_seed_starts', 0)):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, int) or value < low:
                 raise InvalidArgument(f'SolverConfig.{name} must be an integer >= {low}; got '

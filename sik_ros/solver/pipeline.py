@@ -42,7 +42,7 @@ from sik_ros.solver.ranking import (assess, by_score, distinct_mask,
                                     from_solutions, merge, pose_score, rank)
 from sik_ros.solver.refine import errors, refine
 from sik_ros.solver.results import IKResult, Solution
-from sik_ros.solver.search import Atlas, search, searchable
+from sik_ros.solver.search import Atlas, search
 from sik_ros.solver.single import (fill_indices, from_starts, oriented_count,
                                    single_starts, turns_centre)
 
@@ -228,6 +228,9 @@ def refine_all(ctx: Context, call: Call,
                                              c.z.shape[1]))
     elif call.isolated and cfg.branch_restarts > 0:
         c = Candidates.concat(c, branch_starts(ctx, goal, cfg.branch_restarts, c.z.shape[1]))
+    elif call.search_seeds is not None:  # starts on curves no model posture leads to
+        c = Candidates.concat(c, seed_starts(ctx, goal, call.search_seeds,
+                                             cfg.family_seed_starts, c.z.shape[1]))
     # starts from the seed table are far apart already: merging the few heading for one
     # solution saves less than it costs (docs/design.md, "Measured choices")
     r = refine(ctx, c.q, goal, deadline, FAR_ITERATIONS if call.far else None,
@@ -263,7 +266,7 @@ def more_starts(ctx: Context, call: Call, c: Candidates,
         c, cut = restart(ctx, c, goal, deadline)
         timed_out = timed_out or cut
     atlas = None
-    if num > 1 and not call.far and not call.first_found and searchable(ctx, goal):
+    if call.search:
         c, atlas = search(ctx, c, goal, deadline)  # every piece of the curves found
     if atlas is None and goal.kind == POSE and not call.far and ctx.robot.dof > 6 and \
             cfg.walk_rounds > 0:

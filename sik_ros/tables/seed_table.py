@@ -1,4 +1,6 @@
-"""Dataset configurations looked up by their tip pose: where isolated pose solutions start.
+"""Dataset configurations looked up by their tip pose: where pose solutions start.
+
+They are the starts of isolated pose solutions and of the family search.
 
 An arm of six joints or fewer reaches a pose at isolated configurations (up to 8 branches for a
 6-joint arm, times the 2 pi equivalents of periodic joints): there is no self-motion to walk from
@@ -11,6 +13,12 @@ a goal, :meth:`SeedTable.starts` takes the configurations whose tips are nearest
 and thins them to a subset far apart in joint space (one per branch, as far as they go), which
 refinement then takes onto the goal in a few steps (more branches in less time than random
 starts; docs/design.md).
+
+A 7-joint arm's table is smaller (:data:`~sik_ros.defaults.SEARCH_SEED_TABLE_ROWS`): its starts
+serve the family search (:mod:`sik_ros.solver.search`), which traces every curve of the
+self-motion through the solutions they reach. The nearest rows of a small table lie farther
+from the goal and farther apart, on more of the pose's curves; a self-motion loop or a sliver
+of a curve by the limits that no model posture leads to is reached from one of them.
 
 An arm's first joint turns the whole arm about its own axis, a line fixed to the base
 (:func:`first_axis`): a pose turned about that line is reached by turning the first joint
@@ -33,7 +41,7 @@ import numpy as np
 
 from sik_ros.artifacts import (atomic_write, check_robot_manifest, FORMAT_VERSION, range_codes,
                                range_values)
-from sik_ros.defaults import SEED_TABLE_ROWS
+from sik_ros.defaults import SEARCH_SEED_TABLE_ROWS, SEED_TABLE_ROWS
 from sik_ros.errors import ArtifactMismatch, CorruptArtifact, InvalidArgument
 from sik_ros.kernels.angles import TURN
 from sik_ros.kernels.kdtree import KDTree
@@ -321,5 +329,12 @@ def turned(p: np.ndarray, quat: np.ndarray, angle: np.ndarray
 
 
 def default_rows(robot: Robot) -> Optional[int]:
-    """Seed-table rows a bundle of ``robot`` gets by default: arms of six joints or fewer."""
-    return DEFAULT_ROWS if robot.dof <= 6 else None
+    """Seed-table rows a bundle of ``robot`` gets by default (None: no table).
+
+    Arms of six joints or fewer: :data:`DEFAULT_ROWS`, the starts of their isolated pose
+    solutions. 7-joint arms: :data:`~sik_ros.defaults.SEARCH_SEED_TABLE_ROWS`, the starts of
+    the family search (:mod:`sik_ros.solver.search`). Others: none.
+    """
+    if robot.dof <= 6:
+        return DEFAULT_ROWS
+    return SEARCH_SEED_TABLE_ROWS if robot.dof == 7 else None
