@@ -559,12 +559,17 @@ def render_summary(results: Dict[str, List[dict]]) -> Optional[str]:
             return ''
         return f' (load average {avg["start"]:.1f} → {avg["end"]:.1f})'
 
-    src = '; '.join(f'`{d["command"].split()[1]}` on {d["date"][:10]} at commit '
-                    f'`{d["commit"]}`{short(d)}' for d in sources)
+    # the machines in order of first use, each with the results measured on it
+    machines: Dict[str, List[dict]] = {}
+    for d in sources:
+        machines.setdefault(machine(d, with_load=False), []).append(d)
+    where = '; '.join(
+        f'on {name}: ' + '; '.join(f'`{d["command"].split()[1]}` on {d["date"][:10]} at commit '
+                                   f'`{d["commit"]}`{short(d)}' for d in runs)
+        for name, runs in machines.items())
     busy = [d for d in sources if 'busy machine' in load_note(d)]
-    where = machine(sources[0], with_load=False) if sources else ''
     return (table(['', 'sik_ros', 'peer, same run', 'time ratio ours / peer'], rows)
-            + f'\n\nMeasured on {where}: {src}.'
+            + f'\n\nMeasured {where}.'
             + (' **A busy machine** (load average above its cores): times inflated, ratios to '
                'the peers not comparable with a quiet run\'s.' if busy else '')
             + ' Each row\'s command and the full tables: '
