@@ -17,6 +17,9 @@ from sik_ros.errors import SikError
 
 #: The node's name in its log lines (as ``sik_ros.ros.node.NODE_NAME``, which loads the solver).
 LOGGER = 'sik_node'
+#: Most seconds the shutdown waits for the callbacks still running (none of them a request)
+#: before the node is destroyed.
+STOP_WAIT = 1.0
 
 
 def _stop(signum, frame) -> None:
@@ -94,9 +97,12 @@ def _serve(args: Optional[List[str]]) -> int:
         rclpy.logging.get_logger(LOGGER).fatal(f'cannot start: {reason}')
         rclpy.try_shutdown()
         return 1
-    executor = SlottedExecutor(node.workers)
-    executor.add_node(node)
+    # a signal may come as soon as the services are up (before the spin loop): from here on
+    # it leads to the same drain and clean shutdown
+    executor = None
     try:
+        executor = SlottedExecutor(node.workers)
+        executor.add_node(node)
         while rclpy.ok() and not getattr(node, 'finished', False):  # a managed node's shutdown
             try:
                 executor.spin_once(timeout_sec=SPIN_PERIOD)
@@ -112,7 +118,10 @@ def _serve(args: Optional[List[str]]) -> int:
 
 
 def _drain_and_stop(node, executor) -> None:
-    """Give in-flight requests the grace period, then stop the executor, the node and ROS."""
+    """Give in-flight requests the grace period, then stop the executor, the node and ROS.
+
+    ``executor`` None: the signal came before the executor was made (nothing in flight).
+    """
     import rclpy
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # a second signal must not break clean-up
     signal.signal(signal.SIGTERM, signal.SIG_IGN)
@@ -120,7 +129,7 @@ def _drain_and_stop(node, executor) -> None:
     node.closing = True
     deadline = time.monotonic() + node.shutdown_grace
     try:
-        while node.in_flight and time.monotonic() < deadline:
+        while executor is not None and node.in_flight and time.monotonic() < deadline:
             executor.spin_once(timeout_sec=0.02)  # lets finished requests send answers
     except Exception as exc:  # the interrupted executor could not go on: exit anyway
         _log_error('during shutdown, draining the requests in flight failed', exc)
@@ -132,7 +141,10 @@ def _drain_and_stop(node, executor) -> None:
         sys.stderr.flush()
         os._exit(0)
     time.sleep(0.1)  # the last answers leave their threads
-    for what, step in (('stopping the executor', lambda: executor.shutdown(timeout_sec=0)),
+    # nothing in flight: the callbacks still running (a timer's, a refusal) are short, and
+    # the node is destroyed only after them (at most STOP_WAIT seconds)
+    for what, step in (('stopping the executor',
+                        lambda: executor is None or executor.shutdown(timeout_sec=STOP_WAIT)),
                        ('closing the node', node.destroy_node),
                        ('shutting ROS down', rclpy.try_shutdown)):
         try:
