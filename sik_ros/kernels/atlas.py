@@ -23,6 +23,13 @@ FREE = 1e9
 #: Most a trace's corrector may move a predicted point, as a share of the step: farther, it
 #: may have landed on another curve passing near (the step is halved).
 DRIFT = 0.5
+#: A step whose corrector moved the point more than this share of the step has the middle
+#: of its chord corrected too (:data:`MIDPOINT`).
+CHECK_DRIFT = 0.15
+#: Most the corrector may move the middle of a checked step's chord, as a share of the step:
+#: farther, the step crossed from one curve to another passing near it (near a singularity,
+#: where the corrector lands on either) and is halved.
+MIDPOINT = 0.25
 #: Recorded points closer than this share of the step are one point: their pieces are one.
 SAME_POINT = 0.6
 #: Times a trace's step is halved where the corrector fails (near a singularity) before the
@@ -73,6 +80,24 @@ def _outside_by(x, lower, upper):  # pragma: no cover (compiled)
         if v > upper[j]:
             out = max(out, min(v - upper[j], lower[j] + TURN - v))
     return out
+
+
+@njit(cache=CACHE, nogil=True)
+def _jumped(frames, lo, up, free, prev, x, pos, rot, tol_p, tol_o, max_step, h, mid, chord, p,
+            r, jac, jm, a, err, xs):  # pragma: no cover (compiled)
+    """Whether a step of ``h`` from ``prev`` to ``x`` crossed from one curve to another.
+
+    The middle of the chord, corrected onto the pose, lies near it on one smooth curve; it
+    lands farther than :data:`MIDPOINT` steps away (or nowhere) where the chord joins two
+    curves passing near each other. ``mid``, ``chord`` and the rest: work space.
+    """
+    for j in range(x.shape[0]):
+        mid[j] = 0.5 * (prev[j] + x[j])
+        chord[j] = mid[j]
+    if not correct(frames, lo, up, free, mid, pos, rot, True, tol_p, tol_o, max_step, p, r,
+                   jac, jm, a, err, xs):
+        return True
+    return angle_distance(mid, chord, free) > MIDPOINT * h
 
 
 @njit(cache=CACHE, nogil=True)
@@ -133,8 +158,9 @@ def trace_atlas(frames, lower, upper, periodic, q, flips, pos, rot, step, max_st
     (within ``link`` [rad]) the curve is followed both ways in steps of ``step`` [rad] *free
     of the limits* (:func:`advance`, then :func:`correct`; the step halved up to
     :data:`HALVINGS` times where the corrector fails or moves the point more than
-    :data:`DRIFT` steps, near a singularity or another curve; outside the limits shortened
-    to how far outside it is, :data:`NEAR_LIMITS`) until it closes on its start
+    :data:`DRIFT` steps, near a singularity or another curve, or where the step crossed to
+    another curve passing near, :func:`_jumped`; outside the limits shortened to how far
+    outside it is, :data:`NEAR_LIMITS`) until it closes on its start
     (every angle modulo a turn), fails or has taken ``max_steps``. Every point, its angles
     turned by whole turns into the limits where they fit, is recorded in ``points`` (P, 7)
     with its piece in ``piece`` (P,): consecutive points within the limits are one piece,
@@ -159,6 +185,7 @@ def trace_atlas(frames, lower, upper, periodic, q, flips, pos, rot, step, max_st
     a, err, xs, minor = np.empty((6, 6)), np.empty(6), np.empty(6), np.empty((6, 6))
     v, heading, x, prev = np.empty(n), np.empty(n), np.empty(n), np.empty(n)
     start, inside, predicted, y = np.empty(n), np.empty(n), np.empty(n), np.empty(n)
+    mid, p_mid, r_mid, jac_mid = np.empty(n), np.empty(3), np.empty((3, 3)), np.empty((6, n))
     path = np.empty((max_steps + 1, n))
     parent = np.arange(points.shape[0])
     row_piece[:] = -1
@@ -212,7 +239,11 @@ def trace_atlas(frames, lower, upper, periodic, q, flips, pos, rot, step, max_st
                     if not correct(frames, lo, up, free, x, pos, rot, True, tol_p, tol_o,
                                    max_step, p, r, jac, jm, a, err, xs) or \
                             angle_distance(x, predicted, free) > DRIFT * h or \
-                            _crossed(x, prev, flips):
+                            _crossed(x, prev, flips) or \
+                            (angle_distance(x, predicted, free) > CHECK_DRIFT * h and
+                             _jumped(frames, lo, up, free, prev, x, pos, rot, tol_p, tol_o,
+                                     max_step, h, mid, y, p_mid, r_mid, jac_mid, jm, a, err,
+                                     xs)):
                         if h < step / 2 ** (HALVINGS - 0.5):
                             break
                         x[:] = prev  # near a singularity: the step halved, the same heading
