@@ -236,11 +236,11 @@ def trace_atlas(frames, lower, upper, periodic, q, flips, pos, rot, step, max_st
                         break
                     placed = False
                     predicted[:] = x
-                    if not correct(frames, lo, up, free, x, pos, rot, True, tol_p, tol_o,
-                                   max_step, p, r, jac, jm, a, err, xs) or \
-                            angle_distance(x, predicted, free) > DRIFT * h or \
-                            _crossed(x, prev, flips) or \
-                            (angle_distance(x, predicted, free) > CHECK_DRIFT * h and
+                    on = correct(frames, lo, up, free, x, pos, rot, True, tol_p, tol_o,
+                                 max_step, p, r, jac, jm, a, err, xs)
+                    moved = angle_distance(x, predicted, free)  # by the corrector
+                    if not on or moved > DRIFT * h or _crossed(x, prev, flips) or \
+                            (moved > CHECK_DRIFT * h and
                              _jumped(frames, lo, up, free, prev, x, pos, rot, tol_p, tol_o,
                                      max_step, h, mid, y, p_mid, r_mid, jac_mid, jm, a, err,
                                      xs)):
