@@ -209,21 +209,31 @@ def test_every_searched_family_comes_before_a_second_solution(bundled):
     assert colliding_firsts >= 1  # these draws hold such families
 
 
-def test_firsts_marks_each_familys_first_row_in_order():
-    """The compiled and the general marking agree: a family's first row in the given order."""
+def test_rounds_take_each_familys_first_then_its_farthest_rows():
+    """Round 0 is a family's first row in the order, each later its farthest row.
+
+    Farthest from the rows of the rounds before (checked by brute force), whatever the roots'
+    numbering; without spreading, every later row is round 1.
+    """
     rng = np.random.default_rng(2)
+    periodic = np.zeros(3, dtype=bool)
     for _ in range(50):
         m = int(rng.integers(1, 12))
         fam = rng.integers(-1, m, m)
         order = rng.permutation(m)
-        seen, expect = set(), np.ones(m, dtype=bool)
-        for i in order:
-            if fam[i] >= 0:
-                expect[i] = fam[i] not in seen
-                seen.add(fam[i])
-        assert (families.firsts(fam, order) == expect).all()
-        # roots beyond the rows (another numbering) take the general path
-        assert (families.firsts(fam + 100 * (fam >= 0), order) == expect).all()
+        q = rng.uniform(-3, 3, (m, 3))
+        got = families.rounds(fam, order, q, periodic)
+        assert (got == families.rounds(fam + 100 * (fam >= 0), order, q, periodic)).all()
+        assert (got[fam < 0] == 0).all()
+        assert (families.rounds(fam, order, q, periodic, False) == np.minimum(got, 1)).all()
+        for f in set(fam.tolist()) - {-1}:
+            rows = [i for i in order if fam[i] == f]
+            given = [rows[0]]
+            while len(given) < len(rows):
+                far = [min(np.linalg.norm(q[i] - q[j]) for j in given) if i not in given
+                       else -1.0 for i in rows]
+                given.append(rows[int(np.argmax(far))])
+            assert [int(got[i]) for i in given] == list(range(len(rows)))
 
 
 def test_family_search_adds_exact_points_within_limits_far_apart_per_family(bundled):

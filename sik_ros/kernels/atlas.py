@@ -13,7 +13,7 @@ from numba import njit
 import numpy as np
 
 from sik_ros.kernels._cache import CACHE
-from sik_ros.kernels.angles import angle_distance, flip_triple, TURN, turned_into
+from sik_ros.kernels.angles import angle_distance, flip_triple, PER_TURN, TURN, turned_into
 from sik_ros.kernels.clock import monotonic
 from sik_ros.kernels.selfmotion import advance, correct
 from sik_ros.kernels.sets import root, union
@@ -30,8 +30,12 @@ CHECK_DRIFT = 0.15
 #: farther, the step crossed from one curve to another passing near it (near a singularity,
 #: where the corrector lands on either) and is halved.
 MIDPOINT = 0.25
-#: Recorded points closer than this share of the step are one point: their pieces are one.
+#: Recorded points closer than this share of the step may be one curve traced twice...
 SAME_POINT = 0.6
+#: ... and are, when one lies this close (a share of the step) to the other's chords: a
+#: curve traced twice lies on its first trace's chords, a curve passing near another (by a
+#: singularity) crosses them at most at one point and leaves them.
+ON_CHORDS = 0.4
 #: Times a trace's step is halved where the corrector fails (near a singularity) before the
 #: trace ends there.
 HALVINGS = 3
@@ -48,6 +52,35 @@ def _near(x, rows, count, link, periodic):  # pragma: no cover (compiled)
         if angle_distance(x, rows[k], periodic) < link:
             return k
     return -1
+
+
+@njit(cache=CACHE, nogil=True)
+def _off_chords(x, points, piece, count, j, step, periodic):  # pragma: no cover (compiled)
+    """How far [rad] ``x`` lies from the chords of recorded point ``j`` to its neighbours.
+
+    Its neighbours: the points recorded just before and after it on its piece, within 1.5
+    steps of it (a trace's consecutive points; the first point of a trace's second way
+    follows its start's, not the last point's).
+    """
+    best = angle_distance(x, points[j], periodic)
+    for k in (j - 1, j + 1):
+        if k < 0 or k >= count or piece[k] != piece[j]:
+            continue
+        ee = dd = de = 0.0
+        for c in range(x.shape[0]):
+            e = points[k, c] - points[j, c]
+            d = x[c] - points[j, c]
+            if periodic[c]:
+                e -= TURN * np.rint(e * PER_TURN)
+                d -= TURN * np.rint(d * PER_TURN)
+            ee += e * e
+            dd += d * d
+            de += d * e
+        if ee == 0.0 or ee > (1.5 * step) ** 2:
+            continue
+        t = min(max(de / ee, 0.0), 1.0)
+        best = min(best, math.sqrt(max(dd - 2.0 * t * de + t * t * ee, 0.0)))
+    return best
 
 
 @njit(cache=CACHE, nogil=True)
@@ -275,10 +308,12 @@ def trace_atlas(frames, lower, upper, periodic, q, flips, pos, rot, step, max_st
                 twinned = True
     # a curve recorded twice (traced through a point where two curves nearly meet, near a
     # singularity, from one and from the other): its two records are one
-    same = SAME_POINT * step
+    same, on = SAME_POINT * step, ON_CHORDS * step
     for k in range(count):
         for j in range(k):
-            if piece[j] != piece[k] and angle_distance(points[k], points[j], periodic) < same:
+            if piece[j] != piece[k] and \
+                    angle_distance(points[k], points[j], periodic) < same and \
+                    _off_chords(points[k], points, piece, count, j, step, periodic) < on:
                 union(parent, piece[j], piece[k])
     for k in range(count):
         piece[k] = root(parent, piece[k])
@@ -295,9 +330,9 @@ def spread_points(points, piece, count, q, row_piece, periodic, spacing, per_pie
     """Points of the atlas far apart on each piece, for solutions the known ones are not.
 
     Of the first ``count`` recorded ``points`` (:func:`trace_atlas`), a piece no row of ``q``
-    lies on first gets its middle recorded point; then, in recorded order, a point is taken
-    when at least ``spacing`` [rad] from every row of its piece and every point taken on it,
-    up to ``per_piece`` per piece. Written to ``out`` (K, 7), their pieces to ``out_piece``.
+    lies on first gets its middle recorded point; then, of every piece in turn, the point
+    farthest from its rows and the points taken on it, while at least ``spacing`` [rad] from
+    them, up to ``per_piece`` per piece. Written to ``out`` (K, 7), their pieces to ``out_piece``.
 
     Returns:
         how many points were written (at most K).
@@ -325,27 +360,31 @@ def spread_points(points, piece, count, q, row_piece, periodic, spacing, per_pie
         out_piece[k] = f
         taken[f] += 1
         k += 1
+    # then the farthest point of a piece from its rows and the points taken, in turn: the
+    # points spread over the whole piece
+    near = np.full(count, np.inf)
     for j in range(count):
-        if k >= out.shape[0]:
-            break
-        f = piece[j]
-        if taken[f] >= per_piece:
-            continue
-        far = True
         for i in range(q.shape[0]):
-            if row_piece[i] == f and angle_distance(points[j], q[i], periodic) < spacing:
-                far = False
-                break
-        if far:
-            for e in range(k):
-                if out_piece[e] == f and angle_distance(points[j], out[e], periodic) < spacing:
-                    far = False
-                    break
-        if far:
-            out[k] = points[j]
-            out_piece[k] = f
-            taken[f] += 1
-            k += 1
+            if row_piece[i] == piece[j]:
+                near[j] = min(near[j], angle_distance(points[j], q[i], periodic))
+        for e in range(k):
+            if out_piece[e] == piece[j]:
+                near[j] = min(near[j], angle_distance(points[j], out[e], periodic))
+    while k < out.shape[0]:
+        best, far = -1, spacing
+        for j in range(count):
+            if near[j] >= far and taken[piece[j]] < per_piece:
+                best, far = j, near[j]
+        if best < 0:
+            break
+        f = piece[best]
+        out[k] = points[best]
+        out_piece[k] = f
+        taken[f] += 1
+        k += 1
+        for j in range(count):
+            if piece[j] == f:
+                near[j] = min(near[j], angle_distance(points[j], points[best], periodic))
     return k
 
 

@@ -31,18 +31,46 @@ from sik_ros.kernels.selfmotion import advance, correct
 from sik_ros.kernels.sets import root, roots, union
 
 
-@njit('boolean[::1](int64[::1], int64[::1])', cache=CACHE, nogil=True)
-def first_rows(families, order):  # pragma: no cover (compiled)
-    """(M,) bool: the first row of each family in ``order`` (rows without one, -1: True)."""
-    m = families.shape[0]
-    first = np.ones(m, dtype=np.bool_)
-    seen = np.zeros(m, dtype=np.bool_)  # family roots are rows
+@njit('int64[::1](float64[:, ::1], int64[::1], int64[::1], boolean[::1])', cache=CACHE,
+      nogil=True)
+def spread_rounds(q, families, order, periodic):  # pragma: no cover (compiled)
+    """(M,) int64: each row's round in its family, the rows of each spread over it.
+
+    Round 0: the first row of each family in ``order``; each later round of a family, the row
+    of it farthest from those of earlier rounds (of two as far, the one earlier in
+    ``order``). ``families`` (M,): 0 .. M - 1, -1 for none (round 0).
+    """
+    m = q.shape[0]
+    rounds = np.zeros(m, dtype=np.int64)
+    count = np.zeros(m, dtype=np.int64)  # rows given a round, per family
+    near = np.full(m, np.inf)  # to the rows of its family given a round
+    left = 0
     for i in order:
         f = families[i]
-        if 0 <= f < m:
-            first[i] = not seen[f]
-            seen[f] = True
-    return first
+        if f < 0:
+            near[i] = -1.0
+            continue
+        if count[f] > 0:
+            left += 1
+            continue
+        count[f] = 1
+        for j in range(m):
+            if families[j] == f:
+                near[j] = min(near[j], angle_distance(q[j], q[i], periodic))
+        near[i] = -1.0
+    for _ in range(left):
+        best, far = -1, -0.5
+        for i in order:
+            if near[i] > far:
+                best, far = i, near[i]
+        f = families[best]
+        rounds[best] = count[f]
+        count[f] += 1
+        for j in range(m):
+            if families[j] == f:
+                near[j] = min(near[j], angle_distance(q[j], q[best], periodic))
+        near[best] = -1.0
+    return rounds
 
 
 @njit('int64[::1](float64[:, ::1], float64, boolean[::1])', cache=CACHE, nogil=True)

@@ -16,7 +16,9 @@ taken modulo 2 pi:
   docs/design.md).
 
 The compiled tests are in :mod:`sik_ros.kernels.families`. Ranking takes the best of each
-family first (:func:`firsts`), then the others by rank.
+family first (:func:`rounds`); with the default ranking of a pose whose every family is
+known, then a second of each, the one farthest from its first, and so on: the answers spread
+over every family.
 """
 
 from typing import List, Sequence
@@ -25,7 +27,7 @@ import numpy as np
 
 from sik_ros.deadline import Deadline
 from sik_ros.kernels import as_arg
-from sik_ros.kernels.families import branch_labels, first_rows, segment_labels, trace_labels
+from sik_ros.kernels.families import branch_labels, segment_labels, spread_rounds, trace_labels
 from sik_ros.solver.batch import Candidates
 from sik_ros.solver.config import (FAMILY_LINK, FAMILY_REACH, FAMILY_SEGMENT_STEP,
                                    FAMILY_TRACE_STEP, FAMILY_TRACE_STEPS, SAME_BRANCH)
@@ -113,24 +115,23 @@ def roots(ctx: Context, c: Candidates, goal: Goal, deadline: Deadline,
     return out
 
 
-def firsts(families: np.ndarray, order: np.ndarray) -> np.ndarray:
-    """(M,) bool: the first row of each family in ``order`` (rows without one: True).
+def rounds(families: np.ndarray, order: np.ndarray, q: np.ndarray, periodic: np.ndarray,
+           spread: bool = True) -> np.ndarray:
+    """(M,) int64: each row's round in its family (0: its first in ``order``; none: 0).
 
-    ``families`` (M,): family roots, -1 for none; ``order``: the rows, best first.
+    With ``spread`` a family's later rounds take, one at a time, its row farthest from those
+    of the rounds before (:func:`~sik_ros.kernels.families.spread_rounds`); without, every
+    later row is round 1 (a family's first, then the rest in ``order``). ``families`` (M,):
+    family roots, -1 for none; ``order``: the rows, best first; ``q`` (M, n): the rows.
     """
     families = np.asarray(families, dtype=np.int64)
-    if not len(families) or families.max() < len(families):  # roots are rows: compiled
-        return first_rows(np.ascontiguousarray(families),
-                          np.ascontiguousarray(order, dtype=np.int64))
-    first = np.ones(len(families), dtype=bool)
-    seen = set()
-    for i in order:
-        f = int(families[i])
-        if f < 0:
-            continue
-        first[i] = f not in seen
-        seen.add(f)
-    return first
+    if not len(families):
+        return np.zeros(0, dtype=np.int64)
+    _, dense = np.unique(families, return_inverse=True)
+    dense = np.where(families >= 0, dense - (families.min() < 0), -1)
+    out = spread_rounds(as_arg(q), np.ascontiguousarray(dense, dtype=np.int64),
+                        np.ascontiguousarray(order, dtype=np.int64), as_arg(periodic, bool))
+    return out if spread else np.minimum(out, 1)
 
 
 def number(sols: Sequence[Solution], families: Sequence[int]) -> int:

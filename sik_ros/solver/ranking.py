@@ -20,7 +20,7 @@ from sik_ros.kinematics.periodic import posture_keys
 from sik_ros.solver.batch import Candidates
 from sik_ros.solver.config import INEXACT_COST, ORIENTATION_WEIGHT, SolverConfig
 from sik_ros.solver.context import Context, POSITION
-from sik_ros.solver.families import firsts, same_solution
+from sik_ros.solver.families import rounds, same_solution
 from sik_ros.solver.objectives import JointLimitMargin, Objective, SeedDistance
 from sik_ros.solver.results import COLLIDING, FREE_EXACT, FREE_INEXACT, Solution
 
@@ -134,12 +134,17 @@ def rank(ctx: Context, c: Candidates, q_seed: Optional[np.ndarray],
     fewer, the search's pieces of a 7-joint arm's self-motion) the best of each family ranks
     before every second solution whatever its tier: a family that touches the arm itself
     still comes before a second solution of a free one, in the colliding tier and reported
-    so.
+    so. There, with the default ranking (no seed, no objective), a family's later solutions
+    come in rounds too (:func:`sik_ros.solver.families.rounds`): a second of each family,
+    the one farthest from its first, before any third, and so on, so the answers spread over
+    every family rather than gather where the cost is least.
     """
     if len(c) == 0:
         return []
     clear = ctx.checker.clearance(c.q, obstacles, deadline)
     hit = (clear <= 0.0) | np.isnan(clear)
+    # the default ranking of a pose whose every family is known spreads a family's answers
+    spread = families_first and objective is None and q_seed is None
     if objective is None:
         objective = SeedDistance(q_seed) if q_seed is not None else JointLimitMargin(ctx.robot)
     cost = np.asarray(objective(c.q), dtype=float)
@@ -155,9 +160,11 @@ def rank(ctx: Context, c: Candidates, q_seed: Optional[np.ndarray],
     else:
         keys = None
 
-    repeat = np.zeros(len(c), dtype=bool)
+    periodic = ctx.robot.periodic
+    repeat = np.zeros(len(c), dtype=np.int64)  # each row's round in its family (or a second)
     if families is not None:
-        repeat = ~firsts(families, np.lexsort((within, equivalent, inexact, hit)))
+        repeat = rounds(families, np.lexsort((within, equivalent, inexact, hit)), c.q, periodic,
+                        spread)
 
     def order(colliding: np.ndarray) -> np.ndarray:
         tier = np.where(colliding, COLLIDING, np.where(inexact, FREE_INEXACT, FREE_EXACT))
@@ -169,7 +176,8 @@ def rank(ctx: Context, c: Candidates, q_seed: Optional[np.ndarray],
     selfc = self_collisions(ctx, c, order(hit), keys, limit, self_collision, deadline)
     colliding = hit | selfc
     if families is not None and selfc.any():  # a family's first: its best free one
-        repeat[:] = ~firsts(families, np.lexsort((within, equivalent, inexact, colliding)))
+        repeat[:] = rounds(families, np.lexsort((within, equivalent, inexact, colliding)),
+                           c.q, periodic, spread)
     tier = np.where(colliding, COLLIDING, np.where(inexact, FREE_INEXACT, FREE_EXACT))
     family = np.full(len(c), -1, dtype=np.int64) if families is None else families
     rows = order(colliding)[:limit]
