@@ -240,6 +240,7 @@ def trace_atlas(frames, lower, upper, periodic, q, flips, pos, rot, step, max_st
                         _near(inside, points, count, link, periodic) >= 0:
                     continue  # a curve already traced
             first_piece = -1
+            pending = False  # the start, recorded once a step from it holds
             closed = False
             length = 0
             for way in (1.0, -1.0):
@@ -252,9 +253,7 @@ def trace_atlas(frames, lower, upper, periodic, q, flips, pos, rot, step, max_st
                         first_piece = pieces
                         pieces += 1
                     cur = first_piece
-                    if way > 0:
-                        count = _record(inside, cur, q, periodic, link, points, piece, count,
-                                        row_piece, row_dist)
+                    pending = pending or way > 0
                 if way > 0:
                     path[0] = x
                     length = 1
@@ -284,6 +283,11 @@ def trace_atlas(frames, lower, upper, periodic, q, flips, pos, rot, step, max_st
                         continue
                     h = min(step, 2 * h)
                     placed = True
+                    if pending:  # a start no step leaves (by a singularity) is no piece
+                        turned_into(start, lower, upper, predicted)
+                        count = _record(predicted, first_piece, q, periodic, link, points,
+                                        piece, count, row_piece, row_dist)
+                        pending = False
                     if s >= 2 and angle_distance(x, start, turns) < link:
                         if cur >= 0 and first_piece >= 0:
                             union(parent, cur, first_piece)
