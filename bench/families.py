@@ -17,9 +17,12 @@
   solutions on no family of the reference count apart. Also: whether our ``family`` labels
   agree with the reference's (pairs of our solutions on one reference family labelled alike,
   and on two labelled apart), and whether the first answers come from as many families.
-- **An arm of six joints** (``--arm-bundle``): the pose's branches (exact solutions with every
-  angle wrapped to one turn, 0.1 rad apart) known from the union of ours and of ``--restarts``
-  TRAC-IK restarts per pose; the share ours return, and the poses where ours return all.
+- **Arms of six joints** (``--arm-bundle``, several comma-separated; ``--arm-poses`` per seed
+  of ``--arm-seeds``): the pose's branches (exact solutions with every angle wrapped to one
+  turn, 0.1 rad apart) known from the union of ours and of ``--restarts`` TRAC-IK restarts per
+  pose; the share ours return, and the poses where ours return all. A pose drawn within 2e-4
+  of a singularity (the Jacobian's least singular value) is counted apart: its exact
+  solutions form a continuum, on which solutions 0.1 rad apart are no branches.
 
 Every solution is checked by the solver's FK within the default tolerances (0.1 mm, 1 mrad).
 Prints the figures; ``--json`` writes them for ``bench/render.py``.
@@ -57,6 +60,10 @@ PATH_STEPS = 400
 SINGULAR_DRAWS = 2000
 #: Two solutions at one value of joint 7 closer than this are one [rad].
 SAME_SAMPLE = 0.01
+#: An arm of six joints: a pose whose drawn configuration's least singular value is below
+#: this has a continuum of exact solutions (0.5 rad along it move the tip less than the
+#: position tolerance), no isolated branches to count.
+CONTINUUM = 2e-4
 #: Branches of an arm of six joints: wrapped solutions closer than this are one [rad].
 SAME_BRANCH = 0.1
 
@@ -529,67 +536,92 @@ def branches(q: List[np.ndarray], periodic: np.ndarray) -> np.ndarray:
                          np.ones(len(periodic), dtype=bool))
 
 
-def arm(args) -> Dict:
-    """An arm of six joints: our branches against the union with TRAC-IK's restarts."""
-    ik = SelectiveIK.load(args.arm_bundle)
+def arm(args, bundle: str) -> Dict:
+    """An arm of six joints: our branches against the union with TRAC-IK's restarts.
+
+    ``--arm-poses`` poses for each seed of ``--arm-seeds``. A pose whose drawn configuration
+    has a Jacobian's least singular value below :data:`CONTINUUM` is set apart: there the
+    exact solutions (within the tolerances) form a continuum, and solutions 0.1 rad apart
+    along it are no branches of their own.
+    """
+    ik = SelectiveIK.load(bundle)
     if args.distinct is not None:
         ik.configure(distinct_threshold=args.distinct)
     robot = ik.robot
     ik.solve(*ik.fk((robot.lower + robot.upper) / 2), num_solutions=16)  # warm
     tracik = TracIK(robot)
-    rng = np.random.default_rng(args.seed + 1)
     rows = []
-    for t in range(args.arm_poses):
-        q0 = rng.uniform(robot.lower, robot.upper)
-        pos, quat = ik.fk(q0)
-        p, r = robot.fk_rot(q0[None])
-        p, r = p[0], r[0]
-        res = ik.solve(pos, quat, num_solutions=16)
-        ours = [s.q for s in res.solutions if exact(ik, s.q, p, r)]
-        theirs = []
-        for _ in range(args.restarts):
-            ok, q = tracik.solve(pos, quat, rng.uniform(robot.lower, robot.upper))
-            if ok and exact(ik, q, p, r):
-                theirs.append(q)
-        labels = branches(ours + theirs, robot.periodic)
-        known = len(set(labels.tolist()))
-        found = len(set(labels[:len(ours)].tolist()))
-        # the branches free of self-collision (the seed table's data holds no others)
-        every = ours + theirs
-        free = {int(b) for b in set(labels.tolist()) if not ik.context.checker.self_collision(
-            every[int(np.flatnonzero(labels == b)[0])][None])[0]}
-        free_found = len(free & set(labels[:len(ours)].tolist()))
-        # our labels: one family per branch
-        fam = [s.family for s in res.solutions if exact(ik, s.q, p, r)]
-        consistent = all((labels[i] == labels[j]) == (fam[i] == fam[j])
-                         for i in range(len(ours)) for j in range(i + 1, len(ours)))
-        k = found
-        first_k = len(set(labels[:min(k, len(ours))].tolist())) == k
-        rows.append({'known': known, 'ours': found, 'consistent': consistent,
-                     'known_free': len(free), 'ours_free': free_found,
-                     'first_k': first_k, 'num_families': res.num_families,
-                     'time_s': res.elapsed})
-        print(f'{robot.name} {t:3d}: known {known} branches, ours {found}; free of '
-              f'self-collision {len(free)}, ours {free_found}; '
-              f'num_families {res.num_families}, labels consistent {consistent}, '
-              f'{res.elapsed * 1e3:.1f} ms', flush=True)
-    known = sum(x['known'] for x in rows)
-    out = {'arm': robot.name, 'dof': robot.dof, 'poses': len(rows),
-           'restarts': args.restarts, 'known_mean': known / max(len(rows), 1),
-           'coverage': sum(x['ours'] for x in rows) / max(known, 1),
-           'all_branches': float(np.mean([x['ours'] == x['known'] for x in rows])),
-           'known_free_mean': sum(x['known_free'] for x in rows) / max(len(rows), 1),
-           'coverage_free': sum(x['ours_free'] for x in rows) / max(
-               sum(x['known_free'] for x in rows), 1),
+    for seed in [int(x) for x in args.arm_seeds.split(',')]:
+        rng = np.random.default_rng(seed + 1)
+        for t in range(args.arm_poses):
+            rows.append(dict(arm_pose(ik, tracik, rng, args.restarts), seed=seed))
+            x = rows[-1]
+            print(f'{robot.name} seed {seed} {t:3d}: known {x["known"]} branches, ours '
+                  f'{x["ours"]}; free of self-collision {x["known_free"]}, ours '
+                  f'{x["ours_free"]}; num_families {x["num_families"]}, labels consistent '
+                  f'{x["consistent"]}, least singular value {x["sigma_min"]:.1e}'
+                  f'{" (a continuum)" if x["continuum"] else ""}, {x["time_s"] * 1e3:.1f} ms',
+                  flush=True)
+    isolated = [x for x in rows if not x['continuum']]
+    cont = [x for x in rows if x['continuum']]
+    known = sum(x['known'] for x in isolated)
+    out = {'arm': robot.name, 'dof': robot.dof, 'poses': len(isolated),
+           'seeds': args.arm_seeds, 'restarts': args.restarts,
+           'known_mean': known / max(len(isolated), 1),
+           'coverage': sum(x['ours'] for x in isolated) / max(known, 1),
+           'all_branches': float(np.mean([x['ours'] == x['known'] for x in isolated])),
+           'poses_all': int(sum(x['ours'] == x['known'] for x in isolated)),
+           'per_seed': {s: int(sum(x['ours'] == x['known'] for x in isolated
+                                   if x['seed'] == int(s)))
+                        for s in args.arm_seeds.split(',')},
+           'known_free_mean': sum(x['known_free'] for x in isolated) / max(len(isolated), 1),
+           'coverage_free': sum(x['ours_free'] for x in isolated) / max(
+               sum(x['known_free'] for x in isolated), 1),
            'all_free_branches': float(np.mean([x['ours_free'] == x['known_free']
-                                               for x in rows])),
+                                               for x in isolated])),
            'distinct_threshold': ik.config.distinct_threshold,
-           'labels_consistent': float(np.mean([x['consistent'] for x in rows])),
-           'first_k': float(np.mean([x['first_k'] for x in rows])),
-           'time_median_ms': float(np.median([x['time_s'] for x in rows]) * 1e3)}
+           'labels_consistent': float(np.mean([x['consistent'] for x in isolated])),
+           'first_k': float(np.mean([x['first_k'] for x in isolated])),
+           'time_median_ms': float(np.median([x['time_s'] for x in isolated]) * 1e3),
+           'continuum_poses': len(cont),
+           'continuum': [{k: x[k] for k in ('seed', 'known', 'ours', 'sigma_min')}
+                         for x in cont]}
     print(f'{robot.name}: ' + ', '.join(f'{k} {v:.3g}' if isinstance(v, float) else f'{k} {v}'
                                         for k, v in out.items()))
     return out
+
+
+def arm_pose(ik: SelectiveIK, tracik, rng, restarts: int) -> Dict:
+    """One pose of an arm of six joints drawn with ``rng``: ours against the known branches."""
+    robot = ik.robot
+    q0 = rng.uniform(robot.lower, robot.upper)
+    pos, quat = ik.fk(q0)
+    p, r = robot.fk_rot(q0[None])
+    p, r = p[0], r[0]
+    res = ik.solve(pos, quat, num_solutions=16)
+    ours = [s.q for s in res.solutions if exact(ik, s.q, p, r)]
+    theirs = []
+    for _ in range(restarts):
+        ok, q = tracik.solve(pos, quat, rng.uniform(robot.lower, robot.upper))
+        if ok and exact(ik, q, p, r):
+            theirs.append(q)
+    labels = branches(ours + theirs, robot.periodic)
+    # the branches free of self-collision (the seed table's data holds no others)
+    every = ours + theirs
+    free = {int(b) for b in set(labels.tolist()) if not ik.context.checker.self_collision(
+        every[int(np.flatnonzero(labels == b)[0])][None])[0]}
+    found = len(set(labels[:len(ours)].tolist()))
+    # our labels: one family per branch
+    fam = [s.family for s in res.solutions if exact(ik, s.q, p, r)]
+    consistent = all((labels[i] == labels[j]) == (fam[i] == fam[j])
+                     for i in range(len(ours)) for j in range(i + 1, len(ours)))
+    _, _, jac = robot.jacobian_batch(q0[None])
+    sigma = float(np.linalg.svd(jac[0], compute_uv=False)[-1])
+    return {'known': len(set(labels.tolist())), 'ours': found, 'consistent': consistent,
+            'known_free': len(free), 'ours_free': len(free & set(labels[:len(ours)].tolist())),
+            'first_k': len(set(labels[:min(found, len(ours))].tolist())) == found,
+            'num_families': res.num_families, 'time_s': res.elapsed, 'sigma_min': sigma,
+            'continuum': sigma < CONTINUUM}
 
 
 def main(argv=None) -> int:
@@ -607,8 +639,11 @@ def main(argv=None) -> int:
     parser.add_argument('--redundant-bundle', default='',
                         help='bundle of another 7-joint arm (no analytic reference)')
     parser.add_argument('--redundant-poses', type=int, default=60)
-    parser.add_argument('--arm-bundle', default='', help='bundle of an arm of six joints')
-    parser.add_argument('--arm-poses', type=int, default=60)
+    parser.add_argument('--arm-bundle', default='',
+                        help='bundles of arms of six joints, comma-separated')
+    parser.add_argument('--arm-poses', type=int, default=20, help='per seed of --arm-seeds')
+    parser.add_argument('--arm-seeds', default='0,1,2',
+                        help='the six-joint arms\' sets of poses, one per seed')
     parser.add_argument('--restarts', type=int, default=300,
                         help='TRAC-IK restarts per pose of the six-joint arm')
     parser.add_argument('--distinct', type=float, default=None,
@@ -617,7 +652,7 @@ def main(argv=None) -> int:
                         help='the Panda\'s sets of poses, one per seed')
     parser.add_argument('--near-singular', type=int, default=8,
                         help='of each set\'s poses, those drawn near a singularity')
-    parser.add_argument('--seed', type=int, default=0, help='the six-joint arm\'s poses')
+    parser.add_argument('--seed', type=int, default=0, help='the other 7-joint arm\'s poses')
     add_json_argument(parser)
     args = parser.parse_args(argv)
     results = {'seed': args.seed, 'seeds': args.seeds}
@@ -626,7 +661,7 @@ def main(argv=None) -> int:
     if args.redundant_bundle and args.redundant_poses > 0:
         results['redundant'] = redundant(args)
     if args.arm_bundle and args.arm_poses > 0:
-        results['arm'] = arm(args)
+        results['arms'] = [arm(args, b) for b in args.arm_bundle.split(',')]
     write_json(args.json, 'families', results)
     return 0
 

@@ -616,11 +616,14 @@ def render_families(data: dict) -> str:
                      f'**{pct(ns["default"]["coverage"])}**',
                      f'{pct(ns["default"]["all_families"], 0)} '
                      f'({ns["default"]["poses_all"]})', NA, labels(ns['default']), NA])
-    a = r.get('arm')
-    if a:
+    arms = r.get('arms') or ([r['arm']] if r.get('arm') else [])
+    for a in arms:
+        seeds = f', seeds {a["seeds"]}' if 'seeds' in a else ''
         rows.append([f'{a["arm"]} ({a["dof"]})', f'ours ∪ {a["restarts"]} TRAC-IK restarts, '
-                     f'{a["poses"]} poses', num(a['known_mean'], 2),
-                     f'**{pct(a["coverage"])}**', pct(a['all_branches'], 0), NA,
+                     f'{a["poses"]} poses{seeds}', num(a['known_mean'], 2),
+                     f'**{pct(a["coverage"])}**',
+                     f'{pct(a["all_branches"], 0)}'
+                     + (f' ({a["poses_all"]})' if 'poses_all' in a else ''), NA,
                      f'{pct(a["labels_consistent"], 0)} of poses',
                      f'{num(a["time_median_ms"])} ms'])
         rows.append([f'{a["arm"]}, free of self-collision', 'the same',
@@ -628,19 +631,29 @@ def render_families(data: dict) -> str:
                      f'**{pct(a["coverage_free"])}**', pct(a['all_free_branches'], 0), NA, NA,
                      NA])
     note = ''
+    for a in arms:
+        if 'per_seed' not in a:
+            continue
+        per = ', '.join(f'{v} (seed {k})' for k, v in a['per_seed'].items())
+        note += (f'\n\n{a["arm"]}: every branch on {per} of the poses counted.')
+        for c in a['continuum']:
+            note += (f' Set apart, a pose of seed {c["seed"]} drawn {c["sigma_min"]:.1e} from a '
+                     f'singularity (the least singular value), where the exact solutions form '
+                     f'a continuum: ours {c["ours"]} and TRAC-IK\'s restarts {c["known"]} '
+                     f'points on it 0.1 rad apart.')
     if p:
         per_seed = '; '.join(
             f'seed {k}: {pct(v["default"]["coverage"])}, every family on '
             f'{v["default"]["poses_all"]}/{v["default"]["poses_with_reference"]} '
             f'(off: {pct(v["off"]["coverage"])}, {v["off"]["poses_all"]})'
             for k, v in p['seeds'].items())
-        note = (f'\n\nPanda per seed (default, with `family_search` off in brackets): '
-                f'{per_seed}. {p["near_singular_poses"]} poses of each seed are near a '
-                f'singularity (the least singular values of 2,000 uniform draws). '
-                f'{num(d["beyond_mean"], 2)} of our 16 solutions per pose lie on no family of '
-                f'the reference; the first answers came from as many reference families as '
-                f'the answer covers on {pct(d["first_k"], 0)} of the poses; the reference took '
-                f'{num(d["sweep_median_ms"] / 1e3, 1)} s per pose.')
+        note += (f'\n\nPanda per seed (default, with `family_search` off in brackets): '
+                 f'{per_seed}. {p["near_singular_poses"]} poses of each seed are near a '
+                 f'singularity (the least singular values of 2,000 uniform draws). '
+                 f'{num(d["beyond_mean"], 2)} of our 16 solutions per pose lie on no family of '
+                 f'the reference; the first answers came from as many reference families as '
+                 f'the answer covers on {pct(d["first_k"], 0)} of the poses; the reference took '
+                 f'{num(d["sweep_median_ms"] / 1e3, 1)} s per pose.')
     x = r.get('redundant')
     if x:
         d, o = x['default'], x['off']

@@ -39,7 +39,7 @@ run moveit_ik bench/moveit_ik.py --requests 2000
 # OLD: a revision to compare the node's round trip with (e.g. OLD=013d4cc, 0.4.0)
 [[ -n "${OLD:-}" ]] && run service_ab bench/service_ab.py "old=@$OLD" new=. --requests 300
 run arms bench/arms.py --arms panda,ur5 --targets 50 --max-attempts 100
-run families bench/families.py --panda-poses 40 --family-search --arm-bundle bundles_bench/ur5 --arm-poses 60
+run families bench/families.py --panda-poses 40 --near-singular 8 --seeds 20,21,22 --arm-bundle bundles_bench/ur5 --arm-poses 20 --arm-seeds 20,21,22
 run solve_ab-panda-pose bench/solve_ab.py a=. b=. --goal pose --targets 100
 run solve_ab-panda-analytic bench/solve_ab.py ours=. frankik=frankik tracik=tracik --goal pose \
   --num 1 --targets 200
