@@ -124,11 +124,13 @@ def rounds(families: np.ndarray, order: np.ndarray, q: np.ndarray, periodic: np.
     later row is round 1 (a family's first, then the rest in ``order``). ``families`` (M,):
     family roots, -1 for none; ``order``: the rows, best first; ``q`` (M, n): the rows.
     """
-    families = np.asarray(families, dtype=np.int64)
+    families = np.ascontiguousarray(families, dtype=np.int64)
     if not len(families):
         return np.zeros(0, dtype=np.int64)
-    _, dense = np.unique(families, return_inverse=True)
-    dense = np.where(families >= 0, dense - (families.min() < 0), -1)
+    dense = families
+    if families.max() >= len(families):  # roots are rows, as a rule; else numbered afresh
+        _, dense = np.unique(families, return_inverse=True)
+        dense = np.where(families >= 0, dense - (families.min() < 0), -1)
     out = spread_rounds(as_arg(q), np.ascontiguousarray(dense, dtype=np.int64),
                         np.ascontiguousarray(order, dtype=np.int64), as_arg(periodic, bool))
     return out if spread else np.minimum(out, 1)
