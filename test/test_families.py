@@ -7,6 +7,7 @@ from sik_ros.deadline import NO_DEADLINE
 from sik_ros.defaults import SEARCH_SEED_TABLE_ROWS
 from sik_ros.errors import InvalidArgument
 from sik_ros.kernels.angles import TURN
+from sik_ros.kernels.atlas import _off_chords, spread_points
 from sik_ros.kernels.families import branch_labels
 from sik_ros.kinematics.rotations import quaternion_matrix
 from sik_ros.solver import families, SelectiveIK, SolverConfig
@@ -401,3 +402,60 @@ def test_the_search_starts_from_the_seed_table_too(bundled):
     for q in q_seeded:
         tip = bundled.robot.pin_placement(q)
         assert np.linalg.norm(tip.translation - pos) <= bundled.config.position_tolerance
+
+
+def test_spread_points_take_each_pieces_farthest_points():
+    """Each point a piece gets is its farthest from its rows and the points taken before.
+
+    While at least the spacing from them, up to four per piece (a piece no row lies on gets
+    its middle recorded point first); checked by brute force.
+    """
+    rng = np.random.default_rng(4)
+    periodic = np.zeros(7, dtype=bool)
+    for _ in range(20):
+        count = int(rng.integers(5, 60))
+        points = np.cumsum(rng.normal(0, 0.2, (count, 7)), axis=0)
+        piece = np.sort(rng.integers(0, 3, count))
+        rows = points[rng.choice(count, 2, replace=False)] + rng.normal(0, 0.01, (2, 7))
+        row_piece = np.array([piece[np.argmin(np.linalg.norm(points - r, axis=1))]
+                              for r in rows], dtype=np.int64)
+        out, out_piece = np.empty((64, 7)), np.empty(64, dtype=np.int64)
+        k = spread_points(points, piece, count, rows, row_piece, periodic, 0.5, 4, out,
+                          out_piece)
+        for f in set(piece.tolist()):
+            mine = points[piece == f]
+            given = [r for r, p in zip(rows, row_piece) if p == f]
+            taken = [out[e] for e in range(k) if out_piece[e] == f]
+            total = len(taken)
+            if not given:  # a piece no row lies on: its middle recorded point first
+                given, taken = taken[:1], taken[1:]
+            for x in taken:
+                far = [min(np.linalg.norm(y - g) for g in given) for y in mine]
+                assert min(np.linalg.norm(x - g) for g in given) == pytest.approx(max(far))
+                assert max(far) >= 0.5
+                given.append(x)
+            far = [min(np.linalg.norm(y - g) for g in given) for y in mine]
+            assert total == 4 or max(far) < 0.5
+
+
+def test_a_point_on_a_records_chords_is_on_its_curve():
+    """The distance to a recorded point's chords: 0 on them, the offset beside them.
+
+    Chords only to the neighbours of its piece within 1.5 steps (not to another piece's point,
+    nor across a gap a trace's second way leaves).
+    """
+    periodic = np.zeros(7, dtype=bool)
+    points = np.zeros((4, 7))
+    points[:, 0] = [0.0, 0.25, 0.5, 2.0]
+    piece = np.array([0, 0, 0, 0])
+    x = np.zeros(7)
+    x[0] = 0.375
+    assert _off_chords(x, points, piece, 4, 1, 0.25, periodic) == pytest.approx(0.0)
+    x[1] = 0.03
+    assert _off_chords(x, points, piece, 4, 1, 0.25, periodic) == pytest.approx(0.03)
+    x[:] = 0.0
+    x[0] = 1.25  # on the segment to the point 1.5 rad on: no chord, the distance to the point
+    assert _off_chords(x, points, piece, 4, 2, 0.25, periodic) == pytest.approx(0.75)
+    piece[2] = 1  # another piece's point: no chord to it
+    x[0] = 0.375
+    assert _off_chords(x, points, piece, 4, 1, 0.25, periodic) == pytest.approx(0.125)
