@@ -389,7 +389,7 @@ def test_the_search_starts_from_the_seed_table_too(bundled):
     assert len(ctx.models['pose'].seeds) == SEARCH_SEED_TABLE_ROWS
     with pytest.raises(InvalidArgument, match='family_seed_starts'):
         SolverConfig(family_seed_starts=-1)
-    pos, quat = bundled.fk(np.array([0.853, 1.326, -1.784, -0.451, 0.541, 0.846, 1.188]))
+    pos, quat = bundled.fk(np.array([-0.258, 1.293, -0.15, -0.431, 0.657, 3.02, -0.638]))
     seeded = bundled.solve(pos, quat, num_solutions=16)
     without = bundled.with_config(family_seed_starts=0).solve(pos, quat, num_solutions=16)
     assert seeded.num_families >= without.num_families + 2

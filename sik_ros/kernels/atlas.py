@@ -30,6 +30,9 @@ CHECK_DRIFT = 0.15
 #: farther, the step crossed from one curve to another passing near it (near a singularity,
 #: where the corrector lands on either) and is halved.
 MIDPOINT = 0.25
+#: A trace closes where it comes back within a link of its start only after this many links
+#: along the curve: by a singularity its first steps are short (halved) and stay that near.
+CLOSE = 2.0
 #: Recorded points closer than this share of the step may be one curve traced twice...
 SAME_POINT = 0.6
 #: ... and are, when one lies this close (a share of the step) to the other's chords: a
@@ -193,7 +196,7 @@ def trace_atlas(frames, lower, upper, periodic, q, flips, pos, rot, step, max_st
     :data:`HALVINGS` times where the corrector fails or moves the point more than
     :data:`DRIFT` steps, near a singularity or another curve, or where the step crossed to
     another curve passing near, :func:`_jumped`; outside the limits shortened to how far
-    outside it is, :data:`NEAR_LIMITS`) until it closes on its start
+    outside it is, :data:`NEAR_LIMITS`) until it closes on its start (after :data:`CLOSE` links)
     (every angle modulo a turn), fails or has taken ``max_steps``. Every point, its angles
     turned by whole turns into the limits where they fit, is recorded in ``points`` (P, 7)
     with its piece in ``piece`` (P,): consecutive points within the limits are one piece,
@@ -259,6 +262,7 @@ def trace_atlas(frames, lower, upper, periodic, q, flips, pos, rot, step, max_st
                     length = 1
                 h = step
                 placed = False
+                travelled = 0.0  # along the curve this way [rad]
                 for s in range(max_steps):
                     if (timed and monotonic() > deadline) or count >= full:
                         break
@@ -281,6 +285,7 @@ def trace_atlas(frames, lower, upper, periodic, q, flips, pos, rot, step, max_st
                         x[:] = prev  # near a singularity: the step halved, the same heading
                         h /= 2
                         continue
+                    travelled += h
                     h = min(step, 2 * h)
                     placed = True
                     if pending:  # a start no step leaves (by a singularity) is no piece
@@ -288,7 +293,7 @@ def trace_atlas(frames, lower, upper, periodic, q, flips, pos, rot, step, max_st
                         count = _record(predicted, first_piece, q, periodic, link, points,
                                         piece, count, row_piece, row_dist)
                         pending = False
-                    if s >= 2 and angle_distance(x, start, turns) < link:
+                    if travelled > CLOSE * link and angle_distance(x, start, turns) < link:
                         if cur >= 0 and first_piece >= 0:
                             union(parent, cur, first_piece)
                         closed = True
