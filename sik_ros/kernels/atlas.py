@@ -251,10 +251,9 @@ def trace_atlas(frames, lower, upper, periodic, q, flips, pos, rot, step, max_st
                     break
                 x[:] = start
                 cur = -1
+                home = False  # on the start's piece (numbered at its first record)
                 if turned_into(x, lower, upper, inside):
-                    if first_piece < 0:
-                        first_piece = pieces
-                        pieces += 1
+                    home = True
                     cur = first_piece
                     pending = pending or way > 0
                 if way > 0:
@@ -289,6 +288,11 @@ def trace_atlas(frames, lower, upper, periodic, q, flips, pos, rot, step, max_st
                     h = min(step, 2 * h)
                     placed = True
                     if pending:  # a start no step leaves (by a singularity) is no piece
+                        if first_piece < 0:
+                            first_piece = pieces
+                            pieces += 1
+                        if home:
+                            cur = first_piece
                         turned_into(start, lower, upper, predicted)
                         count = _record(predicted, first_piece, q, periodic, link, points,
                                         piece, count, row_piece, row_dist)
@@ -305,10 +309,13 @@ def trace_atlas(frames, lower, upper, periodic, q, flips, pos, rot, step, max_st
                         if cur < 0:
                             cur = pieces
                             pieces += 1
+                            if home:
+                                first_piece = cur
                         count = _record(inside, cur, q, periodic, link, points, piece, count,
                                         row_piece, row_dist)
                     else:
                         cur = -1
+                        home = False
                         h = min(h, max(_outside_by(x, lower, upper), NEAR_LIMITS * step))
             if f < 0 and closed and flips.shape[0] > 0:
                 count, pieces = _twins(path, length, flips, lower, upper, periodic, link, q,

@@ -106,6 +106,11 @@ def equivalents(keys: np.ndarray, cost: np.ndarray) -> np.ndarray:
     return out
 
 
+#: Times the ranking orders its candidates again after self-collisions moved a family's first
+#: (and so its rounds), checking the rows brought forward.
+RECHECKS = 3
+
+
 def rank(ctx: Context, c: Candidates, q_seed: Optional[np.ndarray],
          obstacles: Sequence[Obstacle], objective: Optional[Objective],
          limit: Optional[int] = None, deadline: Deadline = NO_DEADLINE,
@@ -135,9 +140,11 @@ def rank(ctx: Context, c: Candidates, q_seed: Optional[np.ndarray],
     before every second solution whatever its tier: a family that touches the arm itself
     still comes before a second solution of a free one, in the colliding tier and reported
     so. There, with the default ranking (no seed, no objective), a family's later solutions
-    come in rounds too (:func:`sik_ros.solver.families.rounds`): a second of each family,
-    the one farthest from its first, before any third, and so on, so the answers spread over
-    every family rather than gather where the cost is least.
+    come in rounds within their tier (:func:`sik_ros.solver.families.rounds`): a second of
+    each family, the one farthest from its first, before any third, and so on, so the answers
+    spread over every family rather than gather where the cost is least. Where self-collisions
+    move a family's first (and so its rounds), the rows the new order brings forward are
+    checked too (:data:`RECHECKS` times at most).
     """
     if len(c) == 0:
         return []
@@ -168,16 +175,27 @@ def rank(ctx: Context, c: Candidates, q_seed: Optional[np.ndarray],
 
     def order(colliding: np.ndarray) -> np.ndarray:
         tier = np.where(colliding, COLLIDING, np.where(inexact, FREE_INEXACT, FREE_EXACT))
-        if families_first:
-            return np.lexsort((within, equivalent, tier, repeat, inexact))
+        if families_first:  # every family's first, then the others by tier, then by round
+            return np.lexsort((within, equivalent, repeat, tier, repeat > 0, inexact))
         return np.lexsort((within, equivalent, repeat, inexact, tier))
 
     limit = len(c) if limit is None else limit
-    selfc = self_collisions(ctx, c, order(hit), keys, limit, self_collision, deadline)
+    checked: dict = {}
+    selfc = self_collisions(ctx, c, order(hit), keys, limit, self_collision, deadline, checked)
     colliding = hit | selfc
-    if families is not None and selfc.any():  # a family's first: its best free one
+    for _ in range(RECHECKS):
+        if families is None or not selfc.any():
+            break
+        # a family's first is its best free one, and its rounds follow from it: the rows the
+        # new order brings forward are checked too
         repeat[:] = rounds(families, np.lexsort((within, equivalent, inexact, colliding)),
                            c.q, periodic, spread)
+        more = selfc | self_collisions(ctx, c, order(colliding), keys, limit, self_collision,
+                                       deadline, checked)
+        if (more == selfc).all():
+            break
+        selfc = more
+        colliding = hit | selfc
     tier = np.where(colliding, COLLIDING, np.where(inexact, FREE_INEXACT, FREE_EXACT))
     family = np.full(len(c), -1, dtype=np.int64) if families is None else families
     rows = order(colliding)[:limit]
@@ -192,16 +210,18 @@ def rank(ctx: Context, c: Candidates, q_seed: Optional[np.ndarray],
 
 
 def self_collisions(ctx: Context, c: Candidates, rows: np.ndarray, keys: Optional[np.ndarray],
-                    limit: int, known: Optional[np.ndarray], deadline: Deadline) -> np.ndarray:
+                    limit: int, known: Optional[np.ndarray], deadline: Deadline,
+                    checked: Optional[dict] = None) -> np.ndarray:
     """(M,) bool: self-collision of ``c``'s rows checked in the order ``rows`` (False: not).
 
     Checking stops once ``limit`` rows are free or past ``deadline``. 2 pi equivalents (equal
     ``keys``) place the arm alike: one check per posture. The checks go in batches of the
     rows still needed (each row frees at most one), one checker call per batch. ``known``:
-    the self-collision of each row when already checked.
+    the self-collision of each row when already checked; ``checked``: the postures an earlier
+    call checked (by key), added to.
     """
     selfc = np.zeros(len(c), dtype=bool)
-    checked = {}
+    checked = {} if checked is None else checked
     free = start = 0
     while start < len(rows) and free < limit and not deadline.expired():
         batch = rows[start:start + limit - free]
