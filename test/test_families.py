@@ -7,7 +7,8 @@ from sik_ros.deadline import NO_DEADLINE
 from sik_ros.defaults import SEARCH_SEED_TABLE_ROWS
 from sik_ros.errors import InvalidArgument
 from sik_ros.kernels.angles import TURN
-from sik_ros.kernels.atlas import _off_chords, spread_points
+from sik_ros.kernels.atlas import _off_chords
+from sik_ros.kernels.atlas_points import spread_points
 from sik_ros.kernels.families import branch_labels
 from sik_ros.kinematics.rotations import quaternion_matrix
 from sik_ros.solver import families, SelectiveIK, SolverConfig

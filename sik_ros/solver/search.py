@@ -26,7 +26,8 @@ import numpy as np
 from sik_ros.deadline import Deadline
 from sik_ros.kernels import as_arg
 from sik_ros.kernels.angles import turned_rows
-from sik_ros.kernels.atlas import atlas_pieces, spread_points, trace_atlas
+from sik_ros.kernels.atlas import trace_atlas
+from sik_ros.kernels.atlas_points import atlas_pieces, spread_points
 from sik_ros.kinematics.branches import robot_flips, singular_angles
 from sik_ros.kinematics.robot import Robot
 from sik_ros.solver.batch import Candidates
