@@ -136,8 +136,8 @@ def test_pose_answers_reported_free_are_free(ik):
     """Every pose answer outside the colliding tier is free of self-collision (checked anew).
 
     The spread rounds of a family follow its first, which a self-collision can move: the rows
-    the new order brings forward are checked too. Goals near the base, where some postures
-    touch the arm itself; rounds keep the tiers: no free solution after a colliding one.
+    the new order brings forward are checked too. Uniform goals, some of whose answers touch
+    the arm itself; rounds keep the tiers: no free solution after a colliding one.
     """
     checker = ik.context.checker
     rng = np.random.default_rng(6)

@@ -31,33 +31,43 @@ from sik_ros.kernels.selfmotion import advance, correct
 from sik_ros.kernels.sets import root, roots, union
 
 
-@njit('int64[::1](float64[:, ::1], int64[::1], int64[::1], boolean[::1])', cache=CACHE,
-      nogil=True)
-def spread_rounds(q, families, order, periodic):  # pragma: no cover (compiled)
+@njit('int64[::1](float64[:, ::1], int64[::1], int64[::1], boolean[::1], boolean)',
+      cache=CACHE, nogil=True)
+def spread_rounds(q, families, order, periodic, spread):  # pragma: no cover (compiled)
     """(M,) int64: each row's round in its family, the rows of each spread over it.
 
-    Round 0: the first row of each family in ``order``; each later round of a family, the row
-    of it farthest from those of earlier rounds (of two as far, the one earlier in
-    ``order``). ``families`` (M,): 0 .. M - 1, -1 for none (round 0).
+    Round 0: the first row of each family in ``order``; with ``spread``, each later round of
+    a family the row of it farthest from those of earlier rounds (of two as far, the one
+    earlier in ``order``); without, every later row round 1. ``families`` (M,): 0 .. M - 1,
+    -1 for none (round 0).
     """
     m = q.shape[0]
     rounds = np.zeros(m, dtype=np.int64)
     count = np.zeros(m, dtype=np.int64)  # rows given a round, per family
-    near = np.full(m, np.inf)  # to the rows of its family given a round
+    first = np.zeros(m, dtype=np.bool_)
     left = 0
     for i in order:
         f = families[i]
         if f < 0:
-            near[i] = -1.0
             continue
         if count[f] > 0:
+            rounds[i] = 1
             left += 1
+        else:
+            count[f] = 1
+            first[i] = True
+    if not spread or left == 0:
+        return rounds
+    near = np.full(m, -1.0)  # to the rows of its family given a round (-1: given one)
+    for i in range(m):
+        f = families[i]
+        if f < 0 or first[i]:
             continue
-        count[f] = 1
+        near[i] = np.inf
         for j in range(m):
-            if families[j] == f:
-                near[j] = min(near[j], angle_distance(q[j], q[i], periodic))
-        near[i] = -1.0
+            if first[j] and families[j] == f:
+                near[i] = angle_distance(q[i], q[j], periodic)
+                break
     for _ in range(left):
         best, far = -1, -0.5
         for i in order:
@@ -66,10 +76,10 @@ def spread_rounds(q, families, order, periodic):  # pragma: no cover (compiled)
         f = families[best]
         rounds[best] = count[f]
         count[f] += 1
-        for j in range(m):
-            if families[j] == f:
-                near[j] = min(near[j], angle_distance(q[j], q[best], periodic))
         near[best] = -1.0
+        for j in range(m):
+            if families[j] == f and near[j] >= 0.0:
+                near[j] = min(near[j], angle_distance(q[j], q[best], periodic))
     return rounds
 
 

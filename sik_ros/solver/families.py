@@ -131,9 +131,9 @@ def rounds(families: np.ndarray, order: np.ndarray, q: np.ndarray, periodic: np.
     if families.max() >= len(families):  # roots are rows, as a rule; else numbered afresh
         _, dense = np.unique(families, return_inverse=True)
         dense = np.where(families >= 0, dense - (families.min() < 0), -1)
-    out = spread_rounds(as_arg(q), np.ascontiguousarray(dense, dtype=np.int64),
-                        np.ascontiguousarray(order, dtype=np.int64), as_arg(periodic, bool))
-    return out if spread else np.minimum(out, 1)
+    return spread_rounds(as_arg(q), np.ascontiguousarray(dense, dtype=np.int64),
+                         np.ascontiguousarray(order, dtype=np.int64), as_arg(periodic, bool),
+                         bool(spread))
 
 
 def number(sols: Sequence[Solution], families: Sequence[int]) -> int:
