@@ -28,6 +28,7 @@ from visualization_msgs.msg import Marker, MarkerArray
 import harness
 from sik_interfaces.msg import IKSolution, IKSolutionArray
 from sik_interfaces.srv import SolveIK
+from sik_ros.kinematics.chain import chain_forward
 
 pytestmark = [pytest.mark.e2e, pytest.mark.timeout(120)]
 
@@ -248,6 +249,38 @@ def test_seed_matched_by_name(ros, panda):
     assert [list(s.joint_state.position) for s in a.solutions] == \
         [list(s.joint_state.position) for s in b.solutions]
     assert [s.score for s in a.solutions] == [s.score for s in b.solutions]
+
+
+def test_tier_order_holds_over_random_goals(ros, panda):
+    """60 random goals (pose and position, half with a box at the elbow): tier order, always.
+
+    Each answer's (tier, inexact, a family already in the answer) non-decreasing, and each
+    tier what the solution reports (colliding: self-collision or no clearance).
+    """
+    rng = np.random.default_rng(41)
+    mixed = 0
+    for k in range(60):
+        q = rng.uniform(panda.lower, panda.upper)
+        p, quat = panda.fk(q)
+        req = request(p, quat if k % 2 else None, max_solutions=16)
+        if k % 4 >= 2:
+            _, _, origins, _ = chain_forward(panda.chain, q[None], frames=True)
+            elbow = origins[0, origins.shape[1] // 2]
+            shape, pose = harness.box(tuple(elbow), (0.2, 0.2, 0.2))
+            req.obstacles, req.obstacle_poses = [shape], [pose]
+        answer = solve(ros, req)
+        assert answer.error_code in ANSWERED
+        seen, keys = set(), []
+        for s in answer.solutions:
+            colliding = s.self_collision or not s.min_obstacle_distance > 0
+            converged = s.position_error <= POS_TOL and (k % 2 == 0 or
+                                                         s.orientation_error <= ROT_TOL)
+            assert s.tier == (2 if colliding else 0 if converged else 1)
+            keys.append((s.tier, not converged, s.family in seen))
+            seen.add(s.family)
+        assert keys == sorted(keys), [key[0] for key in keys]
+        mixed += len({key[0] for key in keys}) > 1
+    assert mixed >= 3, 'the draws hold answers of several tiers'
 
 
 def test_obstacles_report_clearance(ros, panda):

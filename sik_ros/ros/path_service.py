@@ -26,8 +26,9 @@ def path_markers(chain, result: PathResult, header: Header) -> MarkerArray:
     """The best path's tool trace (namespace ``path``) and a few of its postures."""
     best = result.paths[0]
     rows = np.unique(np.linspace(0, len(best.q) - 1, DRAWN_POSTURES).round().astype(int))
-    sols = [Solution(best.q[i], float(best.position_errors[i]),
-                     float(best.orientation_errors[i]), np.zeros(0, dtype=np.float32))
+    sols = [Solution(q=best.q[i], position_error=float(best.position_errors[i]),
+                     orientation_error=float(best.orientation_errors[i]),
+                     posture_index=np.zeros(0, dtype=np.float32))
             for i in rows]
     markers = conv.posture_markers(chain, sols, header)
     tip, _ = chain_forward(chain, best.q)

@@ -61,9 +61,10 @@ def adjust_index(ctx: Context, goal: Goal, sols: Sequence[Solution],
             if clear[i] <= best:
                 break
             best, z = clear[i], trials[i]
-            found.append(Solution(r.q[i], float(r.perr[i]), float(r.oerr[i]),
-                                  trials[i].astype(np.float32), 0.0, float(clear[i]),
-                                  False, True))
+            found.append(Solution(q=r.q[i], position_error=float(r.perr[i]),
+                                  orientation_error=float(r.oerr[i]),
+                                  posture_index=trials[i].astype(np.float32),
+                                  min_obstacle_distance=float(clear[i]), converged=True))
             if best > 0:
                 break
         if found and found[-1].min_obstacle_distance > 0:

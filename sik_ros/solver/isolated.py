@@ -30,7 +30,7 @@ from sik_ros.solver.explore import unindexed
 from sik_ros.solver.families import number, same_solution
 from sik_ros.solver.ranking import assess
 from sik_ros.solver.refine import refine, Refined
-from sik_ros.solver.results import COLLIDING, FREE_EXACT, IKResult, PendingIndices, Solution
+from sik_ros.solver.results import IKResult, PendingIndices, Solution, tiers
 from sik_ros.tables.seed_table import SeedTable
 
 #: What :func:`every_branch` returns: the answer, or None and the refined starts as candidates
@@ -73,11 +73,13 @@ def every_branch(ctx: Context, goal: Goal, seeds: SeedTable, num: int,
         selfc[i] = ctx.checker.self_collision(r.q[row][None])[0]
         free += not selfc[i]
     unknown = np.full(ctx.models[goal.kind].table.indices.shape[1], np.nan, dtype=np.float32)
+    tier = tiers(selfc, np.zeros(len(keep), dtype=bool))  # every row here is exact
     # distinct exact rows of isolated solutions without periodic joints: each its own branch
-    sols = [Solution(r.q[keep[i]].copy(), float(r.perr[keep[i]]), float(r.oerr[keep[i]]),
-                     unknown.copy(), float(cost[i]), float('inf'), bool(selfc[i]), True,
-                     COLLIDING if selfc[i] else FREE_EXACT, int(keep[i]))
-            for i in np.argsort(selfc, kind='stable')[:num]]
+    sols = [Solution(q=r.q[keep[i]].copy(), position_error=float(r.perr[keep[i]]),
+                     orientation_error=float(r.oerr[keep[i]]), posture_index=unknown.copy(),
+                     score=float(cost[i]), self_collision=bool(selfc[i]), converged=True,
+                     tier=int(tier[i]), family=int(keep[i]))
+            for i in np.argsort(tier, kind='stable')[:num]]
     PendingIndices(sols, functools.partial(encode, ctx, goal))  # encoded when first read
     found = number(sols, keep)
     return IKResult(True, sols, goal.kind, r.cut_short, num_families=found), None, r.cut_short

@@ -183,7 +183,7 @@ def solve(ctx: Context, goal: Goal, num: int, q_seed: Optional[np.ndarray],
     c = distinct_postures(ctx, c, goal, q_seed, atlas)
     fam = family_roots(ctx, call, c, atlas)
     sols = rank(ctx, c, q_seed, obstacles, objective, limit=num, deadline=deadline,
-                families=fam, families_first=every_family(call, atlas))
+                families=fam, every_family=every_family(call, atlas))
     if own is not None:
         sols = seed_posture_first(ctx, goal, own, sols, q_seed, obstacles, num, deadline)
     sols, fam, cut = free_rounds(ctx, call, c, sols, fam, atlas)
@@ -316,7 +316,7 @@ def free_rounds(ctx: Context, call: Call, c: Candidates, sols: List[Solution],
         c = distinct_postures(ctx, more, goal, call.q_seed, atlas)
         fam = family_roots(ctx, call, c, atlas)
         sols = rank(ctx, c, call.q_seed, call.obstacles, call.objective, limit=call.num,
-                    deadline=deadline, families=fam, families_first=every_family(call, atlas))
+                    deadline=deadline, families=fam, every_family=every_family(call, atlas))
     return sols, fam, timed_out
 
 
@@ -342,7 +342,7 @@ def finish(ctx: Context, call: Call, sols: List[Solution], timed_out: bool,
                 c = from_solutions(sols)
                 fam = families.roots(ctx, c, goal, deadline)
                 sols = rank(ctx, c, call.q_seed, obstacles, call.objective, deadline=deadline,
-                            families=fam, families_first=call.isolated)
+                            families=fam, every_family=call.isolated)
             sols = sols[:call.num]
     if fam is None and call.num == 1:  # one solution: its own family, the one known
         fam = [0] if sols and sols[0].converged else []

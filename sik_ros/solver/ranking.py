@@ -2,10 +2,11 @@
 
 One score orders candidates everywhere (:func:`pose_score`: the position error plus the
 orientation error weighted by :data:`ORIENTATION_WEIGHT`). Ranking is lexicographic, whatever
-the scale of the objective: the tier first (:data:`FREE_EXACT`, :data:`FREE_INEXACT`,
-:data:`COLLIDING`), then, within a tier, exact before inexact, a posture before a second 2 pi
-equivalent of it, and the cost: the objective for exact solutions, the weighted goal error for
-inexact ones.
+the scale of the objective (:func:`ranked_order`): the tier first (free and exact, free and
+inexact, colliding; :func:`sik_ros.solver.results.tiers`), then, within a tier, exact before
+inexact, the families not yet ranked before further solutions of those that are, a posture
+before a second 2 pi equivalent of it, and the cost: the objective for exact solutions, the
+weighted goal error for inexact ones.
 """
 
 from typing import List, Optional, Sequence
@@ -22,7 +23,7 @@ from sik_ros.solver.config import INEXACT_COST, ORIENTATION_WEIGHT, SolverConfig
 from sik_ros.solver.context import Context, POSITION
 from sik_ros.solver.families import rounds, same_solution
 from sik_ros.solver.objectives import JointLimitMargin, Objective, SeedDistance
-from sik_ros.solver.results import COLLIDING, FREE_EXACT, FREE_INEXACT, Solution
+from sik_ros.solver.results import Solution, tiers
 
 
 def pose_score(perr: np.ndarray, oerr: np.ndarray) -> np.ndarray:
@@ -106,6 +107,17 @@ def equivalents(keys: np.ndarray, cost: np.ndarray) -> np.ndarray:
     return out
 
 
+def ranked_order(tier: np.ndarray, inexact: np.ndarray, repeat: np.ndarray,
+                 equivalent: np.ndarray, cost: np.ndarray) -> np.ndarray:
+    """The rows (M,) in ranking order: the one rule every ranked answer follows.
+
+    Lexicographic: ``tier`` (:func:`~sik_ros.solver.results.tiers`), exact before
+    ``inexact``, the ``repeat`` round within the row's family (0: the family's first; rows
+    without a family are 0), a posture before its 2 pi ``equivalent`` s, then ``cost``.
+    """
+    return np.lexsort((cost, equivalent, repeat, inexact, tier))
+
+
 #: Times the ranking orders its candidates again after self-collisions moved a family's first
 #: (and so its rounds), checking the rows brought forward.
 RECHECKS = 3
@@ -116,42 +128,42 @@ def rank(ctx: Context, c: Candidates, q_seed: Optional[np.ndarray],
          limit: Optional[int] = None, deadline: Deadline = NO_DEADLINE,
          self_collision: Optional[np.ndarray] = None,
          families: Optional[np.ndarray] = None,
-         families_first: bool = False) -> List[Solution]:
+         every_family: bool = False) -> List[Solution]:
     """Solutions ranked best first; with ``limit``, only the best ``limit`` of them.
 
-    The order is lexicographic: tier (free and exact, free and inexact, colliding or
-    self-colliding), then exact before inexact, then a posture before its further 2 pi
-    equivalents (periodic joints; the best of each by the objective ranks with the others),
-    then the cost within the tier, which each solution reports as its ``score``: the objective
-    for exact solutions, :func:`pose_score` times :data:`INEXACT_COST` for inexact ones. No
-    objective value, however large, lifts a solution across a tier. The default objective is
-    the distance to the seed when there is one, else the closeness to the joint limits.
-    Self-collision is checked lazily in ranking order, so checking stops once ``limit`` free
-    postures are found. Past ``deadline`` no more collision checks start: clearances not
-    computed are NaN and rank as colliding; self-collision not checked is reported False.
-    ``self_collision`` (M,) bool: the candidates' self-collision when already checked.
-    ``families`` (M,) int: the candidates' family roots (-1: none,
-    :func:`sik_ros.solver.families.roots`): within a tier the best of each family (by the
-    order above, colliding ones last) ranks before every second solution of a family, so the
-    first answers cover the families; each solution's ``family`` is its root (numbered later
-    by :func:`sik_ros.solver.families.number`). With ``families_first`` (every family of the
-    pose known, as an analytic solver gives them: the branches of an arm of six joints or
-    fewer, the search's pieces of a 7-joint arm's self-motion) the best of each family ranks
-    before every second solution whatever its tier: a family that touches the arm itself
-    still comes before a second solution of a free one, in the colliding tier and reported
-    so. There, with the default ranking (no seed, no objective), a family's later solutions
-    come in rounds within their tier (:func:`sik_ros.solver.families.rounds`): a second of
-    each family, the one farthest from its first, before any third, and so on, so the answers
-    spread over every family rather than gather where the cost is least. Where self-collisions
-    move a family's first (and so its rounds), the rows the new order brings forward are
-    checked too (:data:`RECHECKS` times at most).
+    The order is lexicographic (:func:`ranked_order`, the one place it is decided): tier (free
+    and exact, free and inexact, colliding or self-colliding), then exact before inexact, then,
+    with ``families``, a family's best before further solutions of families already ranked,
+    then a posture before its further 2 pi equivalents (periodic joints; the best of each by
+    the objective ranks with the others), then the cost within the tier, which each solution
+    reports as its ``score``: the objective for exact solutions, :func:`pose_score` times
+    :data:`INEXACT_COST` for inexact ones. Neither an objective value, however large, nor a
+    family lifts a solution across a tier. The default objective is the distance to the seed
+    when there is one, else the closeness to the joint limits. Self-collision is checked
+    lazily in ranking order, so checking stops once ``limit`` free postures are found. Past
+    ``deadline`` no more collision checks start: clearances not computed are NaN and rank as
+    colliding; self-collision not checked is reported False. ``self_collision`` (M,) bool: the
+    candidates' self-collision when already checked. ``families`` (M,) int: the candidates'
+    family roots (-1: none, :func:`sik_ros.solver.families.roots`); each solution's ``family``
+    is its root (numbered later by :func:`sik_ros.solver.families.number`). With
+    ``every_family`` (every family of the pose known, as an analytic solver gives them: the
+    branches of an arm of six joints or fewer, the search's pieces of a 7-joint arm's
+    self-motion) the answer holds every family's first, whatever its tier, before further
+    solutions (a family that touches the arm itself is in the answer, as an analytic solver's
+    would hold it, ranked after the free ones); with the default ranking (no seed, no
+    objective) a family's later solutions come in rounds within their tier
+    (:func:`sik_ros.solver.families.rounds`): a second of each family, the one farthest from
+    its first, before any third, and so on, so the answers spread over every family rather
+    than gather where the cost is least. A family's first is
+    its best row by tier, so self-collisions can move it (and its rounds): the rows the new
+    order brings forward are checked too (:data:`RECHECKS` times at most).
     """
     if len(c) == 0:
         return []
     clear = ctx.checker.clearance(c.q, obstacles, deadline)
     hit = (clear <= 0.0) | np.isnan(clear)
     # the default ranking of a pose whose every family is known spreads a family's answers
-    spread = families_first and objective is None and q_seed is None
+    spread = every_family and objective is None and q_seed is None
     if objective is None:
         objective = SeedDistance(q_seed) if q_seed is not None else JointLimitMargin(ctx.robot)
     cost = np.asarray(objective(c.q), dtype=float)
@@ -174,10 +186,10 @@ def rank(ctx: Context, c: Candidates, q_seed: Optional[np.ndarray],
                         spread)
 
     def order(colliding: np.ndarray) -> np.ndarray:
-        tier = np.where(colliding, COLLIDING, np.where(inexact, FREE_INEXACT, FREE_EXACT))
-        if families_first:  # every family's first, then the others by tier, then by round
+        tier = tiers(colliding, inexact)
+        if every_family:  # the rows chosen: every family's first, whatever its tier
             return np.lexsort((within, equivalent, repeat, tier, repeat > 0, inexact))
-        return np.lexsort((within, equivalent, repeat, inexact, tier))
+        return ranked_order(tier, inexact, repeat, equivalent, within)
 
     limit = len(c) if limit is None else limit
     checked: dict = {}
@@ -196,16 +208,22 @@ def rank(ctx: Context, c: Candidates, q_seed: Optional[np.ndarray],
             break
         selfc = more
         colliding = hit | selfc
-    tier = np.where(colliding, COLLIDING, np.where(inexact, FREE_INEXACT, FREE_EXACT))
+    tier = tiers(colliding, inexact)
     family = np.full(len(c), -1, dtype=np.int64) if families is None else families
     rows = order(colliding)[:limit]
+    if every_family:  # the rows chosen, in ranking order
+        place = np.empty(len(c), dtype=np.int64)
+        place[ranked_order(tier, inexact, repeat, equivalent, within)] = np.arange(len(c))
+        rows = rows[np.argsort(place[rows])]
     # the rows kept taken at once (each solution's arrays a row of its own), their fields as
     # Python values (not one NumPy scalar at a time)
     q, z = c.q[rows], c.z[rows].astype(np.float32)
     fields = zip(c.perr[rows].tolist(), c.oerr[rows].tolist(), within[rows].tolist(),
                  clear[rows].tolist(), selfc[rows].tolist(), c.exact[rows].tolist(),
                  tier[rows].tolist(), np.asarray(family)[rows].tolist())
-    return [Solution(qk, pe, oe, zk, score, cl, sc, ex, t, f)
+    return [Solution(q=qk, position_error=pe, orientation_error=oe, posture_index=zk,
+                     score=score, min_obstacle_distance=cl, self_collision=sc, converged=ex,
+                     tier=t, family=f)
             for qk, zk, (pe, oe, score, cl, sc, ex, t, f) in zip(q, z, fields)]
 
 

@@ -14,6 +14,11 @@ FREE_EXACT, FREE_INEXACT, COLLIDING = 0, 1, 2
 NO_FAMILY = 65535
 
 
+def tiers(colliding: np.ndarray, inexact: np.ndarray) -> np.ndarray:
+    """(M,) int64: each candidate's ranking tier from its collision and inexact flags (M,)."""
+    return np.where(colliding, COLLIDING, np.where(inexact, FREE_INEXACT, FREE_EXACT))
+
+
 def tier_label(tier: int, self_collision: bool = False) -> str:
     """A short name of a ranking tier for tables: free, inexact, obstacle or self-coll."""
     if tier == COLLIDING:
