@@ -69,7 +69,7 @@ class BuildConfig:
         time: total wall-clock budget [s]; training gets what the other stages leave.
         sampler: ``uniform`` or ``grid`` (the finest interval whose grid fits ``rows``).
         rows: uniform samples, or the grid's row budget.
-        preset: layer widths (:data:`sik_ros.learning.models.PRESETS`).
+        preset: layer widths (:data:`PRESETS`).
         device: ``cpu`` or ``cuda``.
         batch_size: samples per training step (:data:`BUILD_BATCH` by device).
         check_targets: targets per goal kind of the self-check.

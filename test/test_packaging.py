@@ -64,3 +64,12 @@ def test_interfaces_package_xml_is_valid():
     package = parse_package(str(REPO / 'sik_interfaces' / 'package.xml'))
     package.validate()
     assert package.get_build_type() == 'ament_cmake'
+
+
+def test_version_is_written_alike_everywhere():
+    """setup.py, package.xml, ``sik_ros.__version__`` and the newest CHANGELOG entry agree."""
+    import sik_ros
+    package = parse_package(str(REPO / 'package.xml'))
+    setup = re.search(r"version='([^']+)'", (REPO / 'setup.py').read_text()).group(1)
+    newest = re.search(r'^## ([0-9][^ \n]*)', (REPO / 'CHANGELOG.md').read_text(), re.M).group(1)
+    assert package.version == setup == sik_ros.__version__ == newest
