@@ -9,7 +9,12 @@ cache folder) and timed over ROS 2 from its start to:
   seconds and ``--learning-rows`` configurations) and judged against the table on the same
   targets: swapped in, or the table kept where the model answered worse;
 - on a restart with the same cache: ``restart exact`` (the first SUCCESS answer) and
-  ``restart learned`` (the node's log says it serves the learned bundle, from its start).
+  ``restart learned`` (the node's log says it serves the learned bundle, from its start);
+- first, on a cache of its own with ``learning`` off: ``table first exact`` (the table of
+  configurations built and cached) and ``table restart exact`` (a restart, the table loaded
+  from the cache; the node's log says whether it was loaded or built), then the table phase's
+  targets asked of the restarted node (``table_restart``). ``--table-only`` measures this
+  part alone.
 
 In each phase (the table of configurations, the learned model) the same targets (FK of random
 configurations, seeded) are asked over ROS, 16 solutions each, pose and position goals:
@@ -70,11 +75,11 @@ def arm_source(name: str):
     return erd_text(name), (robot.base_frame, robot.tip_frame), robot
 
 
-def start(args, env, text, frames, cache, log):
+def start(args, env, text, frames, cache, log, learning=True):
     """The node, with a parameter file of only the arm's parameters."""
     values = {'robot_description': text, 'base_frame': frames[0], 'tip_frame': frames[1],
               'cache_dir': str(cache), 'learning_time': args.learning_time,
-              'learning_rows': args.learning_rows}
+              'learning_rows': args.learning_rows, 'learning': learning}
     params = Path(cache).parent / f'params_{time.monotonic_ns()}.yaml'
     params.write_text(yaml.safe_dump({'/**': {'ros__parameters': values}}))
     return subprocess.Popen([sys.executable, '-m', 'sik_ros.ros.run', '--ros-args',
@@ -172,6 +177,29 @@ def log_seconds(log: Path, words: str, started_wall: float):
     return None
 
 
+def table_starts(args, name, env, folder, text, frames, robot, targets, row):
+    """First start and restart with learning off, on a cache of their own (see the module)."""
+    cache = folder / name / 'table_cache'
+    cache.mkdir(parents=True)
+    for key, tag in (('table_first_exact_s', 'table_start'),
+                     ('table_restart_exact_s', 'table_restart')):
+        if not rclpy.ok():
+            rclpy.init()
+        log = folder / name / f'{tag}.log'
+        with SolveIKClient() as client, open(log, 'wb') as out:
+            started = time.monotonic()
+            proc = start(args, env, text, frames, cache, out, learning=False)
+            try:
+                row[key] = first_exact(client, targets, started)
+                if tag == 'table_restart':
+                    row['table_restart'] = phase(client, robot, targets)
+            finally:
+                launch.stop_node(proc)
+        said = log.read_text(errors='replace')
+        row[f'{tag}_table'] = ('loaded' if 'table of configurations: loaded' in said else
+                               'built' if 'table of configurations:' in said else None)
+
+
 def bench_arm(args, name, env, folder):
     """One arm's figures (see the module)."""
     text, frames, robot = arm_source(name)
@@ -182,6 +210,9 @@ def bench_arm(args, name, env, folder):
     targets = [tuple(map(tuple, robot.fk(qi))) for qi in q]
     log = folder / name / 'node.log'
     row = {'arm': name, 'joints': robot.dof, 'frames': list(frames)}
+    table_starts(args, name, env, folder, text, frames, robot, targets, row)
+    if args.table_only:
+        return row
     with SolveIKClient() as client, open(log, 'wb') as out:
         started = time.monotonic()
         proc = start(args, env, text, frames, cache, out)
@@ -223,6 +254,8 @@ def main() -> None:
     parser.add_argument('--learning-time', type=float, default=120.0)
     parser.add_argument('--learning-rows', type=int, default=300_000)
     parser.add_argument('--seed', type=int, default=11)
+    parser.add_argument('--table-only', action='store_true',
+                        help='only the starts with learning off (the table cached, restarted)')
     add_json_argument(parser)
     args = parser.parse_args()
     env = dict(launch.ros_env(), ROS_PACKAGE_PATH=erd_share())
@@ -237,6 +270,15 @@ def main() -> None:
             rows.append(row)
             print(json.dumps(row), flush=True)
     rclpy.try_shutdown()
+    print('| arm | joints | table: first exact [s] | table: restart exact [s] (table) | '
+          'restart: pose success |')
+    for r in rows:
+        tr = (r.get('table_restart') or {}).get('pose', {})
+        print(f'| {r["arm"]} | {r["joints"]} | {r.get("table_first_exact_s") or float("nan"):.2f}'
+              f' | {r.get("table_restart_exact_s") or float("nan"):.2f} '
+              f'({r.get("table_restart_table")}) | {100 * tr.get("success", 0):.0f} % |')
+    if args.table_only:
+        rows = []  # the learning's table: none measured
     print('| arm | joints | first exact [s] | learned [s] | restart exact [s] | restart '
           'learned [s] | pose: success, distinct (p10), ms table / learned | p50 while '
           'training / paused [ms] |')
@@ -255,7 +297,7 @@ def main() -> None:
               f'{c.get("paused_p50_ms", float("nan")):.2f} |')
     write_json(args.json, 'first_answer', {'arms': rows, 'settings': {
         'learning_time_s': args.learning_time, 'learning_rows': args.learning_rows,
-        'targets': args.targets, 'seed': args.seed}})
+        'targets': args.targets, 'seed': args.seed, 'table_only': args.table_only}})
 
 
 if __name__ == '__main__':

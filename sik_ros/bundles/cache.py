@@ -10,12 +10,16 @@ unset), ``<key>`` the hash of what defines its chain
 - ``bundle/``: a ``sik-build`` bundle with ``checksums.json`` (every file's SHA-256, written
   last): an entry without it is unfinished, one whose files disagree with it is damaged;
 - ``build/``: the build's work folder (dataset, checkpoints), resumable, removed once done;
+- ``table/``: the table of configurations that answers before the bundle, as built at the
+  first start (:mod:`~sik_ros.bundles.table_cache`), with its ``checksums.json``: a restart
+  loads it instead of sweeping again;
 - ``lock``: held (``flock``) by the one process building the entry; another one serves the
   table of configurations and waits for the bundle.
 
 A damaged bundle is renamed ``bundle.damaged-<time>`` (kept for a look, never loaded) and built
-again. :func:`write_checksums` is what ``sik-build`` calls on every bundle it finishes, so a
-bundle built elsewhere can be copied into an entry (``sik-build`` prints the key).
+again (a damaged table alike: ``table.damaged-<time>``). :func:`write_checksums` is what
+``sik-build`` calls on every bundle it finishes, so a bundle built elsewhere can be copied into
+an entry (``sik-build`` prints the key).
 """
 
 import contextlib
@@ -51,23 +55,25 @@ def write_checksums(bundle: Path) -> Path:
     return bundle / CHECKSUMS
 
 
-def verify_checksums(bundle: Path) -> None:
-    """Check a bundle folder against its ``checksums.json``.
+def verify_checksums(bundle: Path, manifest: str = 'bundle.json', what: str = 'bundle') -> None:
+    """Check a bundle folder (or another folder of ``what``) against its ``checksums.json``.
+
+    ``manifest``: the file the record must list (the folder's own manifest).
 
     Raises:
         CorruptArtifact: no checksum file (unfinished), a missing file, or one that changed.
     """
     bundle = Path(bundle)
-    record = read_json(bundle / CHECKSUMS, f'bundle {bundle} (unfinished: no {CHECKSUMS})')
+    record = read_json(bundle / CHECKSUMS, f'{what} {bundle} (unfinished: no {CHECKSUMS})')
     files = record.get('files') if isinstance(record, dict) else None
-    if not isinstance(files, dict) or 'bundle.json' not in files:
-        raise CorruptArtifact(f'bundle {bundle}: {CHECKSUMS} lists no bundle.json')
+    if not isinstance(files, dict) or manifest not in files:
+        raise CorruptArtifact(f'{what} {bundle}: {CHECKSUMS} lists no {manifest}')
     for name, digest in files.items():
         path = bundle / name
-        if not path.is_file():
-            raise CorruptArtifact(f'bundle {bundle}: {name} is missing')
+        if not isinstance(name, str) or '..' in Path(name).parts or not path.is_file():
+            raise CorruptArtifact(f'{what} {bundle}: {name} is missing')
         if file_sha256(path) != digest:
-            raise CorruptArtifact(f'bundle {bundle}: {name} changed since it was written '
+            raise CorruptArtifact(f'{what} {bundle}: {name} changed since it was written '
                                   f'(its checksum differs)')
 
 
@@ -100,10 +106,15 @@ class ArmEntry:
             return None
         return self.bundle
 
-    def set_aside(self, reason: str) -> Path:
-        """Rename a damaged bundle out of the way (never loaded again), its reason beside it."""
-        aside = self.path / f'bundle.damaged-{time.strftime("%Y%m%dT%H%M%S")}-{os.getpid()}'
-        os.replace(self.bundle, aside)
+    def set_aside(self, reason: str, folder: Optional[Path] = None) -> Path:
+        """Rename a damaged bundle (or ``folder``) out of the way, its reason beside it.
+
+        It is never loaded again: ``<name>.damaged-<time>-<pid>`` and ``...reason.txt``.
+        """
+        folder = self.bundle if folder is None else Path(folder)
+        aside = self.path / (f'{folder.name}.damaged-{time.strftime("%Y%m%dT%H%M%S")}-'
+                             f'{os.getpid()}')
+        os.replace(folder, aside)
         (aside.parent / f'{aside.name}.reason.txt').write_text(reason + '\n')
         return aside
 

@@ -10,7 +10,7 @@ are one rotation: :func:`nearest_rows` can look up a second key into the same k 
 counting at its distance to the nearer key.
 """
 
-from typing import Tuple
+from typing import Dict, Tuple
 
 from numba import njit
 import numpy as np
@@ -297,3 +297,70 @@ class KDTree:
         """The tree as the kernels take it (:data:`TREE_TYPES`)."""
         return (self.points, self._nodes, self._split, self._low, self._high, self._depth,
                 self.columns)
+
+    #: The arrays of :meth:`state`, by name.
+    STATE = ('points', 'nodes', 'split', 'low', 'high', 'depth', 'columns', 'order', 'shared')
+
+    def state(self) -> Dict[str, np.ndarray]:
+        """The built tree as arrays (:data:`STATE`), for :meth:`from_state` to take back."""
+        return {'points': self.points, 'nodes': self._nodes, 'split': self._split,
+                'low': self._low, 'high': self._high, 'depth': np.array(self._depth),
+                'columns': self.columns, 'order': self.order, 'shared': self._shared}
+
+    @classmethod
+    def from_state(cls, state: Dict[str, np.ndarray]) -> 'KDTree':
+        """The tree of :meth:`state`'s arrays, checked: the kernels read them unchecked.
+
+        Raises:
+            ValueError: an array missing or of another type or shape, a node outside the
+                tree or its rows, a depth other than its nodes', or an order not a
+                permutation of the rows.
+        """
+        want = {'points': np.float32, 'nodes': np.int32, 'split': np.float64,
+                'low': np.float64, 'high': np.float64, 'depth': np.int64,
+                'columns': np.int64, 'order': np.int64, 'shared': np.float64}
+        for name, dtype in want.items():
+            if name not in state or np.asarray(state[name]).dtype != dtype:
+                raise ValueError(f'KD-tree: {name} missing or not {np.dtype(dtype)}')
+        points, nodes = state['points'], state['nodes']
+        n, m = len(points), len(nodes)
+        d = len(state['columns'])
+        if points.ndim != 2 or points.shape[1] != d or n < 1 or nodes.ndim != 2 \
+                or nodes.shape[1] != 4 or m < 1 or state['split'].shape != (m,) \
+                or state['low'].shape != (d,) or state['high'].shape != (d,) \
+                or state['order'].shape != (n,) or state['shared'].ndim != 1 \
+                or np.any(state['columns'] < 0) \
+                or np.any(state['columns'] >= len(state['shared'])):
+            raise ValueError(f'KD-tree: arrays of disagreeing shapes ({n} points, {m} nodes)')
+        dim, child, start, end = (nodes[:, i].astype(np.int64) for i in range(4))
+        inner = dim >= 0
+        if np.any(dim >= d) or np.any(dim < -1) or np.any(start < 0) or np.any(end > n) \
+                or np.any(start > end) or np.any(inner & ((child < 1) | (child + 1 >= m))) \
+                or start[0] != 0 or end[0] != n:
+            raise ValueError('KD-tree: a node outside the tree or its points')
+        level, seen, depth = np.zeros(1, dtype=np.int64), 1, 0
+        while True:  # the nodes by depth, from the root: each once, as a tree's
+            below = level[inner[level]]
+            level = np.concatenate([child[below], child[below] + 1])
+            if len(level) == 0:
+                break
+            depth, seen = depth + 1, seen + len(level)
+            if seen > m:
+                raise ValueError('KD-tree: its nodes are not a tree')
+        if seen != m or int(state['depth']) != depth:
+            raise ValueError(f'KD-tree: depth {int(state["depth"])} for nodes {depth} deep')
+        if not np.array_equal(np.sort(state['order']), np.arange(n)):
+            raise ValueError('KD-tree: its order is not a permutation of its points')
+        tree = cls.__new__(cls)
+        tree.points = np.ascontiguousarray(points)
+        tree._nodes = np.ascontiguousarray(nodes)
+        tree._split = np.ascontiguousarray(state['split'])
+        tree._low = np.ascontiguousarray(state['low'])
+        tree._high = np.ascontiguousarray(state['high'])
+        tree._depth = depth
+        tree.columns = np.ascontiguousarray(state['columns'])
+        tree.order = np.ascontiguousarray(state['order'])
+        tree._shared = np.ascontiguousarray(state['shared'])
+        tree._dropped = np.setdiff1d(np.arange(len(tree._shared)), tree.columns)
+        tree._none = np.empty(0)
+        return tree

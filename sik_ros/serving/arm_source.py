@@ -4,7 +4,8 @@
 leaves the cache untouched), keys the chain and writes its cache entry's URDF;
 :func:`first_solver` gives the solver that answers at once: the learned bundle of the entry when
 it is there and intact, else the arm's table of collected configurations
-(:mod:`~sik_ros.bundles.sweep_models`), which answers exactly with no training.
+(:mod:`~sik_ros.bundles.sweep_models`), which answers exactly with no training: built at the
+arm's first start and kept in the entry, loaded at the next (:mod:`~sik_ros.bundles.table_cache`).
 
 A learned model replaces the table only where it answers at least as well: :func:`compare`
 solves the same targets with both (paired, in turn) and :func:`keep_verdict` records the
@@ -17,6 +18,7 @@ from dataclasses import dataclass, field
 import hashlib
 from pathlib import Path
 import tempfile
+import threading
 from typing import Callable, Dict, List, Optional, Tuple
 
 import numpy as np
@@ -25,6 +27,7 @@ from sik_ros.artifacts import file_sha256, read_json, write_json_atomic, write_t
 from sik_ros.bundles.bundle import load_bundle
 from sik_ros.bundles.cache import ArmEntry, cache_root, CHECKSUMS
 from sik_ros.bundles.sweep_models import sweep_models
+from sik_ros.bundles.table_cache import describe, load_table, save_table
 from sik_ros.errors import SikError
 from sik_ros.kinematics.arm_description import (arm_files, arm_robot, chain_key, check_chain,
                                                 collision_text, Description, mesh_folders,
@@ -49,6 +52,9 @@ class Arm:
         entry: its cache entry.
         missing_meshes: collision meshes not found here (those parts have no geometry).
         notes: what the loading found worth a line on the log.
+        table_built, table_loaded: how many times its table of configurations was built
+            (swept) and loaded from the entry (:func:`table_solver`).
+        saving: the thread writing a built table to the entry (None when none was built).
     """
 
     robot: Robot
@@ -56,6 +62,9 @@ class Arm:
     entry: ArmEntry
     missing_meshes: List[str] = field(default_factory=list)
     notes: List[str] = field(default_factory=list)
+    table_built: int = 0
+    table_loaded: int = 0
+    saving: Optional[threading.Thread] = None
 
 
 def prepare_arm(text: str, base: str, tip: str, cache: Optional[str] = None) -> Arm:
@@ -199,11 +208,29 @@ def table_preferred(arm: Arm) -> bool:
 
 def table_solver(arm: Arm, config: SolverConfig, seconds: float = SWEEP_SECONDS,
                  say: Callable[[str], None] = print) -> SelectiveIK:
-    """The arm's table of configurations as a solver (``seconds`` of sweep and table)."""
+    """The arm's table of configurations as a solver (``seconds`` of sweep and table).
+
+    Loaded from the entry when a start built it before (:mod:`~sik_ros.bundles.table_cache`:
+    checked, a damaged one set aside); else built, and written to the entry by a thread of its
+    own (``arm.saving``) while the solver answers.
+    """
+    models = load_table(arm.entry, arm.robot, seconds, say)
+    if models is not None:
+        arm.table_loaded += 1
+        say(f'table of configurations: loaded from the cache ({describe(models)})')
+        return SelectiveIK(arm.robot, models, config)
     models = sweep_models(arm.robot, seconds)
-    table = models['position'].table
-    say(f'table of configurations: {len(table.indices):,} configurations in {len(table):,} '
-        f'cells')
+    arm.table_built += 1
+    say(f'table of configurations: {describe(models)}')
+
+    def save() -> None:
+        try:
+            save_table(arm.entry, arm.robot, seconds, models)
+        except OSError as exc:  # a read-only or full cache: served all the same
+            say(f'table of configurations not cached ({exc}): the next start builds it')
+
+    arm.saving = threading.Thread(target=save, name='sik_table_cache')
+    arm.saving.start()
     return SelectiveIK(arm.robot, models, config)
 
 

@@ -96,7 +96,17 @@ class IndexTable:
 
     def __init__(self, centers: np.ndarray, offsets: np.ndarray, indices: np.ndarray,
                  manifest: Dict, orientations: Optional[np.ndarray] = None,
-                 postures: Optional[np.ndarray] = None, realised: Optional[np.ndarray] = None):
+                 postures: Optional[np.ndarray] = None, realised: Optional[np.ndarray] = None,
+                 reach: Optional[np.ndarray] = None, like: Optional['IndexTable'] = None):
+        """A table of its arrays (see the class).
+
+        ``reach``: the :class:`ReachGrid`'s distances stored with the table
+        (:meth:`ReachGrid.stored`), which the grid then takes instead of computing them;
+        ``like``: a table of the same cells, whose KD-tree and grids this one shares.
+
+        Raises:
+            ValueError: ``reach`` is not the grid of these cells.
+        """
         self.centers = np.asarray(centers, dtype=np.float64)
         self.offsets = np.asarray(offsets, dtype=np.int64)
         self.indices = np.asarray(indices, dtype=np.float32)
@@ -110,10 +120,13 @@ class IndexTable:
         self._realised_share = None if realised is None else \
             np.count_nonzero(self.realised) / max(len(self.indices), 1)
         self.manifest = manifest
-        self.tree = cKDTree(self.centers)
-        self.reach = ReachGrid(self.tree, self.centers)
         self.cell = float(manifest['table_config']['cell'])
-        self.grid = CellGrid.build(self.centers, self.cell)
+        if like is not None and like.centers is self.centers and like.cell == self.cell:
+            self.tree, self.reach, self.grid = like.tree, like.reach, like.grid
+        else:
+            self.tree = cKDTree(self.centers)
+            self.reach = ReachGrid(self.tree, self.centers, reach)
+            self.grid = CellGrid.build(self.centers, self.cell)
         self.latent_dim = self.indices.shape[1]
 
     def __len__(self) -> int:
@@ -160,7 +173,7 @@ class IndexTable:
         manifest = dict(self.manifest, postures={'lower': [float(v) for v in lower],
                                                  'upper': [float(v) for v in upper]})
         return IndexTable(self.centers, self.offsets, self.indices, manifest, self.orientations,
-                          postures, self.realised)
+                          postures, self.realised, like=self)
 
     def pool_cells(self, k_cells: int) -> int:
         """Cells whose realised rows are about as many as the rows of ``k_cells`` cells.

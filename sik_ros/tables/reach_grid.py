@@ -22,17 +22,35 @@ class ReachGrid:
     grid) need the KD-tree (docs/design.md, "Measured choices").
     """
 
-    def __init__(self, tree: cKDTree, centers: np.ndarray):
+    def __init__(self, tree: cKDTree, centers: np.ndarray, dist: Optional[np.ndarray] = None):
+        """The grid of ``centers`` (in ``tree``); ``dist``: its distances, computed before.
+
+        Raises:
+            ValueError: ``dist`` is not the grid's shape, or holds a negative or NaN value.
+        """
         self.dist = None
-        if len(centers) == 0:
+        given = dist
+        if len(centers) == 0 and given is None:
             return
-        lo = centers.min(axis=0) - REACH_PAD
-        shape = np.ceil((centers.max(axis=0) + REACH_PAD - lo) / REACH_VOXEL).astype(int)
-        if int(np.prod(shape)) > REACH_MAX_VOXELS:
+        lo = centers.min(axis=0) - REACH_PAD if len(centers) else np.zeros(3)
+        shape = np.ceil((centers.max(axis=0) + REACH_PAD - lo) / REACH_VOXEL).astype(int) \
+            if len(centers) else np.zeros(3, dtype=int)
+        if given is not None:  # the distances of a table loaded: its own grid's, checked
+            given = np.asarray(given)
+            if given.shape == (0,) and (len(centers) == 0
+                                        or int(np.prod(shape)) > REACH_MAX_VOXELS):
+                return
+            if given.dtype != np.float64 or given.shape != tuple(shape) \
+                    or not np.all(given >= 0):
+                raise ValueError(f'reach grid distances of shape {given.shape} '
+                                 f'({given.dtype}) for a grid of {tuple(shape)}')
+        elif int(np.prod(shape)) > REACH_MAX_VOXELS:
             return
-        axes = [lo[i] + (np.arange(shape[i]) + 0.5) * REACH_VOXEL for i in range(3)]
-        points = np.stack(np.meshgrid(*axes, indexing='ij'), axis=-1).reshape(-1, 3)
-        self.dist = tree.query(points, k=1)[0].reshape(tuple(shape))
+        if given is None:
+            axes = [lo[i] + (np.arange(shape[i]) + 0.5) * REACH_VOXEL for i in range(3)]
+            points = np.stack(np.meshgrid(*axes, indexing='ij'), axis=-1).reshape(-1, 3)
+            given = tree.query(points, k=1)[0].reshape(tuple(shape))
+        self.dist = given
         self.lo = tuple(float(v) for v in lo)
         self.shape = tuple(int(v) for v in shape)
         # the half diagonal, and a margin for the rounding of the distances
@@ -53,3 +71,7 @@ class ReachGrid:
             index.append(i)
         d = float(self.dist[index[0], index[1], index[2]])
         return d - self.slack, d + self.slack
+
+    def stored(self) -> np.ndarray:
+        """The distances to store with a table ((0,) for none), for ``dist`` on loading."""
+        return np.empty(0) if self.dist is None else self.dist

@@ -205,6 +205,89 @@ class SeedTable:
         return axis_key(self._axis[0], self._axis[1], self._inverse, position, quaternion,
                         QUATERNION_SCALE)
 
+    # -- the built state, for a cache ------------------------------------------------------
+
+    def state(self) -> Dict[str, np.ndarray]:
+        """What :meth:`from_state` needs to skip the FK, trees and branch codes of a build.
+
+        The rows' 16-bit joint codes (as :meth:`save` writes them; the rows are their values)
+        in the tree's leaf order, the first joint turned back to azimuth 0, the trees, and each
+        branch code's rows (``by_code_*``).
+        """
+        rm = self.manifest['robot']
+        out = {'codes': range_codes(self.q, np.asarray(rm['lower']), np.asarray(rm['upper']),
+                                    np.uint16),
+               'base_q0': np.ascontiguousarray(self._base_q[:, 0])}
+        out.update({f'tree_{k}': v for k, v in self.tree.state().items()})
+        if self.codes is not None:
+            out['branch_codes'] = np.asarray(self.codes, dtype=np.int64)
+            keys = sorted(self._by_code)
+            out['by_code_keys'] = np.array(keys, dtype=np.int64)
+            for i, code in enumerate(keys):
+                out.update({f'by_code_{i}_{k}': v
+                            for k, v in self._by_code[code][0].state().items()})
+        return out
+
+    @classmethod
+    def from_state(cls, robot: Robot, state: Dict[str, np.ndarray],
+                   manifest: Dict) -> 'SeedTable':
+        """The table :meth:`state` described, for ``robot``, its arrays checked.
+
+        Raises:
+            CorruptArtifact: an array missing, of another type or shape, or a tree that is
+                not one (:meth:`~sik_ros.kernels.kdtree.KDTree.from_state`).
+        """
+        try:
+            return cls._from_state(robot, state, manifest)
+        except (KeyError, ValueError, TypeError) as exc:
+            raise CorruptArtifact(f'seed table state: {exc}') from exc
+
+    @classmethod
+    def _from_state(cls, robot: Robot, state: Dict[str, np.ndarray],
+                    manifest: Dict) -> 'SeedTable':
+        codes, base_q0 = state['codes'], state['base_q0']
+        rows = manifest.get('rows')
+        if codes.dtype != np.uint16 or codes.shape != (rows, robot.dof) or len(codes) == 0 \
+                or base_q0.dtype != np.float64 or base_q0.shape != (rows,) \
+                or not np.all(np.isfinite(base_q0)):
+            raise ValueError(f'codes {codes.shape} and base_q0 {base_q0.shape} for {rows} '
+                             f'rows of {robot.dof} joints')
+        table = cls.__new__(cls)
+        table.manifest = manifest
+        table.q = range_values(codes, robot.lower, robot.upper)
+        table._lower, table._upper = robot.lower[0], robot.upper[0]
+        table._axis = first_axis(robot)
+        table._base_q = table.q
+        if table._axis is not None:
+            table._axis = tuple(np.ascontiguousarray(a, dtype=np.float64) for a in table._axis)
+            table._inverse = np.ascontiguousarray(
+                rotation_to_quaternion(table._axis[1].T[None])[0])
+            table._base_q = table.q.copy()
+            table._base_q[:, 0] = base_q0
+        table._base_q = np.ascontiguousarray(table._base_q)
+        table.tree = KDTree.from_state({k: state[f'tree_{k}'] for k in KDTree.STATE})
+        if len(table.tree) != rows:
+            raise ValueError(f'a tree of {len(table.tree)} points for {rows} rows')
+        table.signs = branch_signs(robot) if robot.dof <= 6 else None
+        table.codes, table._by_code = None, {}
+        if table.signs is None:
+            return table
+        table.codes = state['branch_codes']
+        keys = state['by_code_keys']
+        if table.codes.dtype != np.int64 or table.codes.shape != (rows,) \
+                or keys.dtype != np.int64 or keys.ndim != 1 \
+                or not np.array_equal(keys, np.unique(table.codes)):
+            raise ValueError('branch codes disagree with their rows')
+        for i, code in enumerate(keys):
+            tree = KDTree.from_state({k: state[f'by_code_{i}_{k}'] for k in KDTree.STATE})
+            members = np.flatnonzero(table.codes == code)
+            if len(tree) != len(members):
+                raise ValueError(f'branch code {code}: a tree of {len(tree)} points for '
+                                 f'{len(members)} rows')
+            table._by_code[int(code)] = (tree, np.ascontiguousarray(
+                table._base_q[members][tree.order]))
+        return table
+
     # -- building and files -----------------------------------------------------------------
 
     @classmethod
