@@ -87,8 +87,10 @@ def start(args, env, text, frames, cache, log, learning=True):
                             stderr=subprocess.STDOUT)
 
 
-def first_exact(client, goals, started, timeout=120.0):
+def first_exact(client, goals, started, timeout=120.0, names=None):
     """Seconds from ``started`` to the first SUCCESS answer (None: none came).
+
+    ``names``: the arm's joints, which the answer must name (not another node's arm).
 
     The goals are asked in turn, one every 20 ms once the service is up: the first exact
     answer to any of them counts (a goal the model misses does not hold the figure).
@@ -98,7 +100,8 @@ def first_exact(client, goals, started, timeout=120.0):
         if not client.wait_for_service(0.02):
             continue
         answer = client.call(pose_request(*goals[k % len(goals)], max_solutions=1), timeout=5.0)
-        if answer is not None and answer.error_code == 1:
+        if answer is not None and answer.error_code == 1 and (
+                names is None or list(answer.solutions[0].joint_state.name) == names):
             return time.monotonic() - started
         k += 1
         time.sleep(0.02)
@@ -190,7 +193,7 @@ def table_starts(args, name, env, folder, text, frames, robot, targets, row):
             started = time.monotonic()
             proc = start(args, env, text, frames, cache, out, learning=False)
             try:
-                row[key] = first_exact(client, targets, started)
+                row[key] = first_exact(client, targets, started, names=robot.joint_names)
                 if tag == 'table_restart':
                     row['table_restart'] = phase(client, robot, targets)
             finally:
@@ -217,7 +220,8 @@ def bench_arm(args, name, env, folder):
         started = time.monotonic()
         proc = start(args, env, text, frames, cache, out)
         try:
-            row['first_exact_s'] = first_exact(client, targets, started)
+            row['first_exact_s'] = first_exact(client, targets, started,
+                                               names=robot.joint_names)
             row['table'] = phase(client, robot, targets)
             row['training_cost'] = training_cost(client, targets, cache)
             deadline = started + args.learning_time * 3 + 120
@@ -240,7 +244,8 @@ def bench_arm(args, name, env, folder):
         wall, started = time.time(), time.monotonic()
         proc = start(args, env, text, frames, cache, out)
         try:
-            row['restart_exact_s'] = first_exact(client, targets, started)
+            row['restart_exact_s'] = first_exact(client, targets, started,
+                                                 names=robot.joint_names)
         finally:
             launch.stop_node(proc)
     row['restart_learned_s'] = log_seconds(restart_log, 'from its learned bundle', wall)

@@ -163,3 +163,21 @@ def test_a_damaged_cached_table_is_set_aside_and_built_again(name, damage, built
     again = []
     restarted, _ = start(name, cache, again)
     assert (restarted.table_built, restarted.table_loaded) == (0, 1), again
+
+
+def test_reach_grid_bounds_hold_the_distance_beyond_its_cap():
+    """The reach grid's bounds hold the KD-tree's distance, in voxels past its cap too."""
+    from scipy.spatial import cKDTree
+    from sik_ros.tables.reach_grid import REACH_CAP, ReachGrid
+    rng = np.random.default_rng(1)
+    centers = rng.uniform(-0.5, 0.5, (3000, 3))
+    centers = centers[np.linalg.norm(centers, axis=1) < 0.5]
+    tree = cKDTree(centers)
+    grid = ReachGrid(tree, centers)
+    assert np.isinf(grid.dist).any() and np.isfinite(grid.dist).any()
+    points = rng.uniform(-0.9, 0.9, (4000, 3))
+    bounds = [(grid.bounds(p), tree.query(p)[0]) for p in points]
+    bounds = [(b, d) for b, d in bounds if b is not None]
+    assert len(bounds) > 2000 and any(d > REACH_CAP for _, d in bounds)
+    for (low, high), d in bounds:
+        assert low <= d <= high

@@ -89,14 +89,26 @@ class LocalSolvers:
     """Clones of one solver in this process, one per executor thread."""
 
     def __init__(self, ik: SelectiveIK, clones: int):
-        """Make and warm up ``clones`` clones of ``ik`` (with ``ik``'s settings)."""
+        """Make and warm up ``clones`` clones of ``ik`` (with ``ik``'s settings).
+
+        The first is warmed up before this returns (``warm_up_seconds``), the others by a
+        thread of their own (``warming``), each joining the free ones once warm: a node answers
+        from its first clone while the others get ready.
+        """
         self._settings = _Settings()
         self._clones: 'queue.LifoQueue[_Instance]' = queue.LifoQueue()
-        self.warm_up_seconds = 0.0
-        for _ in range(clones):
-            clone = ik.clone()
-            self.warm_up_seconds += clone.warm_up()
-            self._clones.put(_Instance(clone))
+        first = ik.clone()
+        self.warm_up_seconds = first.warm_up()
+        self._clones.put(_Instance(first))
+        rest = [ik.clone() for _ in range(clones - 1)]
+
+        def warm() -> None:
+            for clone in rest:
+                clone.warm_up()
+                self._clones.put(_Instance(clone))
+
+        self.warming = threading.Thread(target=warm, name='sik_warm_up', daemon=True)
+        self.warming.start()
 
     def solve(self, *args: Any, **kwargs: Any) -> IKResult:
         """:meth:`SelectiveIK.solve` on a free clone."""

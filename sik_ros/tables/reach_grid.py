@@ -11,6 +11,9 @@ from scipy.spatial import cKDTree
 REACH_VOXEL = 0.05
 REACH_PAD = 0.3
 REACH_MAX_VOXELS = 2_000_000
+#: Distances [m] past which a voxel keeps no distance (inf: "farther than this"), so that the
+#: KD-tree's look-ups of the voxels far from every cell stop early.
+REACH_CAP = 0.3
 
 
 class ReachGrid:
@@ -19,7 +22,9 @@ class ReachGrid:
     A point in a voxel is within the voxel's half diagonal of its centre, so the voxel's
     distance bounds the point's both ways: most questions "within d of the data?" are answered
     by one array read, and only points within a half diagonal of the answer's edge (or off the
-    grid) need the KD-tree (docs/design.md, "Measured choices").
+    grid) need the KD-tree (docs/design.md, "Measured choices"). A voxel farther than
+    :data:`REACH_CAP` from every cell keeps inf: its points are at least the cap less the half
+    diagonal away.
     """
 
     def __init__(self, tree: cKDTree, centers: np.ndarray, dist: Optional[np.ndarray] = None):
@@ -49,7 +54,8 @@ class ReachGrid:
         if given is None:
             axes = [lo[i] + (np.arange(shape[i]) + 0.5) * REACH_VOXEL for i in range(3)]
             points = np.stack(np.meshgrid(*axes, indexing='ij'), axis=-1).reshape(-1, 3)
-            given = tree.query(points, k=1)[0].reshape(tuple(shape))
+            given = tree.query(points, k=1, distance_upper_bound=REACH_CAP)[0].reshape(
+                tuple(shape))
         self.dist = given
         self.lo = tuple(float(v) for v in lo)
         self.shape = tuple(int(v) for v in shape)
@@ -70,6 +76,8 @@ class ReachGrid:
                 return None
             index.append(i)
         d = float(self.dist[index[0], index[1], index[2]])
+        if d == math.inf:  # farther than the cap from every cell centre
+            return REACH_CAP - self.slack, math.inf
         return d - self.slack, d + self.slack
 
     def stored(self) -> np.ndarray:
