@@ -238,7 +238,7 @@ def test_init_starts_from_a_model_and_refuses_another_config(panda, uniform_smal
     for k, v in a.model.state_dict().items():
         assert torch.equal(v, b.model.state_dict()[k]), k
     assert b.step == 0
-    other = ModelConfig(encoder=PRESETS['tiny'][0], decoder=PRESETS['tiny'][1], latent_dim=2)
+    other = ModelConfig(encoder=PRESETS['tiny'][0], decoder=(32, 32), latent_dim=2)
     with pytest.raises(ArtifactMismatch, match='model config'):
         trainer(panda, uniform_small, tmp_path / 'c', model=other).initialise(
             load_checkpoint(tmp_path / 'a.pt'), 'a.pt')

@@ -64,9 +64,17 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument('--cycle-turn', type=float,
                    help='pose goals: the cycle term also turns the goal orientation by about '
                    'this angle [rad]')
+    p.add_argument('--anchor-joint', type=int,
+                   help='SIK: draw the first index element towards this joint (0-based; the '
+                   'Panda\'s last joint: 6), so a pose model\'s small index starts as a '
+                   'coordinate of the self-motion')
+    p.add_argument('--anchor-weight', type=float, help='weight of that pull (default: 1)')
+    p.add_argument('--anchor-steps', type=int,
+                   help='steps over which the pull falls linearly to zero (0: always on)')
     p.add_argument('--init', help='start from the weights of this checkpoint or model file '
                    '(same model config, robot and dataset normaliser; or a smaller index, '
-                   'a position model for a pose model, or a SIK model for its PSIK)')
+                   'a position model for a pose model, a larger index (the new one learned '
+                   'afresh, the rest kept), or a SIK model for its PSIK)')
     p.add_argument('--uni-position', action='store_true',
                    help='one row per distinct position (the paper\'s uni-position dataset)')
     p.add_argument('--eval-every', type=int)
@@ -206,7 +214,13 @@ def run_configs(args: argparse.Namespace, out: Path):
         seed=args.seed, threads=args.threads, device=args.device,
         uni_position=args.uni_position or None, bf16=args.bf16,
         sampler=args.sampler, cycle_weight=args.cycle_weight,
-        cycle_turn=args.cycle_turn, init=args.init)
+        cycle_turn=args.cycle_turn, init=args.init, anchor_joint=args.anchor_joint,
+        anchor_weight=args.anchor_weight if args.anchor_weight is not None else (
+            1.0 if args.anchor_joint is not None else None),
+        anchor_steps=args.anchor_steps)
+    if args.anchor_joint is not None and not (args.model == 'sik'
+                                              and 0 <= args.anchor_joint):
+        raise InvalidArgument('--anchor-joint needs --model sik and a joint index from 0')
     if args.model in ('fcn', 'anfis') and args.fk_weight is None:
         train_cfg = with_overrides(train_cfg, fk_weight=0.0)
     return None, model_cfg, train_cfg

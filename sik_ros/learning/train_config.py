@@ -52,6 +52,15 @@ class TrainConfig:
         cycle_turn: pose goals: the cycle term also turns the goal's orientation about a
             random axis by an angle of this standard deviation [rad] (an index from a table
             row of a nearby orientation decoded at the goal must reach it).
+        anchor_joint: SIK: a joint the first learned index element is drawn towards
+            (``-1``: none). With the pose goal and the branch code, one joint and the goal
+            give the rest of a 7-joint arm's posture (the Panda's last joint, as its
+            analytical IK takes it), so the decoder has a posture to learn from the first
+            step instead of averaging the self-motion; the pull is released over
+            ``anchor_steps`` and the index then keeps what the decoder made of it.
+        anchor_weight: weight of that pull at the first step (the squared difference of the
+            element and the normalised joint).
+        anchor_steps: steps over which the pull falls linearly to zero (0: always on).
         init: model file the weights started from (``--init``; provenance only).
     """
 
@@ -80,6 +89,9 @@ class TrainConfig:
     cycle_weight: float = 0.0
     cycle_shift: float = 0.02
     cycle_turn: float = 0.0
+    anchor_joint: int = -1
+    anchor_weight: float = 0.0
+    anchor_steps: int = 0
     init: str = ''
 
     def __post_init__(self):
@@ -97,6 +109,11 @@ class TrainConfig:
         if not (self.cycle_weight >= 0 and math.isfinite(self.cycle_weight)):
             raise InvalidArgument(f'cycle_weight must be a non-negative number; '
                                   f'got {self.cycle_weight}')
+        if not (self.anchor_weight >= 0 and math.isfinite(self.anchor_weight)):
+            raise InvalidArgument(f'anchor_weight must be a non-negative number; '
+                                  f'got {self.anchor_weight}')
+        if self.anchor_steps < 0:
+            raise InvalidArgument(f'anchor_steps must be 0 or more; got {self.anchor_steps}')
         if self.device not in ('cpu', 'cuda'):
             raise InvalidArgument(f'device must be cpu or cuda; got {self.device!r}')
         if self.device == 'cuda' and not _cuda_available():
@@ -116,6 +133,15 @@ def kl_weight_at(cfg: TrainConfig, step: int) -> float:
     if cfg.kl_anneal <= 0:
         return cfg.kl_weight
     return cfg.kl_weight * min(1.0, (step + 1) / cfg.kl_anneal)
+
+
+def anchor_weight_at(cfg: TrainConfig, step: int) -> float:
+    """Weight of the index anchor at a step: falling linearly to 0 over ``anchor_steps``."""
+    if cfg.anchor_joint < 0:
+        return 0.0
+    if cfg.anchor_steps <= 0:
+        return cfg.anchor_weight
+    return cfg.anchor_weight * max(0.0, 1.0 - step / cfg.anchor_steps)
 
 
 def with_overrides(cfg: TrainConfig, **kw) -> TrainConfig:

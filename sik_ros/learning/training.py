@@ -24,9 +24,9 @@ from sik_ros.learning.losses import cycle_terms, fk_error, orientation_error_deg
 from sik_ros.learning.models import build_model, kl_normal, ModelConfig, TorchChain
 from sik_ros.learning.provenance import device_name, Provenance
 from sik_ros.learning.swarm import new_swarm, swarm_step
-from sik_ros.learning.train_config import kl_weight_at, lr_at, TrainConfig
+from sik_ros.learning.train_config import anchor_weight_at, kl_weight_at, lr_at, TrainConfig
 from sik_ros.learning.training_data import data_summary, default_normalizer, TrainData
-from sik_ros.learning.warm_start import (initial_state, makes_variational,
+from sik_ros.learning.warm_start import (initial_state, makes_variational, narrows,
                                          standardise_index)
 from sik_ros.tables.dataset import Dataset
 
@@ -56,6 +56,9 @@ class Trainer:
         """
         if model_cfg.dof != robot.dof:
             raise InvalidArgument(f'model dof {model_cfg.dof} != robot dof {robot.dof}')
+        if train_cfg.anchor_joint >= robot.dof:
+            raise InvalidArgument(f'anchor joint {train_cfg.anchor_joint} is not one of the '
+                                  f'{robot.dof} joints (0-based)')
         self.robot, self.dataset = robot, dataset
         self.model_cfg, self.cfg = model_cfg, train_cfg
         self.out_dir = Path(out_dir)
@@ -142,10 +145,15 @@ class Trainer:
             if self.cfg.fk_weight > 0:
                 out['fk_other'] = self._fk_error(other['x_other'], other['pos_other'],
                                                  other['rot6_other'])
+        anchor = anchor_weight_at(self.cfg, self.step) if sik else 0.0
+        if anchor > 0:
+            out['anchor'] = torch.mean((mu[:, 0] - x[:, self.cfg.anchor_joint]) ** 2)
         fk_weight = self.cfg.fk_weight if fk_on else 0.0
         total = out['recon'] + fk_weight * (out.get('fk', 0.0) + out.get('fk_other', 0.0))
         if 'cycle' in out:
             total = total + self.cfg.cycle_weight * out['cycle']
+        if 'anchor' in out:
+            total = total + anchor * out['anchor']
         if 'kl' in out:
             total = total + kl_weight_at(self.cfg, self.step) * out['kl']
         out['loss'] = total
@@ -342,11 +350,15 @@ class Trainer:
         The robot and the normaliser must match; the optimiser, the step count and the
         schedule start afresh. The model config must match too, or widen the checkpoint's
         (a SIK model with a smaller posture index, or a SIK position model for a pose model:
-        :func:`~sik_ros.learning.warm_start.widened_state`), or be its PSIK (a SIK model of
+        :func:`~sik_ros.learning.warm_start.widened_state`), or narrow it (a larger index: the
+        new one learned afresh, :func:`~sik_ros.learning.warm_start.narrowed_state`, the old
+        index's mean over training rows folded into the decoder), or be its PSIK (a SIK model of
         the same layers: :func:`~sik_ros.learning.warm_start.variational_state`, its index
         then standardised over training rows).
         """
-        state = initial_state(self.model.state_dict(), ckpt, self.model_cfg, source)
+        found = ModelConfig.from_dict(ckpt['model_config'])
+        mean = self._index_mean(ckpt) if narrows(found, self.model_cfg) else None
+        state = initial_state(self.model.state_dict(), ckpt, self.model_cfg, source, mean)
         check_robot_manifest(f'--init {source}', self.robot.manifest(), ckpt['robot'])
         norm = normalizer_from_dict(ckpt['normalizer'])
         self.provenance.started_from(source, ckpt)
@@ -361,9 +373,21 @@ class Trainer:
                                    asdict(self.norm), ckpt['normalizer'])
         self.norm = norm  # bit for bit the one the weights were trained with
         self.model.load_state_dict(state)
-        if makes_variational(ModelConfig.from_dict(ckpt['model_config']), self.model_cfg):
+        if makes_variational(found, self.model_cfg):
             q, goal, _, _ = self._batch(self.train_idx[:STANDARDISE_ROWS])
             standardise_index(self.model, self.norm.goal_to_net(goal), self.norm.q_to_net(q))
+
+    @torch.no_grad()
+    def _index_mean(self, ckpt: Dict) -> np.ndarray:
+        """The mean learned index of a checkpoint's model over training rows (its units)."""
+        old_cfg = ModelConfig.from_dict(ckpt['model_config'])
+        old = build_model(old_cfg)
+        old.load_state_dict(ckpt['model_state'])
+        norm = normalizer_from_dict(ckpt['normalizer'])
+        q, goal, _, _ = self._batch(self.train_idx[:STANDARDISE_ROWS])
+        g = norm.goal_to_net(goal.cpu())[:, :old_cfg.goal_dim]
+        z, _ = old.encode(g, norm.q_to_net(q.cpu()))
+        return z[:, :old_cfg.latent_dim].mean(0).numpy()
 
     def restore(self, ckpt: Dict) -> None:
         """Continue from a checkpoint of the same model on the same robot and dataset."""

@@ -1,16 +1,18 @@
 """Warm starts: a model that starts from another model's weights (``sik-train --init``).
 
-Three starts besides the same model's weights: a SIK model with a wider posture index from a
+Four starts besides the same model's weights: a SIK model with a wider posture index from a
 smaller one, a pose model from a position model (:func:`widened_state`: the new inputs start at
-zero weight, so the new model computes what the old one did), and a PSIK model from a SIK
-model of the same layers (:func:`variational_state`: the encoder's index becomes the mean, a
-log-variance head is added at a small variance, and :func:`standardise_index` rescales the
-index to zero mean and unit spread over the training rows so that the KL term starts near its
-floor).
+zero weight, so the new model computes what the old one did), a SIK model with a smaller,
+fresh index from one with a larger index (:func:`narrowed_state`: a pose model of a 1-element
+index from a position model of 4 keeps the trunks of both networks and learns its index
+afresh), and a PSIK model from a SIK model of the same layers (:func:`variational_state`: the
+encoder's index becomes the mean, a log-variance head is added at a small variance, and
+:func:`standardise_index` rescales the index to zero mean and unit spread over the training
+rows so that the KL term starts near its floor).
 """
 
 from dataclasses import asdict, replace
-from typing import Dict
+from typing import Dict, Optional
 
 import numpy as np
 import torch
@@ -33,6 +35,19 @@ def widens(old: ModelConfig, new: ModelConfig) -> bool:
     goals = new.goal == old.goal or (old.goal, new.goal) == ('position', 'pose')
     same = replace(new, goal=old.goal, latent_dim=old.latent_dim, branches=old.branches) == old
     return (same and goals and old.kind == 'sik' and new.latent_dim >= old.latent_dim
+            and tuple(new.branches[:len(old.branches)]) == tuple(old.branches))
+
+
+def narrows(old: ModelConfig, new: ModelConfig) -> bool:
+    """Whether ``new`` is ``old`` with a smaller learned index (and maybe a pose goal).
+
+    The layers are the same; the goal the same or a pose goal for a position one; ``old``'s
+    branch bits (if any) come first in ``new``'s. The new index is learned afresh
+    (:func:`narrowed_state`).
+    """
+    goals = new.goal == old.goal or (old.goal, new.goal) == ('position', 'pose')
+    same = replace(new, goal=old.goal, latent_dim=old.latent_dim, branches=old.branches) == old
+    return (same and goals and old.kind == 'sik' and new.latent_dim < old.latent_dim
             and tuple(new.branches[:len(old.branches)]) == tuple(old.branches))
 
 
@@ -102,6 +117,58 @@ def widened_state(fresh: Dict, old: Dict, old_cfg: ModelConfig, cfg: ModelConfig
     return out
 
 
+def narrowed_state(fresh: Dict, old: Dict, old_cfg: ModelConfig, cfg: ModelConfig,
+                   index_mean: np.ndarray) -> Dict:
+    """``old`` weights in a model of a smaller, fresh index (``fresh``: its initial state dict).
+
+    Every hidden layer is the old one; the first layers keep the goal's (and the encoder's
+    joints') columns, the new goal entries (orientation) start at zero weight, and the old
+    model's branch bits keep theirs. The old learned index leaves the decoder at its mean
+    (``index_mean``, over training rows: its columns' effect there goes into the bias), so that
+    with the new index at zero weight the decoder gives the old model's posture at the mean
+    index. The new index is fresh: the encoder's output layer and the decoder's index columns
+    keep their initial weights.
+
+    Args:
+        fresh: the new model's initial state dict.
+        old: the old model's state dict.
+        old_cfg: the old model's config.
+        cfg: the new model's config (:func:`narrows`).
+        index_mean: the old model's mean learned index over training rows, (old latent,).
+    """
+    out = {k: v.clone() for k, v in fresh.items()}
+    enc_last = _last_encoder_layer(old)
+    og, ng = old_cfg.goal_dim, cfg.goal_dim
+    for key, value in old.items():
+        if key.startswith(enc_last):
+            continue  # the new index's output layer stays fresh
+        target = out[key]
+        if key == 'encoder.0.weight':
+            w = torch.zeros_like(target)
+            w[:, torch.as_tensor(first_layer_columns(old_cfg, cfg, 'encoder'))] = value
+            out[key] = w
+        elif key == 'decoder.0.weight':
+            w = torch.zeros_like(target)
+            w[:, :og] = value[:, :og]
+            learned = slice(ng, ng + cfg.latent_dim)
+            w[:, learned] = target[:, learned]
+            bits = len(old_cfg.branches)
+            start = ng + cfg.latent_dim
+            w[:, start:start + bits] = value[:, og + old_cfg.latent_dim:]
+            out[key] = w
+            mean = torch.as_tensor(np.asarray(index_mean), dtype=value.dtype)
+            out['decoder.0.bias'] = (old['decoder.0.bias']
+                                     + value[:, og:og + old_cfg.latent_dim] @ mean)
+        elif key == 'decoder.0.bias':
+            continue  # set with the weights
+        elif target.shape == value.shape:
+            out[key] = value.clone()
+        else:
+            raise ArtifactMismatch(f'weights {key} of the larger model', tuple(target.shape),
+                                   tuple(value.shape))
+    return out
+
+
 def variational_state(old: Dict, latent_dim: int,
                       logvar: float = PSIK_LOGVAR_START) -> Dict:
     """A SIK model's weights as a PSIK's (:func:`makes_variational`).
@@ -150,7 +217,8 @@ def standardise_index(model: torch.nn.Module, goal: torch.Tensor,
     return {'mean': m.numpy(), 'std': s.numpy()}
 
 
-def initial_state(fresh: Dict, ckpt: Dict, cfg: ModelConfig, source: str) -> Dict:
+def initial_state(fresh: Dict, ckpt: Dict, cfg: ModelConfig, source: str,
+                  index_mean: Optional[np.ndarray] = None) -> Dict:
     """The state dict a model of ``cfg`` starts from, given another model's checkpoint.
 
     Args:
@@ -158,10 +226,12 @@ def initial_state(fresh: Dict, ckpt: Dict, cfg: ModelConfig, source: str) -> Dic
         ckpt: the checkpoint (or exported model) to start from.
         cfg: the new model's config.
         source: where the checkpoint came from (for messages).
+        index_mean: the checkpoint's mean learned index over training rows (a narrowed
+            start, :func:`narrows`; zero if not given).
 
     Raises:
-        ArtifactMismatch: a model neither the same, nor widened (:func:`widens`), nor made
-            variational (:func:`makes_variational`).
+        ArtifactMismatch: a model neither the same, nor widened (:func:`widens`), nor
+            narrowed (:func:`narrows`), nor made variational (:func:`makes_variational`).
     """
     found = ModelConfig.from_dict(ckpt['model_config'])
     state = ckpt['model_state']
@@ -171,4 +241,7 @@ def initial_state(fresh: Dict, ckpt: Dict, cfg: ModelConfig, source: str) -> Dic
         return variational_state(state, cfg.latent_dim)
     if widens(found, cfg):
         return widened_state(fresh, state, found, cfg)
+    if narrows(found, cfg):
+        mean = np.zeros(found.latent_dim) if index_mean is None else index_mean
+        return narrowed_state(fresh, state, found, cfg, mean)
     raise ArtifactMismatch(f'--init {source} model config', asdict(cfg), ckpt['model_config'])
