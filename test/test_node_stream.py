@@ -298,3 +298,32 @@ def test_joint_trajectory_command(tmp_path_factory, robot):
         assert 0 < t.sec + t.nanosec * 1e-9 <= MAX_COMMAND_PERIOD + 1e-9
         q = np.array(traj.points[0].positions)
         assert np.all(q >= robot.lower - 1e-9) and np.all(q <= robot.upper + 1e-9)
+
+
+def test_stream_in_a_solver_process_of_its_own(tmp_path_factory, robot):
+    """goal_solver_process: the stream solved in a process, answered in order and exact."""
+    env = harness.ros_env()  # a graph of its own: the module's node runs meanwhile
+    domain = int(env['ROS_DOMAIN_ID'])
+    proc = start_node(['goal_solver_process:=true'], tmp_path_factory, env)
+    context = rclpy.Context()
+    try:
+        rclpy.init(context=context, domain_id=domain,
+                   signal_handler_options=SignalHandlerOptions.NO)
+        with GoalStreamClient(robot.joint_names, follow=True, frame_id=robot.base_frame,
+                              node_name='sik_stream_process', context=context) as c:
+            service = c.node.create_client(SolveIK, '/sik_node/solve_ik')
+            assert harness.wait_for_service(c.node, service, proc, 120.0), \
+                proc.log_path.read_text()
+            assert c.wait_for_node(20.0)
+            c.publish_state((robot.lower + robot.upper) / 2)
+            goals, quat = circle(robot, 150, 50.0)
+            report = stream_report(c.run(goals, 50.0, quat, settle=1.0), fk=robot.fk)
+    finally:
+        rclpy.try_shutdown(context=context)
+        harness.stop_node(proc)
+    log = proc.log_path.read_text()
+    assert '~/goal in a solver process of its own' in log, log[-2000:]
+    assert report['out_of_order'] == 0 and report['unstamped'] == 0, report
+    assert report['answered'] >= 0.9, report
+    assert report['checked'] == report['success'] >= 1, report
+    assert report['invalid'] == 0 and report['flips'] == 0, report

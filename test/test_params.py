@@ -32,13 +32,15 @@ EXPECTED = [
     ('goal_timeout', float, 0.02), ('goal_max_joint_step', float, 0.5),
     ('goal_marker_rate', float, 10.0), ('command_format', str, 'none'),
     ('command_topic', str, '~/command'), ('solver_processes', int, 0),
-    ('max_obstacles', int, 256), ('max_waypoints', int, 2000), ('shutdown_grace', float, 1.0),
+    ('goal_solver_process', bool, False), ('max_obstacles', int, 256),
+    ('max_waypoints', int, 2000), ('shutdown_grace', float, 1.0),
     ('robot_description', str, ''), ('learning', bool, True),
     ('learning_time', float, 1800.0), ('learning_rows', int, 3_000_000), ('cache_dir', str, ''),
     ('sweep_time', float, 3.0), ('moveit_services', bool, True),
     ('compute_ik_service', str, '/compute_ik'), ('compute_fk_service', str, '/compute_fk'),
     ('ik_group', str, ''), ('lifecycle', bool, False)]
 READ_ONLY = {'robot', 'model_dir', 'base_frame', 'tip_frame', 'solver_processes',
+             'goal_solver_process',
              'robot_description', 'lifecycle', 'command_format', 'command_topic', 'learning',
              'learning_time', 'learning_rows', 'cache_dir', 'sweep_time',
              'moveit_services', 'compute_ik_service', 'compute_fk_service'}

@@ -191,6 +191,34 @@ def known_clearance(distance: float) -> float:
     return 0.0 if math.isnan(distance) else float(distance)
 
 
+def _built_by_slots(cls) -> bool:
+    """Whether ``cls`` keeps each field in a slot ``_<field>`` (rosidl's layout) and no other.
+
+    Then :func:`_bare` may fill a message's slots at once; otherwise (another rosidl) the
+    messages are built by their constructors.
+    """
+    fields = getattr(cls, '_fields_and_field_types', None)
+    return fields is not None and set(cls.__slots__) == {f'_{f}' for f in fields} | {
+        '_check_fields'}
+
+
+#: Answers' messages are built slot by slot (:func:`_bare`): a constructor first builds a default
+#: of every field (a ``JointState`` builds its ``Header``, ``Time`` and three arrays), which
+#: the answer then replaces.
+SLOTTED = _built_by_slots(IKSolution) and _built_by_slots(JointState)
+
+
+#: The markers' points too (a few hundred per answer).
+POINTS_BY_SLOTS = _built_by_slots(Point)
+
+
+def _bare(cls):
+    """A message of ``cls`` with no field set yet (the caller sets every one: :data:`SLOTTED`)."""
+    msg = cls.__new__(cls)
+    msg._check_fields = False
+    return msg
+
+
 def solution_to_msg(solution: Solution, joint_names: Sequence[str], header: Header
                     ) -> IKSolution:
     """One ranked library solution as an ``IKSolution`` (joint state stamped with ``header``).
@@ -198,20 +226,54 @@ def solution_to_msg(solution: Solution, joint_names: Sequence[str], header: Head
     The arrays go into the ``array.array`` fields as bytes (one copy, no Python floats).
     ``header`` is shared, not copied: an answer's messages are only read (serialised).
     """
-    msg = IKSolution()
-    state = msg.joint_state
-    state.header = header
-    state.name = list(joint_names)
-    state.position = array('d', np.asarray(solution.q, dtype=float).tobytes())
-    msg.posture_index = array('f', np.asarray(solution.posture_index, dtype=np.float32).tobytes())
-    msg.position_error = float(solution.position_error)
-    msg.orientation_error = float(solution.orientation_error)
-    msg.min_obstacle_distance = known_clearance(solution.min_obstacle_distance)
-    msg.self_collision = bool(solution.self_collision)
-    msg.score = float(solution.score)
-    msg.tier = int(solution.tier)
-    msg.family = int(solution.family)
-    return msg
+    return solution_msgs([solution], joint_names, header)[0]
+
+
+def solution_msgs(solutions: Sequence[Solution], joint_names: Sequence[str], header: Header
+                  ) -> List[IKSolution]:
+    """Ranked library solutions as ``IKSolution`` messages, all stamped with ``header``.
+
+    The messages share ``header``, the list of joint names and the empty velocity and effort
+    arrays: an answer's messages are only read (serialised). Each array goes into its
+    ``array.array`` field as bytes (one copy, no Python floats).
+    """
+    names = list(joint_names)
+    out = []
+    if not SLOTTED:
+        for s in solutions:
+            msg = IKSolution()
+            state = msg.joint_state
+            state.header, state.name = header, names
+            state.position = array('d', np.asarray(s.q, dtype=float).tobytes())
+            msg.posture_index = array('f', np.asarray(s.posture_index,
+                                                      dtype=np.float32).tobytes())
+            msg.position_error = float(s.position_error)
+            msg.orientation_error = float(s.orientation_error)
+            msg.min_obstacle_distance = known_clearance(s.min_obstacle_distance)
+            msg.self_collision = bool(s.self_collision)
+            msg.score = float(s.score)
+            msg.tier = int(s.tier)
+            msg.family = int(s.family)
+            out.append(msg)
+        return out
+    empty = array('d')
+    for s in solutions:
+        state = _bare(JointState)
+        state._header, state._name = header, names
+        state._position = array('d', np.asarray(s.q, dtype=float).tobytes())
+        state._velocity = state._effort = empty
+        msg = _bare(IKSolution)
+        msg._joint_state = state
+        msg._posture_index = array('f', np.asarray(s.posture_index, dtype=np.float32).tobytes())
+        msg._position_error = float(s.position_error)
+        msg._orientation_error = float(s.orientation_error)
+        msg._min_obstacle_distance = known_clearance(s.min_obstacle_distance)
+        msg._self_collision = bool(s.self_collision)
+        msg._score = float(s.score)
+        msg._tier = int(s.tier)
+        msg._family = int(s.family)
+        out.append(msg)
+    return out
 
 
 def solution_array(header: Header, error_code: int, message: str,
@@ -226,7 +288,14 @@ def _color(rgba: Tuple[float, float, float, float]) -> ColorRGBA:
 
 
 def _points(rows: np.ndarray) -> List[Point]:
-    return [Point(x=float(x), y=float(y), z=float(z)) for x, y, z in rows]
+    if not POINTS_BY_SLOTS:
+        return [Point(x=float(x), y=float(y), z=float(z)) for x, y, z in rows]
+    out = []
+    for x, y, z in np.asarray(rows, dtype=float).tolist():
+        point = _bare(Point)
+        point._x, point._y, point._z = x, y, z
+        out.append(point)
+    return out
 
 
 def posture_markers(chain, solutions: Sequence[Solution], header: Header,

@@ -174,6 +174,12 @@ class NodeDiagnostics:
         stream = node.goal_stream
         if stream is not None:
             servo = stream.servo
+            goal_health = (node.stream_solvers.health()
+                           if getattr(node, 'stream_solvers', None) is not None else None)
+            if goal_health is not None:
+                values.append(('goal solver process',
+                               f'{goal_health.ready}/{goal_health.processes} ready, '
+                               f'{goal_health.restarts} restarts'))
             values += [('goals received', str(stream.mailbox.received)),
                        ('goals replaced', str(stream.mailbox.replaced)),
                        ('goal joint jumps', str(servo.jumps if servo is not None else 0)),

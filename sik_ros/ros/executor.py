@@ -10,16 +10,36 @@ executor"). :class:`SlottedExecutor` asks the wait set for work only when one of
 is free: a turn waits for a free thread (not holding the GIL), takes one ready callback and
 hands it to that thread, so nothing is submitted twice for long and nothing piles up in the
 executor; what waits, waits in DDS's queues under the QoS of its subscription or service.
+
+:func:`after_answer` lets a callback leave work for after its answer: a service's response is
+sent when its callback returns, and the work runs then, on the same thread.
 """
 
 from collections import deque
 from concurrent.futures import ThreadPoolExecutor
 import threading
-from typing import Callable, Deque, Optional
+from typing import Callable, Deque, List, Optional
 
 from rclpy.executors import (ConditionReachedException, Executor, ExternalShutdownException,
                              ShutdownException, TimeoutException)
 from rclpy.task import Future
+
+
+_local = threading.local()
+
+
+def after_answer(work: Callable[[], None]) -> None:
+    """Run ``work()`` once the callback running on this thread has finished (its answer sent).
+
+    On a thread of :class:`SlottedExecutor` the work waits until the callback's response is
+    sent; elsewhere (another executor, a thread of the node's own) it runs at once. It must not
+    raise.
+    """
+    pending: Optional[List[Callable[[], None]]] = getattr(_local, 'pending', None)
+    if pending is None:
+        work()
+    else:
+        pending.append(work)
 
 
 class SlottedExecutor(Executor):
@@ -72,11 +92,15 @@ class SlottedExecutor(Executor):
         self._pool.submit(self._run, handler)
 
     def _run(self, handler) -> None:
+        _local.pending = pending = []
         try:
             handler()
             if handler.done() and handler.exception() is not None:
                 self._errors.append(handler.exception())
+            for work in pending:  # the callback's answer has been sent
+                work()
         finally:
+            _local.pending = None
             self._slots.release()
 
     def _raise_pending(self) -> None:

@@ -120,4 +120,4 @@ def checked_goal(arm: Arm, target, use_orientation: bool, what: str
 
 def solution_msgs(result: IKResult, arm: Arm, header: Header) -> list:
     """The ranked solutions of a result as ``IKSolution`` messages."""
-    return [conv.solution_to_msg(s, arm.joint_names, header) for s in result.solutions]
+    return conv.solution_msgs(result.solutions, arm.joint_names, header)

@@ -16,6 +16,7 @@ answered by a thread of its own (:class:`~sik_ros.ros.goal_stream.GoalStream`).
 """
 
 from dataclasses import fields, replace
+from functools import partial
 import gc
 import threading
 from typing import List, Optional
@@ -36,10 +37,12 @@ from sik_ros.errors import SikError
 from sik_ros.ros import conversions as conv
 from sik_ros.ros.arm_follower import ArmFollower
 from sik_ros.ros.diagnostics import NodeDiagnostics
+from sik_ros.ros.executor import after_answer
 from sik_ros.ros.goal_stream import GoalStream, StreamPort
 from sik_ros.ros.guard import log_at, RequestGuard
 from sik_ros.ros.ik_service import Arm, solution_msgs, solve_request, solver_settings
 from sik_ros.ros.joint_states import JointStateTap
+from sik_ros.ros.markers import MarkerDrawer
 from sik_ros.ros.moveit_ik import serve_moveit
 from sik_ros.ros.named_bundle import DescriptionCheck, load_named, StartupError
 from sik_ros.ros.params import declarations, NodeParams, validate
@@ -92,6 +95,9 @@ class SikNode(Node):
         self._ik: Optional[SelectiveIK] = None
         self.arm: Optional[Arm] = None
         self.solvers: Optional[Solver] = None
+        #: the ~/goal stream's solver process (goal_solver_process), or None: the stream solves
+        #: with ``solvers``
+        self.stream_solvers: Optional[Solver] = None
         #: the robot_description topic held to a bundle named by robot or model_dir
         self.description_check = DescriptionCheck(Response.ROBOT_MISMATCH,
                                                   self.get_logger().info,
@@ -143,7 +149,8 @@ class SikNode(Node):
             f'ready: bundle {ik.bundle} ({", ".join(ik.goals)} goals, '
             f'{len(ik.joint_names)} joints {ik.robot.base_frame} -> '
             f'{ik.robot.tip_frame}), {self.workers} executor threads, '
-            f'{self._params.solver_processes} solver processes')
+            f'{self._params.solver_processes} solver processes'
+            + (', ~/goal in a solver process of its own' if self.stream_solvers else ''))
 
     def install(self, ik: SelectiveIK, processes: int) -> None:
         """Serve ``ik`` from now on, with ``processes`` solver processes (0: threads).
@@ -156,17 +163,34 @@ class SikNode(Node):
         """
         solvers = make_solvers(ik, processes, self.workers + 1, self._log)
         self.get_logger().info(f'solvers warmed up in {solvers.warm_up_seconds:.2f} s')
-        old, old_ik = self.solvers, self._ik
-        self._ik, self.solvers = ik, solvers
+        stream = self._stream_solvers(ik)
+        old, old_ik, old_stream = self.solvers, self._ik, self.stream_solvers
+        self._ik, self.solvers, self.stream_solvers = ik, solvers, stream
         self.arm = Arm(ik.robot.base_frame, list(ik.joint_names))
         same_arm = old_ik is not None and old_ik.robot.manifest() == ik.robot.manifest()
         if self.goal_stream is not None and not same_arm:  # a stream goes on across a swap
             self.goal_stream.reset(ik.robot.velocity_limits)
         self._no_robot = None
-        if old is not None:
-            timer = threading.Timer(RETIRE_AFTER, old.close)
-            timer.daemon = True
-            timer.start()
+        for retired in (old, old_stream):
+            if retired is not None:
+                timer = threading.Timer(RETIRE_AFTER, retired.close)
+                timer.daemon = True
+                timer.start()
+
+    def _stream_solvers(self, ik: SelectiveIK) -> Optional[Solver]:
+        """The ~/goal stream's solver process (``goal_solver_process``), or None.
+
+        None too for an arm served from its table of configurations (no bundle a process could
+        load) and when the process cannot start (logged: the stream then solves in the node).
+        """
+        if not (self._params.goal_solver_process and ik.learned):
+            return None
+        try:
+            return make_solvers(ik.clone(), 1, 1, self._log)
+        except SikError as exc:
+            self.get_logger().warning(f'~/goal solver process: cannot start ({exc}); the goal '
+                                      f'stream solves in the node')
+            return None
 
     def refuse(self, reason: Optional[str]) -> None:
         """Answer every request ``NO_ROBOT`` with ``reason`` (None: serve again)."""
@@ -189,16 +213,20 @@ class SikNode(Node):
         if self.follower is not None:
             self.follower.close()
         solvers, self.solvers = self.solvers, None
+        stream, self.stream_solvers = self.stream_solvers, None
         self._ik, self.arm, self.description_check.mismatch = None, None, None
         if self.goal_stream is not None:
             self.goal_stream.reset(None)
-        if solvers is not None:
-            solvers.close()
+        for retired in (solvers, stream):
+            if retired is not None:
+                retired.close()
         gc.collect()
 
     def _create_interfaces(self) -> None:
         group = ReentrantCallbackGroup()
         self._markers_pub = self.create_publisher(MarkerArray, '~/markers', 5)
+        #: draws answers on ~/markers off their path, the newest first
+        self.markers = MarkerDrawer(self._marker_error)
         requests = QoSProfile(depth=SERVICE_QUEUE, reliability=ReliabilityPolicy.RELIABLE)
         self.create_service(SolveIK, '~/solve_ik', self._on_solve_ik, qos_profile=requests,
                             callback_group=group)
@@ -228,9 +256,13 @@ class SikNode(Node):
             self.publish_markers(solutions, header, position, orientation)
             return True
 
-        return StreamPort(lambda: self._params, lambda: self.arm, lambda: self.solvers,
+        return StreamPort(lambda: self._params, lambda: self.arm,
+                          lambda: self.stream_solvers or self.solvers,
                           measured, self.guard.answer, lambda: self.closing, markers,
                           lambda: self.get_clock().now().nanoseconds * 1e-9, self.get_logger())
+
+    def _marker_error(self, message: str) -> None:
+        self.get_logger().error(message, throttle_duration_sec=10.0)
 
     def _log(self, level: int, message: str) -> None:
         """Log at a :mod:`logging` level (the solver pool's reports)."""
@@ -263,8 +295,9 @@ class SikNode(Node):
     def _after_set_parameters(self, changes: List[Parameter]) -> None:
         """Make accepted values take effect: solvers pick them up at their next request."""
         self._params = self._read_parameters()
-        if self.solvers is not None:
-            self.solvers.configure(**solver_settings(self._params))
+        for solvers in (self.solvers, self.stream_solvers):
+            if solvers is not None:
+                solvers.configure(**solver_settings(self._params))
         self._update_joint_state_subscription()
         self.get_logger().info('parameters set: ' + ', '.join(
             f'{c.name}={c.value!r}' for c in changes))
@@ -343,9 +376,19 @@ class SikNode(Node):
 
     def publish_markers(self, solutions, header: Header, position: np.ndarray,
                         orientation: Optional[np.ndarray]) -> None:
-        """Draw ranked solutions and their goal on ``~/markers``."""
-        self._markers_pub.publish(conv.posture_markers(
-            self._ik.robot.chain, solutions, header, position, orientation))
+        """Draw ranked solutions and their goal on ``~/markers``, off the answer's path.
+
+        The drawing thread (:class:`~sik_ros.ros.markers.MarkerDrawer`) draws them, after the
+        answer of the callback that asked has been sent; a newer answer's replaces them if
+        they are not drawn by then.
+        """
+        self.markers.put(self._draw_markers, self._ik.robot.chain, solutions, header, position,
+                         orientation)
+
+    def _draw_markers(self, chain, solutions, header: Header, position: np.ndarray,
+                      orientation: Optional[np.ndarray]) -> None:
+        self._markers_pub.publish(conv.posture_markers(chain, solutions, header, position,
+                                                       orientation))
 
     def _fill_ik(self, request: SolveIK.Request, response, header: Header):
         """Solve a SolveIK request into ``response`` (its solutions); the code and message."""
@@ -353,8 +396,9 @@ class SikNode(Node):
         response.solutions = solution_msgs(answer.result, self.arm, header)
         response.num_families = int(answer.result.num_families)
         if self.want_markers():
-            self.publish_markers(answer.result.solutions, header, answer.position,
-                                 answer.orientation)
+            after_answer(partial(self.markers.put, self._draw_markers, self._ik.robot.chain,
+                                 answer.result.solutions, header, answer.position,
+                                 answer.orientation))
         return answer.code, answer.message
 
     def _on_solve_ik(self, request: SolveIK.Request, response: SolveIK.Response
@@ -371,8 +415,13 @@ class SikNode(Node):
         response.fraction = float(result.fraction)
         response.trajectories, response.metrics = trajectories, metrics
         if result.paths and self.want_markers():
-            self._markers_pub.publish(path_markers(self._ik.robot.chain, result, header))
+            chain = self._ik.robot.chain
+            after_answer(partial(self.markers.put, self._publish_path_markers, chain, result,
+                                 header))
         return code, message
+
+    def _publish_path_markers(self, chain, result, header: Header) -> None:
+        self._markers_pub.publish(path_markers(chain, result, header))
 
     def _on_solve_path(self, request: SolvePath.Request, response: SolvePath.Response
                        ) -> SolvePath.Response:
@@ -387,13 +436,17 @@ class SikNode(Node):
         tap = getattr(self, 'joint_states', None)
         if tap is not None:
             tap.close()
+        markers = getattr(self, 'markers', None)
+        if markers is not None:
+            markers.close()
         diagnostics = getattr(self, 'diagnostics', None)
         if diagnostics is not None:
             diagnostics.log_summary()
         follower = getattr(self, 'follower', None)
         if follower is not None:
             follower.close()
-        solvers = getattr(self, 'solvers', None)
-        if solvers is not None:
-            solvers.close()
+        for name in ('solvers', 'stream_solvers'):
+            solvers = getattr(self, name, None)
+            if solvers is not None:
+                solvers.close()
         super().destroy_node()

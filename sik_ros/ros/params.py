@@ -152,6 +152,12 @@ SPECS: Tuple[ParamSpec, ...] = (
               'solver processes serving requests in parallel (beyond the GIL); 0: solve in the '
               'executor threads; 0..16 (read-only)',
               min=0, max=MAX_SOLVER_PROCESSES, read_only=True),
+    ParamSpec('goal_solver_process', bool, False,
+              'solve ~/goal in a solver process of its own, so that a goal stream does not '
+              'hold the GIL the services solve under (the node\'s own solver stands in while '
+              'that process cannot serve); an arm served from its table of configurations '
+              'solves its stream in the node (read-only)',
+              read_only=True),
     ParamSpec('max_obstacles', int, SOLVER_DEFAULTS.max_obstacles,
               'most obstacles a request may give (more: INVALID_GOAL); 0..10000',
               min=0, max=10000),
