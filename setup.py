@@ -110,7 +110,7 @@ class ColconDevelop(develop):
 
 setup(
     name=PACKAGE_NAME,
-    version='0.8.0',
+    version='0.9.0',
     # namespace packages too, so that the bundled model's folders install as package data
     packages=find_namespace_packages(include=[PACKAGE_NAME, PACKAGE_NAME + '.*']),
     package_data={

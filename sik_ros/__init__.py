@@ -10,7 +10,7 @@ The public names below are loaded on first use (PEP 562), so that importing a li
 
 from sik_ros._lazy import lazy_exports
 
-__version__ = '0.8.0'
+__version__ = '0.9.0'
 
 #: Where each public name lives.
 _EXPORTS = {
