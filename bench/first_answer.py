@@ -282,12 +282,11 @@ def main() -> None:
         print(f'| {r["arm"]} | {r["joints"]} | {r.get("table_first_exact_s") or float("nan"):.2f}'
               f' | {r.get("table_restart_exact_s") or float("nan"):.2f} '
               f'({r.get("table_restart_table")}) | {100 * tr.get("success", 0):.0f} % |')
-    if args.table_only:
-        rows = []  # the learning's table: none measured
+    learned = [] if args.table_only else rows  # the learning's table: none measured
     print('| arm | joints | first exact [s] | learned [s] | restart exact [s] | restart '
           'learned [s] | pose: success, distinct (p10), ms table / learned | p50 while '
           'training / paused [ms] |')
-    for r in rows:
+    for r in learned:
         t, lrn, c = r.get('table', {}).get('pose', {}), r.get('learned', {}).get('pose', {}), \
             r.get('training_cost') or {}
         print(f'| {r["arm"]} | {r["joints"]} | {r.get("first_exact_s") or float("nan"):.2f} | '

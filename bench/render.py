@@ -538,11 +538,16 @@ def render_summary(results: Dict[str, List[dict]]) -> Optional[str]:
         exact = [a['first_exact_s'] for a in arms if a.get('first_exact_s') is not None]
         again = [a['restart_exact_s'] for a in arms if a.get('restart_exact_s') is not None]
         pose = [a['table']['pose']['success'] for a in arms if a.get('table')]
+        loaded = [a['table_restart_exact_s'] for a in arms
+                  if a.get('table_restart_exact_s') is not None]
         if exact and again and pose:
+            cached = f'{num(min(loaded), 1)}-{num(max(loaded), 1)} s (table cached); ' \
+                if loaded else ''
             rows.append([f'Any arm from `robot_description` ({len(arms)} arms, no bundle): '
-                         f'first exact answer; after a restart (learned model cached); pose '
-                         f'success before the model',
-                         f'{num(min(exact), 1)}-{num(max(exact), 1)} s; '
+                         f'first exact answer; after a restart ('
+                         + ('table cached; ' if loaded else '')
+                         + 'learned model cached); pose success before the model',
+                         f'{num(min(exact), 1)}-{num(max(exact), 1)} s; {cached}'
                          f'{num(min(again), 1)}-{num(max(again), 1)} s; '
                          f'{pct(min(pose))}-{pct(max(pose))}', NA, NA])
             sources.append(first)
@@ -733,6 +738,9 @@ def render_service_ab(data: dict) -> str:
 def render_first_answer(data: dict) -> str:
     """``bench/first_answer.py``: an arm from robot_description, from start to its answers."""
     r = data['results']
+    if r['settings'].get('table_only'):
+        return _render_table_starts(r)
+    with_starts = any(a.get('table_first_exact_s') is not None for a in r['arms'])
     rows = []
     for a in r['arms']:
         t, lrn = a.get('table') or {}, a.get('learned') or {}
@@ -744,7 +752,11 @@ def render_first_answer(data: dict) -> str:
             return (f'{pct(f["success"])}; {f["distinct_median"]:.0f} '
                     f'({f["distinct_p10"]:.0f}); {num(f["time_median_ms"])} ms')
 
-        rows.append([f'{a["arm"]} ({a["joints"]})', num(a.get('first_exact_s')),
+        starts = [] if not with_starts else [
+            num(a.get('table_first_exact_s')), num(a.get('table_restart_exact_s')),
+            pct(((a.get('table_restart') or {}).get('pose') or {}).get('success', 0.0))]
+        rows.append([f'{a["arm"]} ({a["joints"]})'] + starts + [
+                     num(a.get('first_exact_s')),
                      phase(t.get('pose')), phase(t.get('position')),
                      num(a.get('learned_s'), 0), phase(lrn.get('pose')),
                      phase(lrn.get('position')),
@@ -757,11 +769,48 @@ def render_first_answer(data: dict) -> str:
             f'{st["learning_rows"]:,} configurations; {st["targets"]} targets per phase (FK of '
             f'random configurations, seed {st["seed"]}), 16 solutions asked over ROS. Times '
             "from the node's start; a phase's cells: success; distinct exact solutions, "
-            f'median (p10); round trip, median.\n\n'
-            + table(['arm (joints)', 'first exact [s]', 'table: pose', 'table: position',
+            f'median (p10); round trip, median.'
+            + (' *Table only*: the node with `learning` off on a cache of its own, started '
+               '(its table swept and cached) and restarted (the table loaded from the cache; '
+               'pose success of the restarted node).' if with_starts else '') + '\n\n'
+            + table(['arm (joints)'] + (['table only: first exact [s]',
+                                         'table only: restart exact [s]',
+                                         'table only: restart pose success']
+                                        if with_starts else []) + [
+                     'first exact [s]', 'table: pose', 'table: position',
                      'learned [s]', 'learned: pose', 'learned: position',
                      'restart: learned served [s]', 'restart: first exact [s]',
                      '`~/solve_ik` p50 while it trains / paused [ms]'], rows))
+
+
+def _render_table_starts(r: dict) -> str:
+    """``bench/first_answer.py --table-only``: the table of configurations started, restarted."""
+    rows = []
+    for a in r['arms']:
+        tr = a.get('table_restart') or {}
+
+        def phase(f: dict) -> str:
+            if not f:
+                return NA
+            return (f'{pct(f["success"])}; {f["distinct_median"]:.0f} '
+                    f'({f["distinct_p10"]:.0f}); {num(f["time_median_ms"])} ms')
+
+        rows.append([f'{a["arm"]} ({a["joints"]})', num(a.get('table_first_exact_s')),
+                     a.get('table_start_table') or NA, num(a.get('table_restart_exact_s')),
+                     a.get('table_restart_table') or NA, phase(tr.get('pose')),
+                     phase(tr.get('position'))])
+    st = r['settings']
+    return (f'Table only (`--table-only`): each arm started with only `robot_description`, '
+            f'`base_frame`, `tip_frame` and `learning` off, on an empty cache (its table of '
+            f'configurations swept and cached), then restarted on that cache; {st["targets"]} '
+            f'targets (FK of random configurations, seed {st["seed"]}) asked of the restarted '
+            f'node, 16 solutions each over ROS. Times from the node\'s start to its first '
+            f"exact pose answer; the table as the node's log says it came (built or loaded); a "
+            f"phase's cells: success; distinct exact solutions, median (p10); round trip, "
+            f'median.\n\n'
+            + table(['arm (joints)', 'first start: first exact [s]', 'its table',
+                     'restart: first exact [s]', 'its table', 'restart: pose',
+                     'restart: position'], rows))
 
 
 def render_moveit_ik(data: dict) -> str:
