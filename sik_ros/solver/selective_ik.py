@@ -18,10 +18,10 @@ from sik_ros.deadline import Deadline
 from sik_ros.errors import InvalidArgument, ModelNotReady
 from sik_ros.kinematics.collision import CollisionChecker, Obstacle
 from sik_ros.kinematics.robot import Robot
-from sik_ros.solver import path as _path, pipeline
+from sik_ros.solver import parallel as _parallel, path as _path, pipeline
 from sik_ros.solver.config import PATH_DEFAULTS, SolverConfig
 from sik_ros.solver.context import Context
-from sik_ros.solver.inputs import (check_arrays, check_goal, check_num_solutions,
+from sik_ros.solver.inputs import (check_goal, check_num_solutions,
                                    check_objective, check_obstacles, check_path, check_seed)
 from sik_ros.solver.objectives import Objective
 from sik_ros.solver.path import PathResult, PathSettings
@@ -210,11 +210,47 @@ class SelectiveIK:
         result.elapsed = time.perf_counter() - t0
         return result
 
-    def solve_batch(self, positions, orientations=None, **kw) -> List[IKResult]:
-        """:meth:`solve` for many targets: positions (N, 3), orientations (N, 4) or None."""
-        positions, orientations = check_arrays(positions, orientations)
-        return [self.solve(p, None if orientations is None else orientations[i], **kw)
-                for i, p in enumerate(positions)]
+    def solve_batch(self, positions, orientations=None, *, num_solutions: int = 16, seed=None,
+                    obstacles: Sequence[Obstacle] = (), timeout: Optional[float] = None,
+                    workers: Optional[int] = None, progress: bool = False,
+                    **kw) -> List[IKResult]:
+        """:meth:`solve` for many targets, on several cores: one result per target, in order.
+
+        Each answer is the one :meth:`solve` gives for its row. The rows go in chunks to
+        ``workers`` processes, each holding one solver for the whole batch (forked from this
+        one, or, in a process running ``rclpy``, loading the bundle once); a small batch, or
+        ``workers=1``, is solved in this process.
+
+        Args:
+            positions: targets (N, 3) [m] in the base frame.
+            orientations: None for position goals; else (N, 4) quaternions x y z w.
+            num_solutions: most solutions per target.
+            seed: None, one configuration (n,) for every target, or one per target (N, n)
+                [rad].
+            obstacles: :class:`Obstacle` list, for every target.
+            timeout: each target's budget [s].
+            workers: processes (None: every core this process may run on).
+            progress: show a tqdm progress bar on stderr.
+            **kw: :meth:`solve`'s other keywords (``refine``, ``objective``,
+                ``one_per_family``).
+
+        Raises:
+            InvalidGoal, InvalidSeed, InvalidArgument: a bad row (the error :meth:`solve`
+                raises for it, its message starting with ``target i:``, its ``row``
+                attribute ``i``) or a bad keyword; nothing is solved then.
+        """
+        pos, quat, seeds = _parallel.check_rows(self, positions, orientations, seed)
+        given = dict(num_solutions=check_num_solutions(num_solutions,
+                                                       self.config.max_solutions_cap),
+                     obstacles=check_obstacles(obstacles, self.config.max_obstacles),
+                     timeout=seconds(timeout, 'timeout'), **kw)
+        unknown = sorted(set(kw) - {'refine', 'objective', 'one_per_family'})
+        if unknown:
+            raise InvalidArgument(f'solve_batch got unknown keywords {unknown}')
+        if 'objective' in kw:
+            check_objective(kw['objective'])
+        return _parallel.solve_rows(self, pos, quat, seeds, given,
+                                    _parallel.check_workers(workers), flag(progress, 'progress'))
 
     def solve_path(self, positions, orientations=None, seed=None,
                    num_paths: int = PATH_DEFAULTS.num_paths,

@@ -1,0 +1,261 @@
+"""Many targets on several cores: :meth:`SelectiveIK.solve_batch` in worker processes.
+
+A solve runs numba kernels between Python stages that hold the GIL, so threads of one process
+take turns and a second core stays idle; the targets go to worker processes instead. Each
+worker holds one solver for the whole batch: a forked worker clones the caller's (its tables
+and networks shared with the parent, nothing loaded again), a spawned one (where ``fork`` is
+unavailable or unsafe: a process running ``rclpy``, whose middleware threads a fork would not
+carry) loads the bundle once. The targets travel in chunks of consecutive rows and come back in
+target order; every row is checked before any is solved.
+"""
+
+import functools
+import multiprocessing
+import os
+import sys
+from typing import Any, Dict, List, Optional, Tuple
+
+import numpy as np
+
+from sik_ros import errors
+from sik_ros.errors import InvalidArgument, SikError
+from sik_ros.solver.codec import encode
+from sik_ros.solver.inputs import check_arrays, check_goal, check_seed
+from sik_ros.solver.results import IKResult, PendingIndices
+
+__all__ = ['check_rows', 'check_workers', 'default_workers', 'solve_rows']
+
+#: Chunks per worker: small enough to even out slow targets, large enough to pay the pipe.
+CHUNKS_PER_WORKER = 8
+#: Fewest targets per worker that are worth a process (below: solved in this process).
+MIN_ROWS_PER_WORKER = 16
+
+#: The worker process's solver (set by :func:`_start`), and the caller's, inherited by fork.
+_SOLVER = None
+_INHERITED = None
+
+
+def default_workers() -> int:
+    """The cores this process may run on."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # not Linux
+        return os.cpu_count() or 1
+
+
+def check_rows(ik, positions, orientations, seed):
+    """The batch's arrays, every row checked as :meth:`SelectiveIK.solve` checks its target.
+
+    Args:
+        ik: the solver (its goal kinds and robot).
+        positions: targets (N, 3) [m].
+        orientations: None, or quaternions (N, 4) x y z w.
+        seed: None, one configuration (n,) for every target, or one per target (N, n) [rad].
+
+    Returns:
+        positions (N, 3), orientations (N, 4) or None, and the seeds: None, or (N, n).
+
+    Raises:
+        InvalidGoal, InvalidSeed: the error :meth:`solve` raises for the bad row, its message
+            starting with ``target i:`` and its ``row`` attribute ``i``; or the arrays'
+            shapes.
+    """
+    pos, quat = check_arrays(positions, orientations)
+    for i in range(len(pos)):
+        try:
+            check_goal(pos[i], None if quat is None else quat[i], ik.goals)
+        except SikError as exc:
+            raise _for_row(exc, i) from exc
+    if seed is None:
+        return pos, quat, None
+    try:
+        per_row = np.ndim(seed) == 2
+    except (TypeError, ValueError):  # ragged: check_seed says what is wrong
+        per_row = False
+    if not per_row:
+        return pos, quat, np.repeat(check_seed(ik.robot, seed)[None], len(pos), 0)
+    if len(seed) != len(pos):
+        raise errors.InvalidSeed(f'seed must be one configuration or one per target '
+                                 f'({len(pos)} rows); got {len(seed)} rows')
+    seeds = []
+    for i, row in enumerate(seed):
+        try:
+            seeds.append(check_seed(ik.robot, row))
+        except SikError as exc:
+            raise _for_row(exc, i) from exc
+    return pos, quat, np.array(seeds)
+
+
+def _for_row(exc: SikError, row: int) -> SikError:
+    """``exc``'s class, its message prefixed by the row (attributes kept)."""
+    new = type(exc).__new__(type(exc))
+    new.__dict__.update(exc.__dict__)
+    Exception.__init__(new, f'target {row}: {exc}')
+    new.row = row
+    return new
+
+
+def solve_rows(ik, pos: np.ndarray, quat: Optional[np.ndarray], seeds: Optional[np.ndarray],
+               kwargs: Dict[str, Any], workers: int, progress: bool) -> List[IKResult]:
+    """Each row's :meth:`SelectiveIK.solve`, on ``workers`` processes, in row order."""
+    n = len(pos)
+    bar = _bar(n, progress)
+    try:
+        workers = max(1, min(int(workers), n // MIN_ROWS_PER_WORKER))
+        context = _start_method(ik)
+        if workers == 1 or context is None or not _picklable(kwargs):
+            out = []
+            for i in range(n):
+                out.append(_solve_one(ik, pos, quat, seeds, i, kwargs))
+                bar.update(1)
+            return out
+        return _on_processes(ik, pos, quat, seeds, kwargs, workers, context, bar)
+    finally:
+        bar.close()
+
+
+def _picklable(value) -> bool:
+    """Whether ``value`` can travel to a worker (an objective of a lambda cannot)."""
+    import pickle
+    try:
+        pickle.dumps(value)
+        return True
+    except Exception:  # pickling raises many types
+        return False
+
+
+def _solve_one(ik, pos, quat, seeds, i: int, kwargs) -> IKResult:
+    return ik.solve(pos[i], None if quat is None else quat[i],
+                    seed=None if seeds is None else seeds[i], **kwargs)
+
+
+def _start_method(ik) -> Optional[str]:
+    """``fork`` where it is safe, else ``spawn`` where the bundle can be loaded, else None."""
+    methods = multiprocessing.get_all_start_methods()
+    if 'fork' in methods and 'rclpy' not in sys.modules:
+        return 'fork'
+    return 'spawn' if ik.bundle is not None else None
+
+
+def _on_processes(ik, pos, quat, seeds, kwargs, workers: int, method: str,
+                  bar) -> List[IKResult]:
+    from concurrent.futures import as_completed, ProcessPoolExecutor
+    global _INHERITED
+    n = len(pos)
+    size = max(1, -(-n // (workers * CHUNKS_PER_WORKER)))
+    chunks = [(start, min(n, start + size)) for start in range(0, n, size)]
+    if method == 'fork':
+        _INHERITED, init = ik, (None, None)
+    else:
+        init = (str(ik.bundle), _config_fields(ik.config))
+    results: List[Optional[IKResult]] = [None] * n
+    try:
+        with ProcessPoolExecutor(workers, multiprocessing.get_context(method),
+                                 initializer=_start, initargs=init) as pool:
+            futures = {pool.submit(_solve_chunk, pos[a:b],
+                                   None if quat is None else quat[a:b],
+                                   None if seeds is None else seeds[a:b], kwargs): a
+                       for a, b in chunks}
+            for future in as_completed(futures):
+                answers, lazy = _checked(future.result())
+                start = futures[future]
+                _pending_again(ik, pos, quat, start, answers, lazy)
+                results[start:start + len(answers)] = answers
+                bar.update(len(answers))
+    finally:
+        _INHERITED = None
+    return results
+
+
+def _config_fields(config) -> Dict[str, Any]:
+    from dataclasses import asdict
+    return asdict(config)
+
+
+def _start(bundle: Optional[str], config: Optional[Dict[str, Any]]) -> None:
+    """A worker's start: one thread for BLAS and torch, then its solver, once."""
+    global _SOLVER
+    import signal
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # the caller stops the batch
+    from threadpoolctl import threadpool_limits
+    threadpool_limits(1)
+    torch = sys.modules.get('torch')
+    if torch is not None:
+        torch.set_num_threads(1)
+    if bundle is None:
+        _SOLVER = _INHERITED.clone()
+    else:
+        from sik_ros.solver.config import SolverConfig
+        from sik_ros.solver.selective_ik import SelectiveIK
+        _SOLVER = SelectiveIK.load(bundle, SolverConfig(**config))
+
+
+def _solve_chunk(pos, quat, seeds, kwargs) -> Tuple[str, Any]:
+    """A chunk's answers, or the error that stopped it.
+
+    A posture index not yet encoded stays so (encoding costs more than the solve): the
+    solution travels without it and the caller encodes it when it is first read.
+    """
+    try:
+        out = [_solve_one(_SOLVER, pos, quat, seeds, i, kwargs) for i in range(len(pos))]
+        lazy = []
+        for res in out:
+            rows = [j for j, sol in enumerate(res.solutions)
+                    if sol.__dict__.get('_pending') is not None]
+            for j in rows:
+                res.solutions[j].__dict__.update(_pending=None, _posture_index=None)
+            lazy.append(rows)
+        return 'ok', (out, lazy)
+    except SikError as exc:
+        return 'error', (type(exc).__name__, str(exc))
+
+
+def _pending_again(ik, pos, quat, start: int, out: List[IKResult],
+                   lazy: List[List[int]]) -> None:
+    """The caller's encoder for the solutions that travelled without their posture index."""
+    for k, (res, rows) in enumerate(zip(out, lazy)):
+        if rows:
+            i = start + k
+            goal = check_goal(pos[i], None if quat is None else quat[i], ik.goals)
+            PendingIndices([res.solutions[j] for j in rows],
+                           functools.partial(encode, ik.context, goal))
+
+
+def _checked(reply: Tuple[str, Any]):
+    kind, value = reply
+    if kind == 'ok':
+        return value
+    name, message = value
+    cls = getattr(errors, name, None)
+    cls = cls if isinstance(cls, type) and issubclass(cls, SikError) else SikError
+    exc = cls.__new__(cls)
+    Exception.__init__(exc, message)
+    raise exc
+
+
+def _bar(total: int, show: bool):
+    if show:
+        from tqdm import tqdm
+        return tqdm(total=total, unit='target', desc='solve_batch')
+    return _NoBar()
+
+
+class _NoBar:
+    def update(self, _n: int) -> None:
+        """Nothing to show."""
+
+    def close(self) -> None:
+        """Nothing to close."""
+
+
+def check_workers(workers) -> int:
+    """``workers`` as a count >= 1 (None: every core).
+
+    Raises:
+        InvalidArgument: not a positive integer.
+    """
+    if workers is None:
+        return default_workers()
+    if isinstance(workers, bool) or not isinstance(workers, (int, np.integer)) or workers < 1:
+        raise InvalidArgument(f'workers must be a positive integer or None; got {workers!r}')
+    return int(workers)
