@@ -24,6 +24,11 @@ def build_parser() -> argparse.ArgumentParser:
                        help=f'target {axis} in the base frame [m] (not with --path)')
     p.add_argument('--path', help='a Cartesian path instead: CSV (x,y,z[,qx,qy,qz,qw] per row) '
                    'or YAML (a list of [x, y, z(, qx, qy, qz, qw)]) of waypoints [m]')
+    p.add_argument('--targets', help='many targets instead: CSV or NPZ rows x y z '
+                   '[qx qy qz qw] [m], solved on every core (one line each)')
+    p.add_argument('--out', help='--targets: write the answers to this NPZ (solutions padded '
+                   'with NaN, a manifest)')
+    p.add_argument('--workers', type=int, help='--targets: processes (default: every core)')
     p.add_argument('--max-joint-step', type=float, default=PATH_DEFAULTS.max_joint_step,
                    help='--path: largest joint change between waypoints [rad]')
     p.add_argument('--paths', type=int, default=PATH_DEFAULTS.num_paths,
@@ -132,13 +137,19 @@ def main(argv: Optional[List[str]] = None) -> int:
     args = build_parser().parse_args(argv_or_default(argv))
 
     def body() -> int:
-        if args.path is None and None in (args.x, args.y, args.z):
-            raise InvalidArgument('give a target x y z, or --path FILE')
+        if args.path is None and args.targets is None and None in (args.x, args.y, args.z):
+            raise InvalidArgument('give a target x y z, --targets FILE or --path FILE')
+        if args.targets is not None:
+            from sik_ros.cli.targets import read_targets
+            read_targets(args.targets)  # a bad file is refused before the bundle loads
         from sik_ros.kinematics.collision import Obstacle
         from sik_ros.solver import SelectiveIK
         ik = SelectiveIK.load(args.bundle)
         if args.path is not None:
             return solve_path_file(ik, args)
+        if args.targets is not None:
+            from sik_ros.cli.targets import solve_targets
+            return solve_targets(ik, args)
         obstacles = [Obstacle('box', tuple(b[3:]), tuple(b[:3])) for b in args.box]
         obstacles += [Obstacle('sphere', (s[3],), tuple(s[:3])) for s in args.sphere]
         res = ik.solve((args.x, args.y, args.z), args.orientation, args.num_solutions,
