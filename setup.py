@@ -156,6 +156,7 @@ setup(
             'sik-train = sik_ros.cli.train:main',
             'sik-index = sik_ros.cli.index:main',
             'sik-solve = sik_ros.cli.solve:main',
+            'sik-reach = sik_ros.cli.reach:main',
             'sik-eval = sik_ros.cli.eval:main',
             'sik-build = sik_ros.cli.build:main',
             'sik-chain = sik_ros.cli.chain:main',
