@@ -145,9 +145,9 @@ def _on_processes(ik, pos, quat, seeds, kwargs, workers: int, method: str,
     size = max(1, -(-n // (workers * CHUNKS_PER_WORKER)))
     chunks = [(start, min(n, start + size)) for start in range(0, n, size)]
     if method == 'fork':
-        _INHERITED, init = ik, (None, None)
+        _INHERITED, init = ik, (None, None, None)
     else:
-        init = (str(ik.bundle), _config_fields(ik.config))
+        init = (str(ik.bundle), _config_fields(ik.config), type(ik))
     results: List[Optional[IKResult]] = [None] * n
     try:
         with ProcessPoolExecutor(workers, multiprocessing.get_context(method),
@@ -172,8 +172,11 @@ def _config_fields(config) -> Dict[str, Any]:
     return asdict(config)
 
 
-def _start(bundle: Optional[str], config: Optional[Dict[str, Any]]) -> None:
-    """A worker's start: one thread for BLAS and torch, then its solver, once."""
+def _start(bundle: Optional[str], config: Optional[Dict[str, Any]], solver_class) -> None:
+    """A worker's start: one thread for BLAS and torch, then its solver, once.
+
+    ``solver_class`` (:class:`SelectiveIK`, passed by the caller) loads ``bundle``.
+    """
     global _SOLVER
     import signal
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # the caller stops the batch
@@ -186,8 +189,7 @@ def _start(bundle: Optional[str], config: Optional[Dict[str, Any]]) -> None:
         _SOLVER = _INHERITED.clone()
     else:
         from sik_ros.solver.config import SolverConfig
-        from sik_ros.solver.selective_ik import SelectiveIK
-        _SOLVER = SelectiveIK.load(bundle, SolverConfig(**config))
+        _SOLVER = solver_class.load(bundle, SolverConfig(**config))
 
 
 def _solve_chunk(pos, quat, seeds, kwargs) -> Tuple[str, Any]:
