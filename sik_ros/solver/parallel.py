@@ -9,6 +9,7 @@ carry) loads the bundle once. The targets travel in chunks of consecutive rows a
 target order; every row is checked before any is solved.
 """
 
+import contextlib
 import functools
 import multiprocessing
 import os
@@ -150,8 +151,9 @@ def _on_processes(ik, pos, quat, seeds, kwargs, workers: int, method: str,
         init = (str(ik.bundle), _config_fields(ik.config), type(ik))
     results: List[Optional[IKResult]] = [None] * n
     try:
-        with ProcessPoolExecutor(workers, multiprocessing.get_context(method),
-                                 initializer=_start, initargs=init) as pool:
+        pool = ProcessPoolExecutor(workers, multiprocessing.get_context(method),
+                                   initializer=_start, initargs=init)
+        with _stopped_at_once(pool):
             futures = {pool.submit(_solve_chunk, pos[a:b],
                                    None if quat is None else quat[a:b],
                                    None if seeds is None else seeds[a:b], kwargs): a
@@ -165,6 +167,23 @@ def _on_processes(ik, pos, quat, seeds, kwargs, workers: int, method: str,
     finally:
         _INHERITED = None
     return results
+
+
+@contextlib.contextmanager
+def _stopped_at_once(pool):
+    """The pool shut down when the block ends; its workers ended at once if it raised.
+
+    A Ctrl-C of the caller does not wait for the chunks under way (the workers ignore SIGINT).
+    """
+    try:
+        yield pool
+    except BaseException:
+        processes = list(getattr(pool, '_processes', {}).values())
+        pool.shutdown(wait=False, cancel_futures=True)
+        for process in processes:
+            process.terminate()
+        raise
+    pool.shutdown(wait=True)
 
 
 def _config_fields(config) -> Dict[str, Any]:
