@@ -151,8 +151,8 @@ def test_a_model_trained_on_generated_rows_records_where_and_resumes(panda, tmp_
 
 
 def test_a_checkpoint_without_a_record_is_summarised_from_its_steps():
-    """The shipped Panda models (no record) read as steps x batch, device not recorded."""
-    ckpt = load_checkpoint(ROOT / 'sik_ros/bundles/panda/sik_position.pt')
+    """The shipped Panda pose model (no record) reads as steps x batch, device not recorded."""
+    ckpt = load_checkpoint(ROOT / 'sik_ros/bundles/panda/sik_pose.pt')
     summary = trained_summary(ckpt)
     assert not summary['recorded'] and summary['devices'] == ['not recorded']
     assert summary['samples'] == ckpt['step'] * ckpt['train_config']['batch_size']

@@ -367,11 +367,12 @@ def test_warm_up_solves_each_kind_once_and_leaves_answers_unchanged(tiny_bundle,
 
 
 def test_a_single_pose_solution_wherever_sixteen_find_one(panda):
-    """``num_solutions=1`` takes fewer oriented postures, but falls back to all of them.
+    """``num_solutions=1`` takes fewer starts, but falls back to those a larger call takes.
 
     Target 605 of ``bench/solve.py`` (seed 2024) is near the workspace's edge: the bundled
-    solver's 16-solution call finds one exact solution there, and the 8 oriented postures of
-    a single-solution call alone none.
+    solver's 16-solution call finds exact solutions there (from the seed table's starts of
+    its search), and the oriented postures and the table's indices of a single-solution call
+    alone none: it takes the seed table's starts last.
     """
     bundled = SelectiveIK.load('panda')
     q = np.random.default_rng(2024).uniform(panda.lower, panda.upper, size=(1000, panda.dof))

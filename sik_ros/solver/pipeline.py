@@ -265,6 +265,9 @@ def more_starts(ctx: Context, call: Call, c: Candidates,
     if not call.far and not c.exact.any():
         c, cut = restart(ctx, c, goal, deadline)
         timed_out = timed_out or cut
+    if call.one and not call.far and not c.exact.any() and not deadline.expired():
+        c, cut = seed_table_rescue(ctx, call, c)
+        timed_out = timed_out or cut
     atlas = None
     if call.search:
         c, atlas = search(ctx, c, goal, deadline)  # every piece of the curves found
@@ -274,6 +277,23 @@ def more_starts(ctx: Context, call: Call, c: Candidates,
         margin = spare(cfg, num) if call.enough is not None else cfg.early_stop_margin
         c = walk(ctx, c, goal, deadline, num + max(margin, 0))
     return c, timed_out, atlas
+
+
+def seed_table_rescue(ctx: Context, call: Call, c: Candidates) -> Tuple[Candidates, bool]:
+    """``c`` and the seed table's starts near the goal pose, refined: one solution's last try.
+
+    A call asking for several solutions of a 7-joint arm's pose goal refines these starts in
+    its search (``search_seeds``); one asking for one refines them only when nothing else
+    gave an exact solution, so that it succeeds wherever the larger call does.
+    """
+    goal, cfg = call.goal, ctx.config
+    seeds = ctx.models[goal.kind].seeds
+    if goal.kind != POSE or seeds is None or cfg.family_seed_starts <= 0:
+        return c, False
+    more = seed_starts(ctx, goal, seeds, cfg.family_seed_starts, c.z.shape[1])
+    r = refine(ctx, more.q, goal, call.deadline, prune=True, enough=call.enough)
+    more = assess(r.q, more.z, r.perr, r.oerr, goal.kind, cfg)
+    return Candidates.concat(c, more), r.cut_short
 
 
 def more_oriented(ctx: Context, call: Call, c: Candidates) -> Tuple[Candidates, bool]:
