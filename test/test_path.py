@@ -274,25 +274,32 @@ def test_a_position_path_the_narrow_beam_loses_is_planned_again_wider(ik, monkey
     """Every track of the narrow position beam lost: the wide beam's get through.
 
     A line from ``bench/paths.py``'s generator (seed 45, path 229), solved from its random
-    current state: the narrow beam's tracks (from the seed's branch and the table postures
-    nearest it) all die a third of the way along. (The earlier case, path 59, is planned by
-    the narrow beam since refinement steps may be 0.6 rad.)
+    current state. The shipped model's narrow beam plans it (and every one of 300 position
+    paths of the generator's seeds 45 and 46), so its loss is made here: its answer is taken
+    as lost a third of the way along. The path is then planned again with the wider beam,
+    whose starts are spread over the postures instead of taken near the seed, and the answer
+    that reaches further is returned.
     """
     from sik_ros.solver.path import ladder
+    from sik_ros.solver.path.settings import PathResult
     direction = np.array([-0.4415, 0.2198, -0.8699])
     pos = np.array([0.5636, 0.0006, 0.5034]) + np.linspace(0, 0.4151, 53)[:, None] * \
         (direction / np.linalg.norm(direction))
     seed = np.array([-2.782, 0.198, -1.548, -0.07, -1.81, 1.211, -2.228])
-    plans, plan = [], ladder.plan
+    beams, plan = [], ladder.plan
 
-    def counting(*args):
-        out = plan(*args)
-        plans.append(out.success)
+    def narrow_loses(ctx, goals, q_seed, obstacles, settings, deadline):
+        out = plan(ctx, goals, q_seed, obstacles, settings, deadline)
+        beams.append(settings)
+        if len(beams) == 1:
+            return PathResult(False, 1 / 3, [], out.elapsed, False,
+                              f'the path is feasible up to waypoint 18 of {len(goals)}')
         return out
-    monkeypatch.setattr(ladder, 'plan', counting)
+    monkeypatch.setattr(ladder, 'plan', narrow_loses)
     res = ik.solve_path(pos, seed=seed)
-    assert plans == [False, True]
-    assert res.success and res.fraction == 1.0
+    assert len(beams) == 2 and beams[0].near_seed and not beams[1].near_seed
+    assert beams[1].starts >= beams[0].starts and beams[1].tracks >= beams[0].tracks
+    assert res.success and res.fraction == 1.0 and res.paths
     for path in res.paths:
         check(ik, path, pos, None, 0.3)
 
