@@ -248,6 +248,9 @@ def more_starts(ctx: Context, call: Call, c: Candidates,
                 timed_out: bool) -> Tuple[Candidates, bool, Optional[Atlas]]:
     """Stage 3 after the first refinement ``c``: restarts, then the family search or the walk.
 
+    A call asking for one solution that none of these made exact refines the seed table's
+    starts last (:func:`seed_table_rescue`), as the search of a larger call would.
+
     The search (a 7-joint arm's pose goal asking for several solutions) traces every curve
     of the self-motion through the solutions found and gives points far apart on each of
     its pieces; other pose goals of redundant arms walk from the solutions found.
