@@ -828,6 +828,28 @@ def render_moveit_ik(data: dict) -> str:
             f'{str(r["avoid_collisions"]).lower()})')
 
 
+def render_batch_service(data: dict) -> str:
+    """``bench/batch_service.py``: one ~/solve_ik_batch against as many ~/solve_ik calls."""
+    r = data['results']
+    labels = (('batch', f'one `~/solve_ik_batch` of {r["targets"]} targets'),
+              ('calls', f'{r["targets"]} `~/solve_ik` calls, one after the other'))
+    rows = []
+    for key, label in labels:
+        d, c = r[key], r['checks'][key]
+        rows.append([label, f'{num(d["throughput_median"], 0)} ({num(d["throughput_total"], 0)})',
+                     num(d['ms_per_target_median']),
+                     f'{c["success"]} / {r["targets"] * r["repeats"]}',
+                     f'{c["exact_by_fk"]} / {c["marked_exact"]}'])
+    ratio = r['ratio']
+    return (f'{r["targets"]} {r["goals"]} goals per round, {r["solutions"]} solutions asked, '
+            f'{r["repeats"]} rounds (A B A B):\n\n'
+            + table(['', 'throughput, median round (total) [targets/s]',
+                     'time per target, median [ms]', 'SUCCESS',
+                     'solutions within tolerance by FK / as reported'], rows)
+            + f'\n\nbatch / calls, median of the rounds\' throughput ratios: '
+            f'**{num(ratio["median"])}** (range {num(ratio["min"])}-{num(ratio["max"])})')
+
+
 RENDER: Dict[str, Callable] = {
     'collect': render_collect, 'solve': render_solve, 'solve_ab': render_ab,
     'arms': render_arms, 'paths': render_paths, 'paths_ab': render_paths_ab,
@@ -835,7 +857,8 @@ RENDER: Dict[str, Callable] = {
     'train_step': render_train_step, 'tracik_protocol': render_tracik_protocol,
     'ablation': render_ablation, 'families': render_families, 'stream': render_stream,
     'executors': render_executors, 'service_ab': render_service_ab,
-    'first_answer': render_first_answer, 'moveit_ik': render_moveit_ik}
+    'first_answer': render_first_answer, 'moveit_ik': render_moveit_ik,
+    'batch_service': render_batch_service}
 
 
 def load() -> Dict[str, List[dict]]:

@@ -36,6 +36,7 @@ run stream-busy bench/stream.py --rates 100 500 1000 --duration 10 --busy
 run executors bench/executors.py --duration 5
 run first_answer bench/first_answer.py --arms panda,ur5,xarm7,kinova,so100,z1,ur10,baxter,tree --targets 50 --learning-time 90 --learning-rows 200000
 run moveit_ik bench/moveit_ik.py --requests 2000
+run batch_service bench/batch_service.py --targets 200 --repeats 5
 # OLD: a revision to compare the node's round trip with (e.g. OLD=013d4cc, 0.4.0)
 [[ -n "${OLD:-}" ]] && run service_ab bench/service_ab.py "old=@$OLD" new=. --requests 300
 run arms bench/arms.py --arms panda,ur5 --targets 50 --max-attempts 100

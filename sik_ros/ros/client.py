@@ -9,7 +9,9 @@ module does the latter::
         client.wait_for_service(10.0)
         answer = client.call(demo.pose_request([0.4, 0.1, 0.5]))
 
-It is safe to call from several threads at once.
+It is safe to call from several threads at once. :func:`pose_request` and :func:`batch_request`
+build ``SolveIK`` and ``SolveIKBatch`` requests (``SolveIKClient('/sik_node/solve_ik_batch',
+srv_type=SolveIKBatch)`` calls the latter).
 
 Fast DDS matches a new client's request writer with the server's reader and the server's reply
 writer with the client's reader separately (service discovery, rmw_fastrtps on Jazzy): for a
@@ -30,7 +32,7 @@ from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
 from shape_msgs.msg import SolidPrimitive
 
-from sik_interfaces.srv import SolveIK
+from sik_interfaces.srv import SolveIK, SolveIKBatch
 
 SERVICE = '/sik_node/solve_ik'
 
@@ -73,17 +75,14 @@ class SolveIKClient:
             request: the request.
             timeout: the whole call's budget [s].
             attempt: how long one try waits before the request is sent again [s]; default:
-                the request's own timeout plus a second (or 2 s when it gives none, or has
-                no ``timeout`` field).
+                :func:`attempt_seconds`.
         """
         deadline = time.monotonic() + timeout
         if not self.client.service_is_ready() and not self.client.wait_for_service(
                 timeout_sec=timeout):
             return None
         if attempt is None:
-            budget = getattr(request, 'timeout', None)  # a SolveIK or SolvePath request's
-            given = 0.0 if budget is None else budget.sec + budget.nanosec * 1e-9
-            attempt = given + 1.0 if given > 0 else 2.0
+            attempt = attempt_seconds(request)
         while True:
             left = deadline - time.monotonic()
             if left <= 0:
@@ -110,6 +109,18 @@ class SolveIKClient:
         self.close()
 
 
+def attempt_seconds(request) -> float:
+    """How long a call waits for its answer before it sends the request again [s].
+
+    The request's own timeout plus a second, or 2 s when it gives none or has no ``timeout``
+    field; a ``SolveIKBatch`` request's timeout is per target, so it counts once per target.
+    """
+    budget = getattr(request, 'timeout', None)  # a SolveIK, SolveIKBatch or SolvePath request's
+    given = 0.0 if budget is None else budget.sec + budget.nanosec * 1e-9
+    targets = max(1, len(getattr(request, 'targets', ())))
+    return given * targets + 1.0 if given > 0 else 2.0 * targets
+
+
 def pose_request(position: Sequence[float], orientation: Optional[Sequence[float]] = None,
                  max_solutions: int = 0, frame_id: str = '') -> SolveIK.Request:
     """Build a SolveIK request: a position goal, or a pose goal with a quaternion x y z w."""
@@ -122,6 +133,17 @@ def pose_request(position: Sequence[float], orientation: Optional[Sequence[float
         o.x, o.y, o.z, o.w = (float(v) for v in orientation)
         req.use_orientation = True
     return req
+
+
+def batch_request(positions: Sequence[Sequence[float]],
+                  orientations: Optional[Sequence[Sequence[float]]] = None,
+                  max_solutions: int = 0, frame_id: str = '') -> SolveIKBatch.Request:
+    """Build a SolveIKBatch request: position goals, or pose goals with quaternions x y z w."""
+    singles = [pose_request(p, None if orientations is None else orientations[i], 0, frame_id)
+               for i, p in enumerate(positions)]
+    return SolveIKBatch.Request(targets=[s.target for s in singles],
+                                use_orientation=orientations is not None,
+                                max_solutions=max_solutions)
 
 
 def box(center: Sequence[float], size: Sequence[float]):

@@ -2,21 +2,26 @@
 
 :func:`solve_request` checks every field of a ``SolveIK`` request at the edge (frame, goal, seed,
 obstacles, timeout), solves it with the node's solvers and returns an :class:`Answer`: the code,
-message, library result and goal. :func:`checked_goal` is the one check of a goal's pose
-(``~/solve_ik`` targets and ``~/goal`` goals); :func:`solution_msgs` turns the ranked solutions
-into ``IKSolution`` messages; :func:`solver_settings` gives the solver fields the node's
-parameters set. Bad input raises a :class:`~sik_ros.errors.SikError` that
-:class:`~sik_ros.ros.guard.RequestGuard` turns into its code.
+message, library result and goal. It is two steps, which ``~/solve_ik_batch``
+(:mod:`~sik_ros.ros.batch_service`) takes apart: :func:`solve_options` checks what a request asks
+besides its goal (solution count, seed, obstacles, timeout), :func:`solve_goal` solves one
+goal with them. :func:`checked_goal` is the one check of a goal's pose (``~/solve_ik`` targets,
+``~/solve_ik_batch`` targets and ``~/goal`` goals); :func:`fill_answer` puts an answer's ranked
+solutions into a message as ``IKSolution`` messages (:func:`solution_msgs`);
+:func:`solver_settings` gives the solver fields the node's parameters set. Bad input raises a
+:class:`~sik_ros.errors.SikError` that :class:`~sik_ros.ros.guard.RequestGuard` turns into its
+code.
 """
 
 from dataclasses import dataclass
-from typing import Callable, Optional, Sequence, Tuple
+from typing import Callable, List, Optional, Sequence, Tuple
 
 import numpy as np
 from std_msgs.msg import Header
 
 from sik_interfaces.srv import SolveIK
 from sik_ros.errors import InvalidFrame
+from sik_ros.kinematics.collision import Obstacle
 from sik_ros.ros import conversions as conv
 from sik_ros.ros.params import NodeParams
 from sik_ros.serving.solvers import Solver
@@ -55,7 +60,7 @@ def solver_settings(p: NodeParams) -> dict:
 
 @dataclass(frozen=True)
 class Answer:
-    """What a ``SolveIK`` request got.
+    """What one goal got (a ``SolveIK`` request, or a target of a ``SolveIKBatch``).
 
     Attributes:
         code: the response's error code.
@@ -70,6 +75,66 @@ class Answer:
     result: IKResult
     position: np.ndarray
     orientation: Optional[np.ndarray]
+
+
+@dataclass(frozen=True)
+class SolveOptions:
+    """What a ``SolveIK`` or ``SolveIKBatch`` request asks besides its goals, checked.
+
+    Attributes:
+        num_solutions: solutions to return per goal.
+        note: a remark for the answer's message (a clamped ``max_solutions``), or empty.
+        seed: the seed (n,) [rad] in the arm's joint order, or None.
+        obstacles: the obstacles in the base frame.
+        timeout: each goal's budget [s].
+    """
+
+    num_solutions: int
+    note: str
+    seed: Optional[np.ndarray]
+    obstacles: List[Obstacle]
+    timeout: float
+
+
+def solve_options(arm: Arm, request, p: NodeParams,
+                  state_seed: Callable[[], Optional[np.ndarray]]) -> SolveOptions:
+    """The checked ``max_solutions``, seed, obstacles and timeout of a request.
+
+    Args:
+        arm: the served arm.
+        request: a ``SolveIK`` or ``SolveIKBatch`` request (any field may be hostile).
+        p: the parameters in force.
+        state_seed: the latest ``joint_states`` as a seed (or None), used when the request
+            gives none and ``use_joint_states`` is on.
+
+    Raises:
+        InvalidSeed, InvalidGoal: the seed's names, the obstacles or the timeout. The seed's
+            values are checked by the solver (or by :func:`~sik_ros.solver.inputs.check_seed`).
+    """
+    num, note = conv.solution_count(request.max_solutions, p.num_solutions, p.max_solutions_cap)
+    seed = conv.seed_from_joint_state(request.seed, arm.joint_names)
+    if seed is None and p.use_joint_states:
+        seed = state_seed()
+    obstacles = conv.obstacles_from_msgs(request.obstacles, request.obstacle_poses,
+                                         p.max_obstacles)
+    timeout = conv.seconds_from_duration(request.timeout) or p.timeout
+    return SolveOptions(num, note, seed, obstacles, timeout)
+
+
+def solve_goal(solvers: Solver, position: np.ndarray, orientation: Optional[np.ndarray],
+               options: SolveOptions, p: NodeParams) -> Answer:
+    """Solve one checked goal with a request's options: its code, message, result and goal.
+
+    Raises:
+        SikError: bad input the solver finds (a non-finite goal, a zero quaternion, a seed
+            outside the limits), or no solver free in time.
+    """
+    result = solvers.solve(position, orientation, options.num_solutions, seed=options.seed,
+                           obstacles=options.obstacles, refine=p.refine,
+                           timeout=options.timeout)
+    code, text = conv.result_code(result, bool(options.obstacles), options.timeout)
+    return Answer(code, '; '.join(t for t in (text, options.note) if t), result, position,
+                  orientation)
 
 
 def solve_request(solvers: Solver, arm: Arm, request: SolveIK.Request, p: NodeParams,
@@ -89,17 +154,8 @@ def solve_request(solvers: Solver, arm: Arm, request: SolveIK.Request, p: NodePa
             solver free in time.
     """
     position, orientation = checked_goal(arm, request.target, request.use_orientation, 'target')
-    num, note = conv.solution_count(request.max_solutions, p.num_solutions, p.max_solutions_cap)
-    seed = conv.seed_from_joint_state(request.seed, arm.joint_names)
-    if seed is None and p.use_joint_states:
-        seed = state_seed()
-    obstacles = conv.obstacles_from_msgs(request.obstacles, request.obstacle_poses,
-                                         p.max_obstacles)
-    timeout = conv.seconds_from_duration(request.timeout) or p.timeout
-    result = solvers.solve(position, orientation, num, seed=seed, obstacles=obstacles,
-                           refine=p.refine, timeout=timeout)
-    code, text = conv.result_code(result, bool(obstacles), timeout)
-    return Answer(code, '; '.join(t for t in (text, note) if t), result, position, orientation)
+    options = solve_options(arm, request, p, state_seed)
+    return solve_goal(solvers, position, orientation, options, p)
 
 
 def checked_goal(arm: Arm, target, use_orientation: bool, what: str
@@ -121,3 +177,13 @@ def checked_goal(arm: Arm, target, use_orientation: bool, what: str
 def solution_msgs(result: IKResult, arm: Arm, header: Header) -> list:
     """The ranked solutions of a result as ``IKSolution`` messages."""
     return conv.solution_msgs(result.solutions, arm.joint_names, header)
+
+
+def fill_answer(msg, answer: Answer, arm: Arm, header: Header) -> None:
+    """Set ``msg.solutions`` and ``msg.num_families`` from an answer.
+
+    ``msg``: a ``SolveIK`` response or a ``SolveIKResult`` (the code and message are the
+    caller's to set).
+    """
+    msg.solutions = solution_msgs(answer.result, arm, header)
+    msg.num_families = int(answer.result.num_families)

@@ -1,18 +1,20 @@
 """sik_node: the ROS 2 node over :class:`~sik_ros.solver.SelectiveIK`.
 
-Service ``~/solve_ik`` (``sik_interfaces/srv/SolveIK``), service ``~/solve_path``
-(``sik_interfaces/srv/SolvePath``), topics ``~/goal`` -> ``~/solutions`` (a stream, newest
-goal first: :mod:`~sik_ros.ros.goal_stream`), ``joint_states`` (optional seed), ``~/markers``
-(RViz) and an optional command output for ros2_control. Started by :mod:`sik_ros.ros.run`
-(the ``sik_node`` command): ``sik_node --ros-args --params-file config/panda.yaml``. See
-docs/interfaces.md.
+Service ``~/solve_ik`` (``sik_interfaces/srv/SolveIK``), service ``~/solve_ik_batch``
+(``sik_interfaces/srv/SolveIKBatch``: many targets, :mod:`~sik_ros.ros.batch_service`),
+service ``~/solve_path`` (``sik_interfaces/srv/SolvePath``), topics ``~/goal`` ->
+``~/solutions`` (a stream, newest goal first: :mod:`~sik_ros.ros.goal_stream`),
+``joint_states`` (optional seed), ``~/markers`` (RViz) and an optional command output for
+ros2_control. Started by :mod:`sik_ros.ros.run` (the ``sik_node`` command): ``sik_node
+--ros-args --params-file config/panda.yaml``. See docs/interfaces.md.
 
 The node is wiring: its constructor declares the parameters, loads the bundle named by
 ``robot`` or ``model_dir`` (:mod:`~sik_ros.ros.named_bundle`) or follows the arm of
 robot_description (:mod:`~sik_ros.ros.arm_follower`), starts the solvers and creates the ROS
 interfaces; each callback hands its request to :class:`~sik_ros.ros.guard.RequestGuard` with a
-handler from :mod:`~sik_ros.ros.ik_service` or :mod:`~sik_ros.ros.path_service`; ``~/goal`` is
-answered by a thread of its own (:class:`~sik_ros.ros.goal_stream.GoalStream`).
+handler from :mod:`~sik_ros.ros.ik_service`, :mod:`~sik_ros.ros.batch_service` or
+:mod:`~sik_ros.ros.path_service`; ``~/goal`` is answered by a thread of its own
+(:class:`~sik_ros.ros.goal_stream.GoalStream`).
 """
 
 from dataclasses import fields, replace
@@ -32,15 +34,16 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Header, String
 from visualization_msgs.msg import MarkerArray
 
-from sik_interfaces.srv import SolveIK, SolvePath
+from sik_interfaces.srv import SolveIK, SolveIKBatch, SolvePath
 from sik_ros.errors import SikError
 from sik_ros.ros import conversions as conv
 from sik_ros.ros.arm_follower import ArmFollower
+from sik_ros.ros.batch_service import GiveWay, solve_batch_request
 from sik_ros.ros.diagnostics import NodeDiagnostics
 from sik_ros.ros.executor import after_answer
 from sik_ros.ros.goal_stream import GoalStream, StreamPort
 from sik_ros.ros.guard import log_at, RequestGuard
-from sik_ros.ros.ik_service import Arm, solution_msgs, solve_request, solver_settings
+from sik_ros.ros.ik_service import Arm, fill_answer, solve_request, solver_settings
 from sik_ros.ros.joint_states import JointStateTap
 from sik_ros.ros.markers import MarkerDrawer
 from sik_ros.ros.moveit_ik import serve_moveit
@@ -70,7 +73,11 @@ Response = SolveIK.Response
 
 
 class SikNode(Node):
-    """The IK node: loads a bundle, answers ``~/solve_ik``, ``~/solve_path`` and ``~/goal``."""
+    """The IK node: loads a bundle, answers its services and ``~/goal``.
+
+    The services: ``~/solve_ik``, ``~/solve_ik_batch``, ``~/solve_path``, and MoveIt's
+    ``/compute_ik`` and ``/compute_fk``.
+    """
 
     def __init__(self, workers: int = WORKERS, managed: bool = False, **kwargs):
         """Declare the parameters, load the bundle, start the solvers, create the interfaces.
@@ -111,6 +118,9 @@ class SikNode(Node):
         self.guard = RequestGuard(self.get_logger())
         self.guard.refusals.append(self.description_check.refusal)
         self.guard.refusals.append(self._no_robot_refusal)
+        #: where ~/solve_ik_batch requests wait for the others between their targets
+        self.give_way = GiveWay(lambda: self.guard.in_flight)
+        self.guard.listeners.append(self.give_way.answered)
         self.diagnostics = NodeDiagnostics(self)
         self.goal_stream: Optional[GoalStream] = None
         if not managed:
@@ -230,6 +240,8 @@ class SikNode(Node):
         requests = QoSProfile(depth=SERVICE_QUEUE, reliability=ReliabilityPolicy.RELIABLE)
         self.create_service(SolveIK, '~/solve_ik', self._on_solve_ik, qos_profile=requests,
                             callback_group=group)
+        self.create_service(SolveIKBatch, '~/solve_ik_batch', self._on_solve_ik_batch,
+                            qos_profile=requests, callback_group=group)
         self.create_service(SolvePath, '~/solve_path', self._on_solve_path,
                             qos_profile=requests, callback_group=group)
         self.goal_stream = GoalStream(self, self._stream_port())
@@ -393,8 +405,7 @@ class SikNode(Node):
     def _fill_ik(self, request: SolveIK.Request, response, header: Header):
         """Solve a SolveIK request into ``response`` (its solutions); the code and message."""
         answer = solve_request(self.solvers, self.arm, request, self._params, self.state_seed)
-        response.solutions = solution_msgs(answer.result, self.arm, header)
-        response.num_families = int(answer.result.num_families)
+        fill_answer(response, answer, self.arm, header)
         if self.want_markers():
             after_answer(partial(self.markers.put, self._draw_markers, self._ik.robot.chain,
                                  answer.result.solutions, header, answer.position,
@@ -406,6 +417,24 @@ class SikNode(Node):
         header = self._header()
         return self.guard.answer('solve_ik', response,
                                  lambda r: self._fill_ik(request, r, header))
+
+    def _fill_batch(self, request: SolveIKBatch.Request, response: SolveIKBatch.Response,
+                    header: Header):
+        """Solve a SolveIKBatch request into ``response`` (its results); the code and message."""
+        ik, solvers, arm = self._ik, self.solvers, self.arm
+        if ik is None or solvers is None or arm is None:
+            return Response.TIMEOUT, 'sik_node has no bundle loaded'
+        code, message, results = solve_batch_request(
+            solvers, arm, request, self._params, self.state_seed, ik.check_seed, header,
+            self.give_way, self.guard.refusal)
+        response.results = results
+        return code, message
+
+    def _on_solve_ik_batch(self, request: SolveIKBatch.Request,
+                           response: SolveIKBatch.Response) -> SolveIKBatch.Response:
+        header = self._header()
+        return self.guard.answer('solve_ik_batch', response,
+                                 lambda r: self._fill_batch(request, r, header))
 
     def _fill_path(self, request: SolvePath.Request, response: SolvePath.Response):
         header = self._header()

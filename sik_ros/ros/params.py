@@ -164,6 +164,10 @@ SPECS: Tuple[ParamSpec, ...] = (
     ParamSpec('max_waypoints', int, SOLVER_DEFAULTS.max_waypoints,
               'most waypoints a solve_path request may give (more: INVALID_GOAL); 1..100000',
               min=1, max=100000),
+    ParamSpec('max_batch_targets', int, 1000,
+              'most targets a solve_ik_batch request may give (more: INVALID_GOAL, nothing '
+              'solved); 1..100000',
+              min=1, max=100000),
     ParamSpec('shutdown_grace', float, 1.0,
               'on SIGINT/SIGTERM, time in-flight requests get to finish before the node exits '
               '(new ones are answered TIMEOUT) [s]; (0, 60]',
