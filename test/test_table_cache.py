@@ -67,7 +67,6 @@ def built(tmp_path_factory) -> Dict[str, Path]:
     return out
 
 
-
 @pytest.mark.parametrize('name', sorted(ARMS))
 def test_a_restart_loads_the_cached_table_and_answers_alike(name, built, tmp_path):
     """A restart loads the table the first start cached (not swept again): the same answers."""
