@@ -1,6 +1,7 @@
 """solve_batch against the serial loop of solve on the same pose goals, paired.
 
-Prints the throughput ratio (serial time / batch time), the success and distinct-solution
+Prints the throughput ratio (serial time / batch time, the median of ``--repeats`` pairs run
+in turn, and its range), the success and distinct-solution
 counts of both (equal: the batch answers are solve's) and whether every solution returned as
 exact is exact by Pinocchio's FK. ``--threads`` also times a pool of threads over clones, the
 alternative the processes replace.
@@ -51,20 +52,27 @@ def main():
     p.add_argument('--solutions', type=int, default=16)
     p.add_argument('--workers', type=int, default=2)
     p.add_argument('--threads', action='store_true', help='also time threads over clones')
+    p.add_argument('--repeats', type=int, default=3,
+                   help='serial and batch runs, in turn (the ratio: their median)')
     add_json_argument(p)
     args = p.parse_args()
     ik = SelectiveIK.load(args.bundle)
     pos, quat = pose_goals(ik, args.targets)
     ik.warm_up()
     load0 = os.getloadavg()[0]
-    t = time.perf_counter()
-    serial = [ik.solve(a, b, num_solutions=args.solutions) for a, b in zip(pos, quat)]
-    t_serial = time.perf_counter() - t
-    t = time.perf_counter()
-    batch = ik.solve_batch(pos, quat, num_solutions=args.solutions, workers=args.workers)
-    t_batch = time.perf_counter() - t
-    figures = dict(targets=args.targets, workers=args.workers, serial_s=t_serial,
-                   batch_s=t_batch, ratio=t_serial / t_batch,
+    serial_times, batch_times = [], []
+    for _ in range(args.repeats):  # A B A B: the machine's drift falls on both alike
+        t = time.perf_counter()
+        serial = [ik.solve(a, b, num_solutions=args.solutions) for a, b in zip(pos, quat)]
+        serial_times.append(time.perf_counter() - t)
+        t = time.perf_counter()
+        batch = ik.solve_batch(pos, quat, num_solutions=args.solutions, workers=args.workers)
+        batch_times.append(time.perf_counter() - t)
+    ratios = np.array(serial_times) / np.array(batch_times)
+    t_serial, t_batch = float(np.median(serial_times)), float(np.median(batch_times))
+    figures = dict(targets=args.targets, workers=args.workers, repeats=args.repeats,
+                   serial_s=t_serial, batch_s=t_batch, ratio=float(np.median(ratios)),
+                   ratio_range=[float(ratios.min()), float(ratios.max())],
                    success=[sum(r.success for r in serial), sum(r.success for r in batch)],
                    solutions=[sum(len(r.solutions) for r in serial),
                               sum(len(r.solutions) for r in batch)])
