@@ -36,8 +36,7 @@ def history(run: Path) -> Dict:
                 rows=[dict(step=h['step'], samples=h['step'] * batch,
                            hours=h['elapsed_s'] / 3600.0,
                            dist_cm=100.0 * h['val_dist_mean_m'],
-                           rot_deg=(math.degrees(h['val_rot_mean_rad'])
-                                    if 'val_rot_mean_rad' in h else None))
+                           rot_deg=h.get('val_orient_mean_deg'))
                       for h in rows])
 
 

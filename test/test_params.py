@@ -19,27 +19,6 @@ from sik_ros.ros.params import NodeParams, SPEC, SPECS, validate
 from sik_ros.solver.config import PathDefaults, SolverConfig
 
 REPO = Path(__file__).resolve().parents[1]
-#: The node's parameters: name, type, default (base and tip frames default to the bundle's).
-EXPECTED = [
-    ('robot', str, ''), ('model_dir', str, ''), ('base_frame', str, ''),
-    ('tip_frame', str, ''), ('num_solutions', int, 16),
-    ('max_solutions_cap', int, 64), ('position_tolerance', float, 1e-4),
-    ('orientation_tolerance', float, 1e-3), ('one_per_family', bool, False),
-    ('refine', bool, True), ('timeout', float, 0.05),
-    ('path_timeout', float, 2.0),
-    ('use_joint_states', bool, False), ('goal_use_orientation', bool, False),
-    ('publish_markers', bool, True), ('goal_num_solutions', int, 1),
-    ('goal_timeout', float, 0.02), ('goal_max_joint_step', float, 0.5),
-    ('goal_marker_rate', float, 10.0), ('command_format', str, 'none'),
-    ('command_topic', str, '~/command'), ('solver_processes', int, 0),
-    ('goal_solver_process', bool, False), ('max_obstacles', int, 256),
-    ('max_waypoints', int, 2000), ('max_batch_targets', int, 1000),
-    ('shutdown_grace', float, 1.0),
-    ('robot_description', str, ''), ('learning', bool, True),
-    ('learning_time', float, 1800.0), ('learning_rows', int, 3_000_000), ('cache_dir', str, ''),
-    ('sweep_time', float, 3.0), ('moveit_services', bool, True),
-    ('compute_ik_service', str, '/compute_ik'), ('compute_fk_service', str, '/compute_fk'),
-    ('ik_group', str, ''), ('lifecycle', bool, False)]
 READ_ONLY = {'robot', 'model_dir', 'base_frame', 'tip_frame', 'solver_processes',
              'goal_solver_process',
              'robot_description', 'lifecycle', 'command_format', 'command_topic', 'learning',
@@ -69,11 +48,25 @@ def test_node_params_made_from_the_table():
     assert dataclasses.replace(NodeParams(), timeout=1.0).timeout == 1.0
 
 
-def test_node_params_unchanged():
-    """Field names, types, defaults and read-only flags are those sik_node always had."""
-    assert [(f.name, f.type, f.default) for f in dataclasses.fields(NodeParams)] == EXPECTED
-    assert set(params.READ_ONLY) == READ_ONLY
-    assert set(params.DESCRIPTIONS) == {name for name, _, _ in EXPECTED}
+def test_read_only_and_descriptions_come_from_the_table():
+    """The read-only set and the descriptions are the table's; the read-only ones as documented.
+
+    The read-only parameters identify the loaded bundle, the solver processes, the arm's
+    source and the MoveIt services: changed by a restart only.
+    """
+    assert set(params.READ_ONLY) == {s.name for s in SPECS if s.read_only} == READ_ONLY
+    assert params.DESCRIPTIONS == {s.name: s.description for s in SPECS}
+    assert len({s.name for s in SPECS}) == len(SPECS)
+
+
+def test_the_interfaces_table_is_made_from_the_table():
+    """docs/interfaces.md's parameter table is what ``scripts/params_table.py`` makes of SPECS."""
+    text = (REPO / 'docs' / 'interfaces.md').read_text()
+    head, _, rest = text.partition('<!-- begin: parameters -->\n')
+    table, _, _ = rest.partition('<!-- end: parameters -->')
+    assert head and table == params.markdown_table(), 'run python scripts/params_table.py'
+    for s in SPECS:
+        assert f'| `{s.name}` | {s.type.__name__} |' in table, s.name
 
 
 def test_command_output_settings_checked():

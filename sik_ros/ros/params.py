@@ -256,6 +256,27 @@ def declarations(defaults: Optional['NodeParams'] = None) -> list:
     return [(s.name, getattr(defaults, s.name), descriptor(s)) for s in SPECS]
 
 
+def markdown_table() -> str:
+    """Every parameter as a Markdown table: name, type, default, range, read-only, description.
+
+    docs/interfaces.md holds it between ``<!-- begin: parameters -->`` and ``<!-- end:
+    parameters -->`` (written by ``scripts/params_table.py``, checked by the tests).
+    """
+    rows = ['| parameter | type | default | range | read-only | description |',
+            '|---|---|---|---|---|---|']
+    for s in SPECS:
+        default = f"'{s.default}'" if s.type is str else (
+            str(s.default).lower() if s.type is bool else f'{s.default:g}' if s.type is float
+            else f'{s.default:,}')
+        span = _range_text(s, s.max) if s.numeric else ''
+        if s.max_param:
+            span += f', <= {s.max_param}'
+        text = s.description.replace('|', '\\|')
+        rows.append(f'| `{s.name}` | {s.type.__name__} | `{default}` | {span} | '
+                    f'{"yes" if s.read_only else ""} | {text} |')
+    return '\n'.join(rows) + '\n'
+
+
 def _range_text(spec: ParamSpec, upper: Number) -> str:
     if spec.type is int:
         return f'{spec.min}..{upper}'
