@@ -5,12 +5,15 @@ take turns and a second core stays idle; the targets go to worker processes inst
 worker holds one solver for the whole batch: a forked worker clones the caller's (its tables
 and networks shared with the parent, nothing loaded again), a spawned one (where ``fork`` is
 unavailable or unsafe: a process running ``rclpy``, whose middleware threads a fork would not
-carry) loads the bundle once. The targets travel in chunks of consecutive rows and come back in
-target order; every row is checked before any is solved.
+carry) loads the bundle once; before a fork the caller's objects are frozen out of the garbage
+collector's reach (``gc.freeze``), so that the workers' collections do not copy the pages they
+share with it. The targets travel in chunks of consecutive rows and come back, packed into a few
+arrays per chunk, in target order; every row is checked before any is solved.
 """
 
 import contextlib
 import functools
+import gc
 import multiprocessing
 import os
 import sys
@@ -22,12 +25,12 @@ from sik_ros import errors
 from sik_ros.errors import InvalidArgument, SikError
 from sik_ros.solver.codec import encode
 from sik_ros.solver.inputs import check_arrays, check_goal, check_seed
-from sik_ros.solver.results import IKResult, PendingIndices
+from sik_ros.solver.results import IKResult, PendingIndices, Solution
 
 __all__ = ['check_rows', 'check_workers', 'default_workers', 'solve_rows']
 
 #: Chunks per worker: small enough to even out slow targets, large enough to pay the pipe.
-CHUNKS_PER_WORKER = 8
+CHUNKS_PER_WORKER = 32
 #: Fewest targets per worker that are worth a process (below: solved in this process).
 MIN_ROWS_PER_WORKER = 16
 
@@ -150,6 +153,10 @@ def _on_processes(ik, pos, quat, seeds, kwargs, workers: int, method: str,
     else:
         init = (str(ik.bundle), _config_fields(ik.config), type(ik))
     results: List[Optional[IKResult]] = [None] * n
+    if method == 'fork':
+        # the caller's objects in the permanent generation: a worker's garbage collections
+        # then leave the pages it shares with the caller alone (no copy-on-write of them)
+        gc.freeze()
     try:
         pool = ProcessPoolExecutor(workers, multiprocessing.get_context(method),
                                    initializer=_start, initargs=init)
@@ -166,6 +173,8 @@ def _on_processes(ik, pos, quat, seeds, kwargs, workers: int, method: str,
                 bar.update(len(answers))
     finally:
         _INHERITED = None
+        if method == 'fork':
+            gc.unfreeze()
     return results
 
 
@@ -212,23 +221,77 @@ def _start(bundle: Optional[str], config: Optional[Dict[str, Any]], solver_class
 
 
 def _solve_chunk(pos, quat, seeds, kwargs) -> Tuple[str, Any]:
-    """A chunk's answers, or the error that stopped it.
+    """A chunk's answers, packed into arrays (:func:`pack`), or the error that stopped it.
 
     A posture index not yet encoded stays so (encoding costs more than the solve): the
     solution travels without it and the caller encodes it when it is first read.
     """
     try:
-        out = [_solve_one(_SOLVER, pos, quat, seeds, i, kwargs) for i in range(len(pos))]
-        lazy = []
-        for res in out:
-            rows = [j for j, sol in enumerate(res.solutions)
-                    if sol.__dict__.get('_pending') is not None]
-            for j in rows:
-                res.solutions[j].__dict__.update(_pending=None, _posture_index=None)
-            lazy.append(rows)
-        return 'ok', (out, lazy)
+        return 'ok', pack([_solve_one(_SOLVER, pos, quat, seeds, i, kwargs)
+                           for i in range(len(pos))])
     except SikError as exc:
         return 'error', (type(exc).__name__, str(exc))
+
+
+#: The per-solution fields that travel as one array each (:func:`pack`), in order.
+_FLOATS = ('position_error', 'orientation_error', 'score', 'min_obstacle_distance')
+_FLAGS = ('self_collision', 'converged')
+_INTS = ('tier', 'family')
+
+
+def pack(results: List[IKResult]) -> Dict[str, Any]:
+    """A chunk's answers as a few arrays, made again by :func:`unpack`.
+
+    They cross the pipe far cheaper than thousands of pickled objects would.
+    The solutions' rows are stacked in answer order; ``lazy`` marks those whose posture index
+    was not yet encoded (travelled as NaN).
+    """
+    sols = [s for res in results for s in res.solutions]
+    lazy = np.array([s.__dict__.get('_pending') is not None for s in sols], dtype=bool)
+    out: Dict[str, Any] = dict(
+        head=[(r.success, r.goal, r.timed_out, r.elapsed, r.message, r.num_families,
+               len(r.solutions)) for r in results],
+        lazy=lazy)
+    if sols:
+        out['q'] = np.array([s.q for s in sols])
+        widths = [len(s.__dict__['_posture_index']) for s, p in zip(sols, lazy) if not p]
+        z = np.full((len(sols), widths[0] if widths else 0), np.nan)
+        for k, (s, pending) in enumerate(zip(sols, lazy)):
+            if not pending:
+                z[k] = s.__dict__['_posture_index']
+        out['z'] = z
+        for name in _FLOATS:
+            out[name] = np.array([getattr(s, name) for s in sols], dtype=float)
+        for name in _FLAGS:
+            out[name] = np.array([getattr(s, name) for s in sols], dtype=bool)
+        for name in _INTS:
+            out[name] = np.array([getattr(s, name) for s in sols], dtype=np.int64)
+    return out
+
+
+def unpack(packed: Dict[str, Any]) -> Tuple[List[IKResult], List[List[int]]]:
+    """:func:`pack`'s answers made again, and per answer its solutions without an index."""
+    results, lazy, k = [], [], 0
+    flags = packed['lazy']
+    for success, goal, timed_out, elapsed, message, families, count in packed['head']:
+        sols, rows = [], []
+        for j in range(count):
+            sol = Solution(packed['q'][k].copy(), float(packed['position_error'][k]),
+                           float(packed['orientation_error'][k]),
+                           None if flags[k] else packed['z'][k].copy(),
+                           score=float(packed['score'][k]),
+                           min_obstacle_distance=float(packed['min_obstacle_distance'][k]),
+                           self_collision=bool(packed['self_collision'][k]),
+                           converged=bool(packed['converged'][k]),
+                           tier=int(packed['tier'][k]), family=int(packed['family'][k]))
+            if flags[k]:
+                rows.append(j)
+            sols.append(sol)
+            k += 1
+        results.append(IKResult(bool(success), sols, goal, bool(timed_out), float(elapsed),
+                                message, int(families)))
+        lazy.append(rows)
+    return results, lazy
 
 
 def _pending_again(ik, pos, quat, start: int, out: List[IKResult],
@@ -245,7 +308,7 @@ def _pending_again(ik, pos, quat, start: int, out: List[IKResult],
 def _checked(reply: Tuple[str, Any]):
     kind, value = reply
     if kind == 'ok':
-        return value
+        return unpack(value)
     name, message = value
     cls = getattr(errors, name, None)
     cls = cls if isinstance(cls, type) and issubclass(cls, SikError) else SikError
