@@ -163,11 +163,7 @@ def main(argv: Optional[List[str]] = None) -> int:
     rounds: List[Dict[str, float]] = []
     answers: Dict[str, list] = {'batch': [], 'calls': []}
     try:
-        node = rclpy.create_node('sik_bench_probe')
-        probe = node.create_client(SolveIKBatch, BATCH)
-        up = launch.wait_for_service(node, probe, proc, 90.0)
-        node.destroy_node()
-        if not up:
+        if not launch.service_up(SolveIKBatch, BATCH, proc):
             print(f'sik_node did not come up (exit code {proc.poll()})')
             return 1
         with SolveIKClient(BATCH, 'sik_bench_batch', srv_type=SolveIKBatch) as batch, \

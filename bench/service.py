@@ -317,11 +317,7 @@ def main(argv: Optional[List[str]] = None) -> int:
     floor_proc = start_floor(env)
     rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
     try:
-        node = rclpy.create_node('sik_bench_probe')
-        probe = node.create_client(SolveIK, SERVICE)
-        up = launch.wait_for_service(node, probe, proc, 90.0)
-        node.destroy_node()
-        if not up:
+        if not launch.service_up(SolveIK, SERVICE, proc):
             print(f'sik_node did not come up (exit code {proc.poll()})')
             return 1
         svcs = services(goals)

@@ -7,18 +7,52 @@ test's own node and resends it when no answer comes within one attempt, as
 client (see that module).
 """
 
+import contextlib
+import subprocess
 import time
-from typing import Optional
+from typing import Dict, Iterator, Optional, Sequence, Tuple
 
+import pytest
 import rclpy
 from rclpy.node import Node
+from rclpy.signals import SignalHandlerOptions
 
 from sik_ros.ros.client import box, pose_request, SolveIKClient
 from sik_ros.ros.launch import (bundle_goals, launch_node, NODE, params_file, ros_env,
                                 stop_node, wait_for_service)
 
-__all__ = ['NODE', 'SolveIKClient', 'box', 'bundle_goals', 'call', 'launch_node', 'params_file',
-           'pose_request', 'ros_env', 'stop_node', 'wait_for_service']
+__all__ = ['NODE', 'SolveIKClient', 'box', 'bundle_goals', 'call', 'launch_node',
+           'node_with_clients', 'params_file', 'pose_request', 'ros_env', 'stop_node',
+           'wait_for_service']
+
+
+@contextlib.contextmanager
+def node_with_clients(tmp_path_factory, name: str, clients: Dict[str, Tuple[type, str]],
+                      params: Sequence[str] = ()) -> Iterator[Node]:
+    """A sik_node with the bundled Panda, and a client node ``name`` once its services are up.
+
+    ``clients``: attribute -> (service type, service name); each client is set on the node as
+    that attribute. The test fails with the node's log when a service does not come up.
+    """
+    env = ros_env()
+    log_path = tmp_path_factory.mktemp('sik_node') / 'node.log'
+    with open(log_path, 'wb') as log:
+        proc = launch_node(None, list(params), env=env, stdout=log, stderr=subprocess.STDOUT)
+    rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
+    node = rclpy.create_node(name)
+    for attr, (srv_type, service) in clients.items():
+        setattr(node, attr, node.create_client(srv_type, service))
+    up = all(wait_for_service(node, getattr(node, attr), proc, 90.0) for attr in clients)
+    try:
+        if up:
+            yield node
+    finally:
+        node.destroy_node()
+        rclpy.shutdown()
+        stop_node(proc)
+    if not up:
+        names = ', '.join(service for _, service in clients.values())
+        pytest.fail(f'sik_node did not offer {names}:\n{log_path.read_text()}')
 
 
 def call(node: Node, client, request, timeout: float = 10.0,

@@ -5,7 +5,6 @@ Pinocchio's FK of the returned joint values (``Robot.pin_placement``), not by th
 reports.
 """
 
-import subprocess
 import threading
 import time
 
@@ -13,7 +12,6 @@ import numpy as np
 import pinocchio as pin
 import pytest
 import rclpy
-from rclpy.signals import SignalHandlerOptions
 
 import harness
 from sik_interfaces.srv import SolveIK, SolveIKBatch
@@ -40,23 +38,12 @@ def robot():
 @pytest.fixture(scope='module')
 def ros(tmp_path_factory):
     """A sik_node with the bundled Panda and a client node with both services, once up."""
-    env = harness.ros_env()
-    log_path = tmp_path_factory.mktemp('sik_node') / 'node.log'
-    with open(log_path, 'wb') as log:
-        proc = harness.launch_node(None, [f'max_batch_targets:={CAP}'], env=env, stdout=log,
-                                   stderr=subprocess.STDOUT)
-    rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
-    node = rclpy.create_node('batch_user')
-    node.batch = node.create_client(SolveIKBatch, '/sik_node/solve_ik_batch')
-    node.single = node.create_client(SolveIK, '/sik_node/solve_ik')
-    up = all(harness.wait_for_service(node, c, proc, 90.0) for c in (node.batch, node.single))
-    if up:
+    with harness.node_with_clients(
+            tmp_path_factory, 'batch_user',
+            {'batch': (SolveIKBatch, '/sik_node/solve_ik_batch'),
+             'single': (SolveIK, '/sik_node/solve_ik')},
+            [f'max_batch_targets:={CAP}']) as node:
         yield node
-    node.destroy_node()
-    rclpy.shutdown()
-    harness.stop_node(proc)
-    if not up:
-        pytest.fail(f'sik_node did not offer its services:\n{log_path.read_text()}')
 
 
 def goals(robot, count, seed):

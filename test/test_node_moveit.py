@@ -6,7 +6,6 @@ by an independent forward kinematics: Pinocchio on example-robot-data's whole Pa
 joints, fingers included), not sik_ros's kinematics.
 """
 
-import subprocess
 import time
 
 from builtin_interfaces.msg import Duration
@@ -20,7 +19,6 @@ import pytest
 from rcl_interfaces.srv import SetParameters
 import rclpy
 from rclpy.parameter import Parameter
-from rclpy.signals import SignalHandlerOptions
 from sensor_msgs.msg import JointState
 from shape_msgs.msg import SolidPrimitive
 
@@ -68,22 +66,10 @@ def fk():
 @pytest.fixture(scope='module')
 def ros(tmp_path_factory):
     """A sik_node with the bundled Panda (config/panda.yaml) and a client node, once up."""
-    env = harness.ros_env()
-    log_path = tmp_path_factory.mktemp('sik_node') / 'node.log'
-    with open(log_path, 'wb') as log:
-        proc = harness.launch_node(None, env=env, stdout=log, stderr=subprocess.STDOUT)
-    rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
-    node = rclpy.create_node('moveit_user')
-    node.ik = node.create_client(GetPositionIK, '/compute_ik')
-    node.fk = node.create_client(GetPositionFK, '/compute_fk')
-    up = all(harness.wait_for_service(node, c, proc, 90.0) for c in (node.ik, node.fk))
-    if up:
+    with harness.node_with_clients(
+            tmp_path_factory, 'moveit_user',
+            {'ik': (GetPositionIK, '/compute_ik'), 'fk': (GetPositionFK, '/compute_fk')}) as node:
         yield node
-    node.destroy_node()
-    rclpy.shutdown()
-    harness.stop_node(proc)
-    if not up:
-        pytest.fail(f'sik_node did not offer /compute_ik and /compute_fk:\n{log_path.read_text()}')
 
 
 def call(node, client, request):

@@ -90,6 +90,19 @@ def wait_for_service(node: Node, client, proc: subprocess.Popen, timeout: float)
     return False
 
 
+def service_up(srv_type, name: str, proc: subprocess.Popen, timeout: float = 90.0) -> bool:
+    """Whether ``proc``'s service ``name`` comes up within ``timeout`` [s], seen by a probe node.
+
+    rclpy must be initialised; the probe node is destroyed before returning.
+    """
+    import rclpy
+    node = rclpy.create_node('sik_probe')
+    try:
+        return wait_for_service(node, node.create_client(srv_type, name), proc, timeout)
+    finally:
+        node.destroy_node()
+
+
 def bundle_goals(model_dir: Optional[str]) -> List[str]:
     """Goal kinds (``position``, ``pose``) a bundle has models for; empty if unreadable."""
     if model_dir:
