@@ -85,7 +85,7 @@ def stages(node, requests: List[SolveIK.Request]) -> Dict[str, List[float]]:
         msgs = timed(lambda: solution_msgs(result, arm, header), out['solution messages'])
         timed(lambda: serialize_message(conv.posture_markers(
             chain, result.solutions, header, position, orientation)), out['markers'])
-        timed(node.want_markers, out['markers check'])
+        timed(node.markers.want, out['markers check'])
         response = SolveIK.Response()
         response.solutions = msgs
 

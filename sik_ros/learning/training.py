@@ -10,7 +10,6 @@ from pathlib import Path
 import time
 from typing import Callable, Dict, Optional, TYPE_CHECKING, Union
 
-import numpy as np
 import torch
 from torch.nn.parallel import DistributedDataParallel
 
@@ -26,8 +25,8 @@ from sik_ros.learning.provenance import device_name, Provenance
 from sik_ros.learning.swarm import new_swarm, swarm_step
 from sik_ros.learning.train_config import anchor_weight_at, kl_weight_at, lr_at, TrainConfig
 from sik_ros.learning.training_data import data_summary, default_normalizer, TrainData
-from sik_ros.learning.warm_start import (initial_state, makes_variational, narrows,
-                                         standardise_index)
+from sik_ros.learning.warm_start import (checked_normalizer, index_mean, initial_state,
+                                         makes_variational, narrows, standardise_index)
 from sik_ros.tables.dataset import Dataset
 
 if TYPE_CHECKING:  # Pinocchio: a chain file's arm trains without it
@@ -347,47 +346,26 @@ class Trainer:
     def initialise(self, ckpt: Dict, source: str) -> None:
         """Start from the weights of another checkpoint or exported model (a warm start).
 
-        The robot and the normaliser must match; the optimiser, the step count and the
-        schedule start afresh. The model config must match too, or widen the checkpoint's
-        (a SIK model with a smaller posture index, or a SIK position model for a pose model:
-        :func:`~sik_ros.learning.warm_start.widened_state`), or narrow it (a larger index: the
-        new one learned afresh, :func:`~sik_ros.learning.warm_start.narrowed_state`, the old
-        index's mean over training rows folded into the decoder), or be its PSIK (a SIK model of
-        the same layers: :func:`~sik_ros.learning.warm_start.variational_state`, its index
-        then standardised over training rows).
+        The robot and the normaliser must match (rows generated afresh take the weights'); the
+        optimiser, the step count and the schedule start afresh. The model config must match,
+        or widen the checkpoint's (:func:`~sik_ros.learning.warm_start.widened_state`), narrow
+        it (a smaller index learned afresh, the old index's mean over training rows folded into
+        the decoder: :func:`~sik_ros.learning.warm_start.narrowed_state`), or be its PSIK
+        (:func:`~sik_ros.learning.warm_start.variational_state`, the index then standardised).
         """
         found = ModelConfig.from_dict(ckpt['model_config'])
-        mean = self._index_mean(ckpt) if narrows(found, self.model_cfg) else None
+        mean = None
+        if narrows(found, self.model_cfg):
+            q, goal, _, _ = self._batch(self.train_idx[:STANDARDISE_ROWS])
+            mean = index_mean(ckpt, goal.cpu(), q.cpu())
         state = initial_state(self.model.state_dict(), ckpt, self.model_cfg, source, mean)
         check_robot_manifest(f'--init {source}', self.robot.manifest(), ckpt['robot'])
-        norm = normalizer_from_dict(ckpt['normalizer'])
         self.provenance.started_from(source, ckpt)
-        mine = np.concatenate([self.norm.lower, self.norm.upper, self.norm.position_center,
-                               [self.norm.position_scale]])
-        theirs = np.concatenate([norm.lower, norm.upper, norm.position_center,
-                                 [norm.position_scale]])
-        # generated rows are made afresh where the model trains: they take the normaliser of
-        # the weights (the networks' units); a dataset must be the one the weights knew
-        if not self.generated and not np.allclose(mine, theirs, rtol=1e-6, atol=1e-9):
-            raise ArtifactMismatch(f'--init {source} normaliser (another dataset)',
-                                   asdict(self.norm), ckpt['normalizer'])
-        self.norm = norm  # bit for bit the one the weights were trained with
+        self.norm = checked_normalizer(ckpt, self.norm, source, not self.generated)
         self.model.load_state_dict(state)
         if makes_variational(found, self.model_cfg):
             q, goal, _, _ = self._batch(self.train_idx[:STANDARDISE_ROWS])
             standardise_index(self.model, self.norm.goal_to_net(goal), self.norm.q_to_net(q))
-
-    @torch.no_grad()
-    def _index_mean(self, ckpt: Dict) -> np.ndarray:
-        """The mean learned index of a checkpoint's model over training rows (its units)."""
-        old_cfg = ModelConfig.from_dict(ckpt['model_config'])
-        old = build_model(old_cfg)
-        old.load_state_dict(ckpt['model_state'])
-        norm = normalizer_from_dict(ckpt['normalizer'])
-        q, goal, _, _ = self._batch(self.train_idx[:STANDARDISE_ROWS])
-        g = norm.goal_to_net(goal.cpu())[:, :old_cfg.goal_dim]
-        z, _ = old.encode(g, norm.q_to_net(q.cpu()))
-        return z[:, :old_cfg.latent_dim].mean(0).numpy()
 
     def restore(self, ckpt: Dict) -> None:
         """Continue from a checkpoint of the same model on the same robot and dataset."""

@@ -245,3 +245,35 @@ def initial_state(fresh: Dict, ckpt: Dict, cfg: ModelConfig, source: str,
         mean = np.zeros(found.latent_dim) if index_mean is None else index_mean
         return narrowed_state(fresh, state, found, cfg, mean)
     raise ArtifactMismatch(f'--init {source} model config', asdict(cfg), ckpt['model_config'])
+
+
+@torch.no_grad()
+def index_mean(ckpt: Dict, goal: torch.Tensor, q: torch.Tensor) -> np.ndarray:
+    """The mean learned index of a checkpoint's model over rows (goals, joints; its units)."""
+    from sik_ros.learning.checkpoints import normalizer_from_dict
+    from sik_ros.learning.models import build_model
+    old_cfg = ModelConfig.from_dict(ckpt['model_config'])
+    old = build_model(old_cfg)
+    old.load_state_dict(ckpt['model_state'])
+    norm = normalizer_from_dict(ckpt['normalizer'])
+    z, _ = old.encode(norm.goal_to_net(goal)[:, :old_cfg.goal_dim], norm.q_to_net(q))
+    return z[:, :old_cfg.latent_dim].mean(0).numpy()
+
+
+def checked_normalizer(ckpt: Dict, mine, source: str, same_data: bool):
+    """The normaliser of a warm start's weights, bit for bit the one they were trained with.
+
+    With ``same_data`` (a dataset, not rows generated afresh) it must equal ``mine`` (the
+    dataset's): weights trained on another dataset are refused.
+    """
+    from sik_ros.learning.checkpoints import normalizer_from_dict
+    norm = normalizer_from_dict(ckpt['normalizer'])
+    if same_data:
+        a = np.concatenate([mine.lower, mine.upper, mine.position_center,
+                            [mine.position_scale]])
+        b = np.concatenate([norm.lower, norm.upper, norm.position_center,
+                            [norm.position_scale]])
+        if not np.allclose(a, b, rtol=1e-6, atol=1e-9):
+            raise ArtifactMismatch(f'--init {source} normaliser (another dataset)',
+                                   asdict(mine), ckpt['normalizer'])
+    return norm

@@ -13,6 +13,9 @@ import threading
 import time
 from typing import Any, Callable, Optional
 
+import numpy as np
+from std_msgs.msg import Header
+
 from sik_ros.serving.stream import LatestGoal
 
 #: Longest wait of the drawing thread before it looks whether it must stop [s].
@@ -65,3 +68,42 @@ class MarkerDrawer:
         self._stop.set()
         self.mailbox.close()
         self._thread.join(timeout=2.0)
+
+
+class MarkerOutput:
+    """The node's ``~/markers``: whether they are wanted, and answers handed to the drawer.
+
+    ``wanted()`` (the node's: ``publish_markers`` on and not closing) and someone listening;
+    the drawings themselves are :class:`MarkerDrawer`'s, on its thread.
+    """
+
+    def __init__(self, publisher, wanted: Callable[[], bool],
+                 on_error: Callable[[str], None]) -> None:
+        """Publish on ``publisher`` (a ``MarkerArray`` publisher) while ``wanted()``."""
+        self._pub, self._wanted = publisher, wanted
+        self.drawer = MarkerDrawer(on_error)
+
+    def want(self) -> bool:
+        """Whether markers are wanted now (on, not closing, someone listening)."""
+        return self._wanted() and self._pub.get_subscription_count() > 0
+
+    def solutions(self, chain, solutions, header: Header, position: np.ndarray,
+                  orientation: Optional[np.ndarray]) -> None:
+        """Hand ranked solutions and their goal to the drawer (a newer answer replaces them)."""
+        self.drawer.put(self._draw_solutions, chain, solutions, header, position, orientation)
+
+    def path(self, chain, result, header: Header) -> None:
+        """Hand a path answer's ranked joint paths to the drawer."""
+        self.drawer.put(self._draw_path, chain, result, header)
+
+    def close(self) -> None:
+        """Stop the drawing thread."""
+        self.drawer.close()
+
+    def _draw_solutions(self, chain, solutions, header, position, orientation) -> None:
+        from sik_ros.ros import conversions as conv
+        self._pub.publish(conv.posture_markers(chain, solutions, header, position, orientation))
+
+    def _draw_path(self, chain, result, header) -> None:
+        from sik_ros.ros.path_service import path_markers
+        self._pub.publish(path_markers(chain, result, header))

@@ -2,7 +2,8 @@
 
 Service ``~/solve_ik`` (``sik_interfaces/srv/SolveIK``), service ``~/solve_ik_batch``
 (``sik_interfaces/srv/SolveIKBatch``: many targets, :mod:`~sik_ros.ros.batch_service`),
-service ``~/solve_path`` (``sik_interfaces/srv/SolvePath``), topics ``~/goal`` ->
+service ``~/solve_path`` (``sik_interfaces/srv/SolvePath``; their callbacks:
+:mod:`~sik_ros.ros.requests`), topics ``~/goal`` ->
 ``~/solutions`` (a stream, newest goal first: :mod:`~sik_ros.ros.goal_stream`),
 ``joint_states`` (optional seed), ``~/markers`` (RViz) and an optional command output for
 ros2_control. Started by :mod:`sik_ros.ros.run` (the ``sik_node`` command): ``sik_node
@@ -18,38 +19,33 @@ handler from :mod:`~sik_ros.ros.ik_service`, :mod:`~sik_ros.ros.batch_service` o
 """
 
 from dataclasses import fields, replace
-from functools import partial
 import gc
 import threading
 from typing import List, Optional
 
-import numpy as np
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.exceptions import InvalidParameterValueException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
-from sensor_msgs.msg import JointState
-from std_msgs.msg import Header, String
+from std_msgs.msg import String
 from visualization_msgs.msg import MarkerArray
 
 from sik_interfaces.srv import SolveIK, SolveIKBatch, SolvePath
 from sik_ros.errors import SikError
-from sik_ros.ros import conversions as conv
 from sik_ros.ros.arm_follower import ArmFollower
-from sik_ros.ros.batch_service import GiveWay, solve_batch_request
+from sik_ros.ros.batch_service import GiveWay
 from sik_ros.ros.diagnostics import NodeDiagnostics
-from sik_ros.ros.executor import after_answer
 from sik_ros.ros.goal_stream import GoalStream, StreamPort
 from sik_ros.ros.guard import log_at, RequestGuard
-from sik_ros.ros.ik_service import Arm, fill_answer, solve_request, solver_settings
+from sik_ros.ros.ik_service import Arm, solver_settings
 from sik_ros.ros.joint_states import JointStateTap
-from sik_ros.ros.markers import MarkerDrawer
+from sik_ros.ros.markers import MarkerOutput
 from sik_ros.ros.moveit_ik import serve_moveit
 from sik_ros.ros.named_bundle import DescriptionCheck, load_named, StartupError
 from sik_ros.ros.params import declarations, NodeParams, validate
-from sik_ros.ros.path_service import path_markers, solve_path_request
+from sik_ros.ros.requests import RequestHandlers
 from sik_ros.serving.pool import single_threaded
 from sik_ros.serving.solvers import make_solvers, Solver
 from sik_ros.solver import SelectiveIK, SolverConfig
@@ -72,7 +68,7 @@ LEARNING_POLL = 1.0
 Response = SolveIK.Response
 
 
-class SikNode(Node):
+class SikNode(RequestHandlers, Node):
     """The IK node: loads a bundle, answers its services and ``~/goal``.
 
     The services: ``~/solve_ik``, ``~/solve_ik_batch``, ``~/solve_path``, and MoveIt's
@@ -234,9 +230,10 @@ class SikNode(Node):
 
     def _create_interfaces(self) -> None:
         group = ReentrantCallbackGroup()
-        self._markers_pub = self.create_publisher(MarkerArray, '~/markers', 5)
-        #: draws answers on ~/markers off their path, the newest first
-        self.markers = MarkerDrawer(self._marker_error)
+        #: ~/markers, drawn off the answers' path, the newest first
+        self.markers = MarkerOutput(self.create_publisher(MarkerArray, '~/markers', 5),
+                                    lambda: self._params.publish_markers and not self.closing,
+                                    self._marker_error)
         requests = QoSProfile(depth=SERVICE_QUEUE, reliability=ReliabilityPolicy.RELIABLE)
         self.create_service(SolveIK, '~/solve_ik', self._on_solve_ik, qos_profile=requests,
                             callback_group=group)
@@ -263,9 +260,10 @@ class SikNode(Node):
             return (None, None) if state is None else (self.seed_from_state(state), received)
 
         def markers(solutions, header, position, orientation) -> bool:
-            if not self.want_markers():
+            if not self.markers.want():
                 return False
-            self.publish_markers(solutions, header, position, orientation)
+            self.markers.solutions(self._ik.robot.chain, solutions, header, position,
+                                   orientation)
             return True
 
         return StreamPort(lambda: self._params, lambda: self.arm,
@@ -355,107 +353,6 @@ class SikNode(Node):
     def in_flight(self) -> int:
         """Requests being answered now."""
         return self.guard.in_flight
-
-    # -- requests --------------------------------------------------------------------------------
-
-    def _header(self) -> Header:
-        arm = self.arm
-        return Header(stamp=self.get_clock().now().to_msg(),
-                      frame_id=arm.base_frame if arm is not None else '')
-
-    def state_seed(self) -> Optional[np.ndarray]:
-        """Return the latest ``joint_states`` as a seed (clipped to the limits), or None."""
-        return self.seed_from_state(self.joint_states.latest()[0])
-
-    def seed_from_state(self, msg: Optional[JointState]) -> Optional[np.ndarray]:
-        """A ``joint_states`` message as a seed (clipped to the limits), or None if unusable."""
-        if msg is None:
-            return None
-        try:
-            q = conv.seed_from_joint_state(msg, self.arm.joint_names, strict=False)
-        except SikError as exc:
-            self.get_logger().warning(f'joint_states not used as a seed: {exc}',
-                                      throttle_duration_sec=5.0)
-            return None
-        if q is None or len(q) != len(self.arm.joint_names) or not np.all(np.isfinite(q)):
-            return None
-        return np.clip(q, self._ik.robot.lower, self._ik.robot.upper)
-
-    def want_markers(self) -> bool:
-        """Whether markers are wanted now (on, not closing, someone listening)."""
-        return (self._params.publish_markers and not self.closing
-                and self._markers_pub.get_subscription_count() > 0)
-
-    def publish_markers(self, solutions, header: Header, position: np.ndarray,
-                        orientation: Optional[np.ndarray]) -> None:
-        """Draw ranked solutions and their goal on ``~/markers``, off the answer's path.
-
-        The drawing thread (:class:`~sik_ros.ros.markers.MarkerDrawer`) draws them, after the
-        answer of the callback that asked has been sent; a newer answer's replaces them if
-        they are not drawn by then.
-        """
-        self.markers.put(self._draw_markers, self._ik.robot.chain, solutions, header, position,
-                         orientation)
-
-    def _draw_markers(self, chain, solutions, header: Header, position: np.ndarray,
-                      orientation: Optional[np.ndarray]) -> None:
-        self._markers_pub.publish(conv.posture_markers(chain, solutions, header, position,
-                                                       orientation))
-
-    def _fill_ik(self, request: SolveIK.Request, response, header: Header):
-        """Solve a SolveIK request into ``response`` (its solutions); the code and message."""
-        answer = solve_request(self.solvers, self.arm, request, self._params, self.state_seed)
-        fill_answer(response, answer, self.arm, header)
-        if self.want_markers():
-            after_answer(partial(self.markers.put, self._draw_markers, self._ik.robot.chain,
-                                 answer.result.solutions, header, answer.position,
-                                 answer.orientation))
-        return answer.code, answer.message
-
-    def _on_solve_ik(self, request: SolveIK.Request, response: SolveIK.Response
-                     ) -> SolveIK.Response:
-        header = self._header()
-        return self.guard.answer('solve_ik', response,
-                                 lambda r: self._fill_ik(request, r, header))
-
-    def _fill_batch(self, request: SolveIKBatch.Request, response: SolveIKBatch.Response,
-                    header: Header):
-        """Solve a SolveIKBatch request into ``response`` (its results); the code and message."""
-        ik, solvers, arm = self._ik, self.solvers, self.arm
-        if ik is None or solvers is None or arm is None:
-            return Response.TIMEOUT, 'sik_node has no bundle loaded'
-        code, message, results = solve_batch_request(
-            solvers, arm, request, self._params, self.state_seed, ik.check_seed, header,
-            self.give_way, self.guard.refusal)
-        response.results = results
-        return code, message
-
-    def _on_solve_ik_batch(self, request: SolveIKBatch.Request,
-                           response: SolveIKBatch.Response) -> SolveIKBatch.Response:
-        header = self._header()
-        return self.guard.answer('solve_ik_batch', response,
-                                 lambda r: self._fill_batch(request, r, header))
-
-    def _fill_path(self, request: SolvePath.Request, response: SolvePath.Response):
-        header = self._header()
-        code, message, result, trajectories, metrics = solve_path_request(
-            self.solvers, self.arm, request, self._params, self._ik.robot.velocity_limits,
-            header)
-        response.fraction = float(result.fraction)
-        response.trajectories, response.metrics = trajectories, metrics
-        if result.paths and self.want_markers():
-            chain = self._ik.robot.chain
-            after_answer(partial(self.markers.put, self._publish_path_markers, chain, result,
-                                 header))
-        return code, message
-
-    def _publish_path_markers(self, chain, result, header: Header) -> None:
-        self._markers_pub.publish(path_markers(chain, result, header))
-
-    def _on_solve_path(self, request: SolvePath.Request, response: SolvePath.Response
-                       ) -> SolvePath.Response:
-        return self.guard.answer('solve_path', response,
-                                 lambda r: self._fill_path(request, r))
 
     def destroy_node(self) -> None:
         """Log the request statistics, stop the solver processes, then destroy the node."""
