@@ -841,8 +841,9 @@ def render_batch_service(data: dict) -> str:
                      f'{c["success"]} / {r["targets"] * r["repeats"]}',
                      f'{c["exact_by_fk"]} / {c["marked_exact"]}'])
     ratio = r['ratio']
+    node = ', '.join(f'`{p}`' for p in r.get('params', [])) or 'the default parameters'
     return (f'{r["targets"]} {r["goals"]} goals per round, {r["solutions"]} solutions asked, '
-            f'{r["repeats"]} rounds (A B A B):\n\n'
+            f'{r["repeats"]} rounds (A B A B); the node with {node}:\n\n'
             + table(['', 'throughput, median round (total) [targets/s]',
                      'time per target, median [ms]', 'SUCCESS',
                      'solutions within tolerance by FK / as reported'], rows)

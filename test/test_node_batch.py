@@ -1,6 +1,8 @@
 """End to end: ``~/solve_ik_batch`` on a real sik_node with the bundled Panda (docs/interfaces.md).
 
-One node for the module (``max_batch_targets`` set to 600). Every solution is checked by
+Two nodes, one after the other (``max_batch_targets`` set to 600): one solving in its executor
+threads, one with two solver processes, whose batches run one lane per process and one more.
+Every solution is checked by
 Pinocchio's FK of the returned joint values (``Robot.pin_placement``), not by the errors the node
 reports.
 """
@@ -35,14 +37,17 @@ def robot():
     return load_robot('panda')
 
 
-@pytest.fixture(scope='module')
-def ros(tmp_path_factory):
-    """A sik_node with the bundled Panda and a client node with both services, once up."""
+@pytest.fixture(scope='module', params=[0, 2], ids=['threads', 'processes'])
+def ros(tmp_path_factory, request):
+    """A sik_node with the bundled Panda and a client node with both services, once up.
+
+    The node has ``request.param`` solver processes.
+    """
     with harness.node_with_clients(
             tmp_path_factory, 'batch_user',
             {'batch': (SolveIKBatch, '/sik_node/solve_ik_batch'),
              'single': (SolveIK, '/sik_node/solve_ik')},
-            [f'max_batch_targets:={CAP}']) as node:
+            [f'max_batch_targets:={CAP}', f'solver_processes:={request.param}']) as node:
         yield node
 
 
@@ -189,3 +194,54 @@ def test_a_batch_gives_way_to_other_requests():
         with way.batch():  # a second batch does not count as another request
             in_flight[0] = 3
             assert way.others() == 1
+
+
+def test_lanes_keep_target_order_and_raise_what_they_meet():
+    """Lanes answering out of turn give the results in target order, refusals, errors raised.
+
+    Three lanes; a refusal met mid-batch answers the targets not yet taken; an unexpected error
+    is re-raised.
+
+    (No node: :class:`_BatchRun` with answers that sleep at random and a counter of requests.)
+    """
+    from types import SimpleNamespace
+
+    from sik_ros.ros.batch_service import _BatchRun, lanes, result_msg
+
+    assert lanes(0) == 1 and lanes(1) == 2 and lanes(2) == 3
+    rng = np.random.default_rng(0)
+    delays = rng.uniform(0, 0.004, 60)
+    request = SimpleNamespace(targets=list(range(60)))
+    way = GiveWay(lambda: 1)
+
+    def answer(i, target):
+        time.sleep(delays[i])
+        return result_msg(R.SUCCESS, f'{i}:{target}')
+
+    run = _BatchRun(request, 60, lambda: None, way, 0.05, answer)
+    run.solve(3)
+    assert [r.message for r in run.results] == [f'{i}:{i}' for i in range(60)]
+
+    taken = []
+
+    def refusal():
+        return (R.NO_ROBOT, 'the arm is no longer served') if len(taken) >= 20 else None
+
+    def counted(i, target):
+        taken.append(i)
+        return answer(i, target)
+
+    run = _BatchRun(request, 60, refusal, way, 0.05, counted)
+    run.solve(3)
+    codes = [r.error_code for r in run.results]
+    assert len(codes) == 60 and codes.count(R.SUCCESS) == len(taken) >= 20
+    refused = [r.message for r in run.results if r.error_code != R.SUCCESS]
+    assert set(refused) == {'the arm is no longer served'}
+
+    def broken(i, target):
+        if i == 7:
+            raise RuntimeError('lane failure')
+        return answer(i, target)
+
+    with pytest.raises(RuntimeError, match='lane failure'):
+        _BatchRun(request, 60, lambda: None, way, 0.05, broken).solve(3)

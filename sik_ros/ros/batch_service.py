@@ -10,12 +10,17 @@ each target is checked and solved in turn with :func:`~sik_ros.ros.ik_service.ch
 frame, NaN, a zero quaternion) gets its own code and message in its ``SolveIKResult``, and the
 others are answered.
 
-Between two targets a batch gives way (:class:`GiveWay`): while another request of the node is
+With solver processes (``solver_processes`` > 0) the targets are answered by :func:`lanes`
+threads at once, each taking the next target in turn (:class:`_BatchRun`), so every process
+solves while the node turns answers into messages; without them, one target after another
+(clones in threads would only share the GIL). The results stay in target order.
+
+Before each target a lane gives way (:class:`GiveWay`): while another request of the node is
 being answered (``~/solve_ik``, ``~/goal``, ``/compute_ik``, ``~/solve_path``), it waits, for
 one target's timeout at most, so that a request arriving during a batch shares the GIL (or the
-solver processes) with the batch's current target only. A refusal that comes up during a batch
-(the node shutting down, a managed node deactivated, the arm no longer served) answers the
-targets not yet solved with its code.
+solver processes) with the batch's targets in progress only. A refusal that comes up during a
+batch (the node shutting down, a managed node deactivated, the arm no longer served) answers
+the targets not yet taken with its code.
 """
 
 from contextlib import contextmanager
@@ -137,26 +142,84 @@ def solve_batch_request(solvers: Solver, arm: Arm, request: SolveIKBatch.Request
     options = solve_options(arm, request, p, state_seed)
     if options.seed is not None:
         options = replace(options, seed=check_seed(options.seed))
-    results: List[SolveIKResult] = []
-    waited = 0.0
+    run = _BatchRun(request, count, refusal, give_way, options.timeout,
+                    lambda i, target: _answer(solvers, arm, p, options, header, i, target,
+                                              request.use_orientation))
     with give_way.batch():
-        for i, target in enumerate(request.targets):
-            refused = refusal()
-            if refused is not None:
-                results += [result_msg(*refused) for _ in range(count - i)]
-                break
-            waited += give_way.wait(options.timeout)
-            try:
-                position, orientation = checked_goal(arm, target, request.use_orientation,
-                                                     'target')
-                answer = solve_goal(solvers, position, orientation, options, p)
-            except SikError as exc:
-                results.append(result_msg(conv.error_code_for(exc), f'target {i}: {exc}'))
-                continue
-            msg = result_msg(answer.code, answer.message)
-            fill_answer(msg, answer, arm, header)
-            results.append(msg)
-    return R.SUCCESS, summary(results, time.perf_counter() - start, waited), results
+        run.solve(min(lanes(solvers.processes()), count))
+    return R.SUCCESS, summary(run.results, time.perf_counter() - start, run.waited), run.results
+
+
+def _answer(solvers: Solver, arm: Arm, p: NodeParams, options, header: Header, i: int, target,
+            use_orientation: bool) -> SolveIKResult:
+    """Target ``i``'s ``SolveIKResult``: its solutions, or its own code for a bad target."""
+    try:
+        position, orientation = checked_goal(arm, target, use_orientation, 'target')
+        answer = solve_goal(solvers, position, orientation, options, p)
+    except SikError as exc:
+        return result_msg(conv.error_code_for(exc), f'target {i}: {exc}')
+    msg = result_msg(answer.code, answer.message)
+    fill_answer(msg, answer, arm, header)
+    return msg
+
+
+class _BatchRun:
+    """A batch's targets answered by one or more lanes (threads), each taking the next target.
+
+    With solver processes the lanes' solves run at once (one lane per process); each lane
+    checks the refusal and gives way before each of its targets. The results stay in target
+    order.
+    """
+
+    def __init__(self, request, count: int, refusal: Refusal, give_way: GiveWay,
+                 limit: float, answer: Callable[[int, object], SolveIKResult]):
+        self._targets = request.targets
+        self._refusal, self._give_way, self._limit, self._answer = refusal, give_way, limit, answer
+        self._slots: List[Optional[SolveIKResult]] = [None] * count
+        self._turns = iter(range(count))
+        self._lock = threading.Lock()
+        self._failed: List[Exception] = []
+        #: time given way to other requests, summed over the lanes [s]
+        self.waited = 0.0
+
+    @property
+    def results(self) -> List[SolveIKResult]:
+        """One result per target, in order (after :meth:`solve`)."""
+        return [r for r in self._slots if r is not None]
+
+    def solve(self, lanes: int) -> None:
+        """Answer every target on ``lanes`` lanes: this thread and ``lanes - 1`` more.
+
+        Raises:
+            Exception: what a lane met outside the targets' own errors (the guard answers it).
+        """
+        helpers = [threading.Thread(target=self._lane, name=f'sik_batch_{k}', daemon=True)
+                   for k in range(lanes - 1)]
+        for t in helpers:
+            t.start()
+        self._lane()
+        for t in helpers:
+            t.join()
+        if self._failed:
+            raise self._failed[0]
+
+    def _lane(self) -> None:
+        try:
+            while not self._failed:
+                with self._lock:
+                    i = next(self._turns, None)
+                if i is None:
+                    return
+                refused = self._refusal()
+                if refused is not None:
+                    self._slots[i] = result_msg(*refused)
+                    continue
+                waited = self._give_way.wait(self._limit)
+                self._slots[i] = self._answer(i, self._targets[i])
+                with self._lock:
+                    self.waited += waited
+        except Exception as exc:  # re-raised by solve() in the request's thread
+            self._failed.append(exc)
 
 
 def summary(results: List[SolveIKResult], seconds: float, waited: float) -> str:
@@ -168,3 +231,13 @@ def summary(results: List[SolveIKResult], seconds: float, waited: float) -> str:
     codes = ', '.join(f'{n} {name}' for name, n in sorted(counts.items(), key=lambda c: -c[1]))
     return (f'{len(results)} targets: {codes}; {seconds * 1e3:.1f} ms, of which '
             f'{waited * 1e3:.1f} ms given way to other requests')
+
+
+def lanes(processes: int) -> int:
+    """The lanes of a batch on ``processes`` solver processes: one more than them, or 1.
+
+    While a lane turns an answer into messages (in this process, under the GIL), the other
+    lanes keep every process solving; without processes, one lane (clones in threads would only
+    share the GIL: two solve barely faster than one).
+    """
+    return processes + 1 if processes > 0 else 1

@@ -203,6 +203,8 @@ class SolverPool:
         self._ctx = multiprocessing.get_context('spawn')
         self._bundle, self._config = str(bundle), asdict(config)
         self._log = log or _default_log
+        #: how many processes it keeps (restarted ones included)
+        self.processes = processes
         self._idle: 'queue.Queue[_Worker]' = queue.Queue()
         self._all: List[_Worker] = []
         self._lock = threading.Lock()

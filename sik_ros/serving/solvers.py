@@ -49,6 +49,9 @@ class Solver(Protocol):
     def health(self) -> Optional[PoolHealth]:
         """The solver processes' capacity (None without processes)."""
 
+    def processes(self) -> int:
+        """How many solver processes it solves in (0: none, in this process's threads)."""
+
     def close(self) -> None:
         """Stop what the solvers started (idempotent)."""
 
@@ -128,6 +131,10 @@ class LocalSolvers:
         """None: no solver processes."""
         return None
 
+    def processes(self) -> int:
+        """0: clones in this process's threads."""
+        return 0
+
     def close(self) -> None:
         """Nothing to stop."""
 
@@ -185,6 +192,10 @@ class PooledSolvers:
     def health(self) -> Optional[PoolHealth]:
         """The solver processes' capacity."""
         return self.pool.health()
+
+    def processes(self) -> int:
+        """The number of solver processes."""
+        return self.pool.processes
 
     def close(self) -> None:
         """Stop the solver processes (idempotent)."""
