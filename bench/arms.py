@@ -32,7 +32,7 @@ import torch  # noqa: E402
 from sik_ros import SelectiveIK  # noqa: E402
 from sik_ros.learning.checkpoints import load_checkpoint  # noqa: E402
 from sik_ros.solver.context import tip_on_last_axis  # noqa: E402
-from sik_ros.solver.ranking import distinct_mask  # noqa: E402
+from sik_ros.solver.scores import distinct_mask  # noqa: E402
 
 from peers import DLS, TracIK  # noqa: E402,I100 (bench/peers.py, beside this script)
 from report import add_json_argument, write_json  # noqa: E402 (bench/report.py)

@@ -50,7 +50,7 @@ import yaml  # noqa: E402
 from sik_ros.kinematics.robots import KNOWN_FRAMES, load_robot  # noqa: E402
 from sik_ros.ros import launch  # noqa: E402
 from sik_ros.ros.client import pose_request, SolveIKClient  # noqa: E402
-from sik_ros.solver.ranking import distinct_mask  # noqa: E402
+from sik_ros.solver.scores import distinct_mask  # noqa: E402
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / 'test'))

@@ -55,7 +55,7 @@ def worker(root: str, bundle: str, goal: str, num: int, seeded: bool, seed: int,
     from arms import branches
     from sik_ros import SelectiveIK
     from sik_ros.solver.context import tip_on_last_axis
-    from sik_ros.solver.ranking import distinct_mask
+    from sik_ros.solver.scores import distinct_mask
     torch.set_num_threads(1)
     ik = SelectiveIK.load(bundle)
     robot = ik.robot

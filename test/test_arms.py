@@ -320,7 +320,7 @@ def test_refinement_turns_a_periodic_joint_back_at_its_limit(ur5_bundle, ur5):
 
 def test_distinct_rows_with_periodic_joints_are_apart_however_turned():
     """With ``periodic``, rows a whole turn apart are one posture; others by their distance."""
-    from sik_ros.solver.ranking import distinct_mask
+    from sik_ros.solver.scores import distinct_mask
     periodic = np.array([True, True, False])
     q = np.array([[0.1, 3.0, 0.0],
                   [0.1 + 2 * np.pi, 3.0 - 2 * np.pi, 0.0],   # the first, turned: dropped

@@ -153,7 +153,7 @@ def test_polished_rows_stand_on_their_solutions(ur5, signs):
     towards; polished, each stays exact and on its branch, within 2 mrad of its solution.
     """
     from sik_ros.solver.context import Goal
-    from sik_ros.solver.branches import polished
+    from sik_ros.solver.families.branches import polished
     from sik_ros.solver.refine import errors, Refined
     q0 = np.array([0.7, 2.5, -1.7, 1.5, 3e-4, -2.7])  # the wrist nearly aligned
     p, r = ur5.fk_rot(q0[None])
@@ -184,8 +184,8 @@ def test_every_branch_of_kinova_poses(tmp_path):
     from sik_ros.kinematics.robots import load_robot
     from sik_ros.kinematics.rotations import quaternion_matrix
     from sik_ros.solver.context import Goal
-    from sik_ros.solver.branches import other_branches, polished
-    from sik_ros.solver.ranking import converged
+    from sik_ros.solver.families.branches import other_branches, polished
+    from sik_ros.solver.scores import converged
     from sik_ros.solver.refine import refine
     kinova = load_robot('kinova')
     data = collect(kinova, tmp_path / 'kinova', sampler='uniform', samples=60000, seed=4)
@@ -224,8 +224,8 @@ def test_a_branch_across_a_sign_joint_starts_from_its_neighbour(ur5, signs):
     from sik_ros.deadline import NO_DEADLINE
     from sik_ros.kinematics.rotations import quaternion_matrix
     from sik_ros.solver.context import Goal
-    from sik_ros.solver.branches import mirrored
-    from sik_ros.solver.ranking import converged
+    from sik_ros.solver.families.branches import mirrored
+    from sik_ros.solver.scores import converged
     from sik_ros.solver.refine import refine
     ctx = stages(ur5)
     checked = 0

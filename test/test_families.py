@@ -175,7 +175,7 @@ def test_near_solutions_of_two_atlas_pieces_are_both_kept(bundled):
     A small family beside a large one, parted from it by a joint limit, keeps its solution;
     two rows of one piece (or with no atlas) are one posture.
     """
-    from sik_ros.solver.search import Atlas
+    from sik_ros.solver.families.search import Atlas
     ik = bundled
     q0 = (ik.robot.lower + ik.robot.upper) / 2
     q = np.stack([q0, q0 + 0.2 / np.sqrt(ik.robot.dof)])
@@ -254,8 +254,8 @@ def test_family_search_adds_exact_points_within_limits_far_apart_per_family(bund
     """
     from sik_ros.kinematics.branches import robot_flips as flips_of
     from sik_ros.solver.explore import unindexed
-    from sik_ros.solver.ranking import assess
-    from sik_ros.solver.search import search
+    from sik_ros.solver.scores import assess
+    from sik_ros.solver.families.search import search
     robot, cfg, ctx = bundled.robot, bundled.config, bundled.context
     assert flips_of(robot).tolist() == [0]  # the Panda's spherical shoulder
     added = 0
@@ -337,7 +337,7 @@ def test_mirrored_solutions_are_exact_and_reach_the_elbows_other_side(bundled):
     has solutions on both sides of the Panda's elbow stretched where the answer without it
     has one side only: curves the table's starts do not reach.
     """
-    from sik_ros.solver.search import mirrored, robot_mirrors
+    from sik_ros.solver.families.search import mirrored, robot_mirrors
     robot, cfg, ctx = bundled.robot, bundled.config, bundled.context
     joints, centres = robot_mirrors(robot)
     assert 3 in joints.tolist() and 6 not in joints.tolist()  # the elbow; never the held one
@@ -369,8 +369,8 @@ def test_every_piece_of_the_atlas_has_a_candidate(bundled):
     solution lies on does.
     """
     from sik_ros.solver.explore import unindexed
-    from sik_ros.solver.ranking import assess
-    from sik_ros.solver.search import search
+    from sik_ros.solver.scores import assess
+    from sik_ros.solver.families.search import search
     robot, cfg, ctx = bundled.robot, bundled.config, bundled.context
     plain = bundled.with_config(family_search=False)
     pieces = 0

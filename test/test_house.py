@@ -10,10 +10,19 @@ INTERFACES = REPO / 'docs' / 'interfaces.md'
 #: The floors down the chain: a module imports from its own floor and the tiers before it;
 #: the floors of one tier stand side by side and import nothing of each other.
 TIERS = (('root',), ('kernels',), ('kinematics',), ('tables',), ('learning',), ('bundles',),
-         ('solver',), ('serving',), ('ros', 'eval', 'viewer'), ('cli',))
+         ('solver base',), ('solver.families',), ('solver',), ('serving',),
+         ('ros', 'eval', 'viewer'), ('cli',))
 RANK = {floor: rank for rank, tier in enumerate(TIERS) for floor in tier}
-#: Modules whose floor is not their folder's: the solver's objectives, named at the top.
-FLOOR_OF = {'sik_ros.objectives': 'solver'}
+#: The solver's base, below its families package: settings, the goal's context, candidates,
+#: results, objectives, refinement, the networks, restarts and scores.
+SOLVER_BASE = ('batch', 'codec', 'config', 'context', 'explore', 'objectives', 'refine',
+               'results', 'scores')
+#: Modules whose floor is not their folder's: the solver's objectives, named at the top, and
+#: the solver's base.
+FLOOR_OF = {'sik_ros.objectives': 'solver',
+            **{f'sik_ros.solver.{m}': 'solver base' for m in SOLVER_BASE}}
+#: Packages inside a folder with a floor of their own.
+SUBFLOORS = {'sik_ros.solver.families': 'solver.families'}
 #: Imports that reach down the chain and are known (none: every one is a failure).
 KNOWN_DOWNWARD = set()
 
@@ -34,7 +43,10 @@ def folder(module: str) -> str:
 
 
 def floor(module: str) -> str:
-    """A module's floor: its folder's, but where :data:`FLOOR_OF` says otherwise."""
+    """A module's floor: its folder's, but where :data:`FLOOR_OF` or :data:`SUBFLOORS` say."""
+    for package, name in SUBFLOORS.items():
+        if module == package or module.startswith(package + '.'):
+            return name
     return FLOOR_OF.get(module, folder(module))
 
 
@@ -125,6 +137,11 @@ def cycles(graph: Dict[str, Set[str]]) -> List[List[str]]:
     return found
 
 
+def table_row(module: str) -> str:
+    """The floor table's row that names ``module``: its floor's, the root's for a root module."""
+    return 'root' if folder(module) == 'root' else floor(module)
+
+
 def floor_rows() -> Dict[str, str]:
     """The floor table of docs/interfaces.md, section 1: floor -> its row, in order."""
     section = INTERFACES.read_text().split('## 1.', 1)[1].split('\n## ', 1)[0]
@@ -134,7 +151,11 @@ def floor_rows() -> Dict[str, str]:
         if not line.startswith('|'):
             break
         first = line.split('|')[1].strip()
-        name = 'root' if first.startswith('root') else first.strip('`').rstrip('/')
+        if first.startswith('root'):
+            name = 'root'
+        else:  # `solver/families/` -> solver.families; `solver/`, its base -> solver base
+            name = first.split('`')[1].rstrip('/').replace('/', '.')
+            name += ' base' if first.endswith('its base') else ''
         rows[name] = line
     return rows
 
@@ -160,7 +181,7 @@ def test_no_module_imports_a_floor_further_down():
 
 
 def test_the_check_sees_an_import_down_the_chain():
-    """A kernel importing the solver, and a solver module importing the node, are caught."""
+    """A kernel importing the solver, a solver module importing the node, are caught."""
     graph = {'sik_ros.kernels.dls': {'sik_ros.solver.refine'},
              'sik_ros.solver.refine': {'sik_ros.ros.node', 'sik_ros.kernels.dls'},
              'sik_ros.eval.run': {'sik_ros.viewer.scene', 'sik_ros.solver.refine'},
@@ -168,6 +189,13 @@ def test_the_check_sees_an_import_down_the_chain():
     assert downward(graph) == {('sik_ros.kernels.dls', 'sik_ros.solver.refine'),
                                ('sik_ros.solver.refine', 'sik_ros.ros.node'),
                                ('sik_ros.eval.run', 'sik_ros.viewer.scene')}
+    # the solver's base below its families package, the package below the rest of the solver
+    graph = {'sik_ros.solver.refine': {'sik_ros.solver.families.membership'},
+             'sik_ros.solver.families.search': {'sik_ros.solver.ranking',
+                                                'sik_ros.solver.scores'},
+             'sik_ros.solver.ranking': {'sik_ros.solver.families.membership'}}
+    assert downward(graph) == {('sik_ros.solver.refine', 'sik_ros.solver.families.membership'),
+                               ('sik_ros.solver.families.search', 'sik_ros.solver.ranking')}
 
 
 def test_no_import_cycles():
@@ -183,5 +211,5 @@ def test_the_floor_table_follows_the_chain_and_names_every_module():
     named = [p for m, p in MODULES.items() if not p.name.startswith('_')]
     assert len(named) > 100
     missing = [str(p.relative_to(PACKAGE)) for p in named
-               if f'`{p.name}`' not in rows[folder(module_name(p))]]
+               if f'`{p.name}`' not in rows[table_row(module_name(p))]]
     assert not missing, f'modules the floor table of docs/interfaces.md does not name: {missing}'

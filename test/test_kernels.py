@@ -222,7 +222,7 @@ def test_exact_rows_by_margin_are_the_general_rankings_order():
     from sik_ros.solver.config import ORIENTATION_WEIGHT
     from sik_ros.solver.config import SolverConfig
     from sik_ros.solver.objectives import JointLimitMargin
-    from sik_ros.solver.ranking import assess, best_distinct
+    from sik_ros.solver.scores import assess, best_distinct
     robot = SelectiveIK.load('panda').robot
     cfg = SolverConfig()
     rng = np.random.default_rng(11)

@@ -266,13 +266,13 @@ def test_a_first_joint_short_of_a_turn_still_gets_its_neighbours(monkeypatch, tm
 def test_the_lean_path_answers_as_the_general_stages(ur5_bundle, monkeypatch):
     """Isolated pose goals without seed or obstacles: the same ranked answer either way.
 
-    :mod:`sik_ros.solver.isolated` takes the UR5's calls (its joints made non-periodic here,
-    so that its own ranking runs, not the general one of 2 pi equivalents); the general
+    :mod:`sik_ros.solver.families.isolated` takes the UR5's calls (its joints made non-periodic
+    here, so that its own ranking runs, not the general one of 2 pi equivalents); the general
     stages answer the same goals when it is switched off. Every field is equal.
     """
     from sik_ros import SelectiveIK
     import sik_ros.solver.call as call_module
-    import sik_ros.solver.isolated as isolated
+    import sik_ros.solver.families.isolated as isolated
     import sik_ros.solver.pipeline as pipeline
     ik = SelectiveIK.load(ur5_bundle[0])
     monkeypatch.setattr(ik.robot, 'periodic', np.zeros(ik.robot.dof, dtype=bool))

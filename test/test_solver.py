@@ -17,8 +17,9 @@ from sik_ros.solver.codec import decode, encode
 from sik_ros.solver.config import FREE_RESTARTS
 from sik_ros.solver.context import Goal
 from sik_ros.solver.objectives import CollisionChecker, ElbowHeight, Obstacle
-from sik_ros.solver.ranking import converged, pose_score, posture_mask
+from sik_ros.solver.ranking import posture_mask
 from sik_ros.solver.refine import refine
+from sik_ros.solver.scores import converged, pose_score
 
 
 @pytest.fixture(scope='module')

@@ -1,8 +1,8 @@
 """Compiled posture families: which exact solutions of one goal are connected.
 
 A *family* is a connected set of a goal's exact solutions within the joint limits, periodic
-joints taken modulo 2 pi (:mod:`sik_ros.solver.families` says which test each arm and goal
-gets):
+joints taken modulo 2 pi (:mod:`sik_ros.solver.families.membership` says which test each arm
+and goal gets):
 
 - :func:`branch_labels`: isolated solutions (a pose goal of an arm with six joints or fewer):
   rows within ``threshold`` of each other, periodic joints at their nearest turn, are one

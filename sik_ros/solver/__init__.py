@@ -5,16 +5,18 @@
 call's route once, from the goal checked by :mod:`~sik_ros.solver.inputs`):
 
 - :mod:`~sik_ros.solver.single`: one solution with the default ranking, from a few starts;
-- :mod:`~sik_ros.solver.isolated`: every branch of a pose of an arm of six joints or fewer
-  (the lean path; its starts for the missed branches in :mod:`~sik_ros.solver.branches`);
+- :mod:`~sik_ros.solver.families.isolated`: every branch of a pose of an arm of six joints or fewer
+  (the lean path; its starts for the missed branches in :mod:`~sik_ros.solver.families.branches`);
 - :mod:`~sik_ros.solver.candidates`: posture indices from the table near the goal, the seed's
   own index, oriented postures for pose goals, and the postures they stand for;
 - :mod:`~sik_ros.solver.codec`: the networks at a goal (decode, encode);
 - :mod:`~sik_ros.solver.refine`: batched damped least squares on the chain's Jacobians;
 - :mod:`~sik_ros.solver.explore`: restarts and the self-motion walk;
-- :mod:`~sik_ros.solver.search`: the family search over a redundant arm's self-motion;
-- :mod:`~sik_ros.solver.families`: which exact solutions are one posture family, and rounds;
-- :mod:`~sik_ros.solver.ranking`: the one score, distinct postures, tiers and ranking;
+- :mod:`~sik_ros.solver.families`: posture families, in one package: which exact solutions
+  are one family and the rounds over them, the family search over a redundant arm's
+  self-motion, a 6-joint arm's every branch;
+- :mod:`~sik_ros.solver.scores`: the one score and distinct postures;
+- :mod:`~sik_ros.solver.ranking`: tiers and the ranking;
 - :mod:`~sik_ros.solver.adjust`: the paper's Algorithm 2 (index adjustment around obstacles);
 - :mod:`~sik_ros.solver.path`: Cartesian paths (a ladder of rungs of candidates).
 

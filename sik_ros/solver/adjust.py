@@ -17,9 +17,9 @@ from sik_ros.solver.codec import decode
 from sik_ros.solver.config import (ADJUST_STARTS, ADJUST_STEP, RAW_DAMPING, RAW_DIFFERENCE,
                                    RAW_ORIENTATION_WEIGHT, RAW_ROUNDS)
 from sik_ros.solver.context import Context, Goal
-from sik_ros.solver.ranking import converged, distinct_mask, pose_score
 from sik_ros.solver.refine import errors, refine
 from sik_ros.solver.results import Solution
+from sik_ros.solver.scores import converged, distinct_mask, pose_score
 
 
 def adjust_index(ctx: Context, goal: Goal, sols: Sequence[Solution],
@@ -121,7 +121,7 @@ def adjust_raw(ctx: Context, goal: Goal, c: Candidates, num: int, skip_first: bo
     """Raw candidates for a pose goal with the best ones' posture indices adjusted.
 
     Algorithm 2 with the tip pose error as its evaluation function: the best distinct
-    candidates (by :func:`~sik_ros.solver.ranking.pose_score`) take ``config.raw_adjust``
+    candidates (by :func:`~sik_ros.solver.scores.pose_score`) take ``config.raw_adjust``
     damped Gauss-Newton steps on their index, each on the error's finite-difference derivative
     with respect to the index (one decode per index element), kept only when the decoded pose
     comes closer (position error plus ``config.RAW_ORIENTATION_WEIGHT`` per radian). When the

@@ -16,12 +16,12 @@ from sik_ros.deadline import Deadline
 from sik_ros.kinematics.collision import Obstacle
 from sik_ros.solver.config import SolverConfig
 from sik_ros.solver.context import Context, Goal, POSE
+from sik_ros.solver.families.search import searchable
 from sik_ros.solver.objectives import Objective
-from sik_ros.solver.search import searchable
 from sik_ros.tables.seed_table import SeedTable
 
 #: The routes of a call: every branch of an isolated pose goal from the seed table's starts
-#: in a few compiled calls (:mod:`sik_ros.solver.isolated`); the general stages with
+#: in a few compiled calls (:mod:`sik_ros.solver.families.isolated`); the general stages with
 #: refinement; the decoder's raw answers (``refine=False``).
 LEAN, REFINED, RAW = 'lean', 'refined', 'raw'
 
@@ -41,7 +41,7 @@ class Call:
         isolated: a reachable, refined pose goal of an arm with six joints or fewer.
         search: the family search follows the self-motion of the solutions found (a
             reachable, refined pose goal of a 7-joint arm asking for several solutions, not
-            a path's starts: :mod:`sik_ros.solver.search`).
+            a path's starts: :mod:`sik_ros.solver.families.search`).
         search_seeds: the seed table giving the search's call starts of its own, or None.
         one_per_family: at most one solution per posture family.
         route: :data:`LEAN`, :data:`REFINED` or :data:`RAW`.
@@ -119,7 +119,7 @@ def make_call(ctx: Context, goal: Goal, num: int, q_seed: Optional[np.ndarray],
 
 
 def lean(call: Call) -> bool:
-    """Whether a call takes :mod:`sik_ros.solver.isolated`'s lean path.
+    """Whether a call takes :mod:`sik_ros.solver.families.isolated`'s lean path.
 
     Isolated pose solutions with the seed table's starts, ranked by the default objective:
     no seed, obstacles or objective, and not a path's starts.

@@ -65,7 +65,7 @@ RESTART_SPREAD = 0.15
 #: the base axis may need more than one round (docs/design.md).
 FREE_RESTARTS = 16
 FREE_ROUNDS = 3
-#: The family search (:mod:`sik_ros.solver.search`): the tracer's step along a self-motion
+#: The family search (:mod:`sik_ros.solver.families.search`): the tracer's step along a self-motion
 #: curve [rad], most steps each way, how near a traced point a solution is on its piece
 #: [rad] (a step: by a limit, a piece's last point within it may lie that far from a
 #: solution), most points recorded, most new points a call and per piece.
@@ -76,18 +76,18 @@ SEARCH_RECORDED = 4096
 SEARCH_POINTS = 64
 SEARCH_PER_PIECE = 4
 #: Most iterations refining a start across a singular angle of the arm with its last joint
-#: held (:func:`sik_ros.solver.search.mirrored`).
+#: held (:func:`sik_ros.solver.families.search.mirrored`).
 MIRROR_ITERATIONS = 20
 #: Seed-table starts refined for each branch code no exact solution of an isolated pose goal
-#: has (:func:`sik_ros.solver.branches.other_branches`).
+#: has (:func:`sik_ros.solver.families.branches.other_branches`).
 BRANCH_CODE_STARTS = 2
 #: A solution whose branch sign joint is within this of its singular angle (``|sin(q_j -
 #: c_j)|``, about radians near it) gets a start on the branch across that joint, for a code
-#: still missing (:func:`sik_ros.solver.branches.mirrored`).
+#: still missing (:func:`sik_ros.solver.families.branches.mirrored`).
 NEIGHBOUR_REACH = 0.3
 #: The exact rows of an isolated pose goal are taken onto their solutions
-#: (:func:`sik_ros.solver.branches.polished`): to this share of the tolerances, in at most this
-#: many steps, with this damping (low enough to step along a nearly singular direction).
+#: (:func:`sik_ros.solver.families.branches.polished`): to this share of the tolerances, in at
+#: most this many steps, with this damping (low enough to step along a nearly singular direction).
 POLISH_FACTOR = 1e-3
 POLISH_ITERATIONS = 6
 POLISH_DAMPING = 1e-5
@@ -121,8 +121,8 @@ KERNEL_ROWS = 3
 #: within a family). Refinements of one branch meet within a few thousandths of a radian.
 SAME_BRANCH = 0.1
 #: Step of a family's trace along the self-motion of a 7-joint arm at a pose [rad] (joint
-#: distance; :mod:`sik_ros.solver.families`): small enough that a trace keeps to its curve
-#: where two pieces pass near each other (docs/design.md).
+#: distance; :mod:`sik_ros.solver.families.membership`): small enough that a trace keeps to
+#: its curve where two pieces pass near each other (docs/design.md).
 FAMILY_TRACE_STEP = 0.1
 #: Most steps of a trace each way (a curve longer than this many steps may show as two
 #: families).
@@ -247,14 +247,14 @@ class SolverConfig:
         seed_neighbours: the configurations nearest the goal pose (by tip position [m] and
             0.3 m per unit of quaternion distance) that those are chosen among.
         one_per_family: return at most one solution per posture family (the best of each,
-            :mod:`sik_ros.solver.families`) instead of filling ``num_solutions`` with more
-            solutions of the families already given.
+            :mod:`sik_ros.solver.families.membership`) instead of filling ``num_solutions``
+            with more solutions of the families already given.
         family_search: pose goals of a 7-joint arm asking for more than one solution: follow
             the self-motion curves of the solutions found (and of their mirrors across the
             arm's singular angles with the last joint held) past the joint limits, every
             piece within the limits a family, and give points far apart on each
-            (:mod:`sik_ros.solver.search`), in place of the walk. On by default; off, a call
-            walks instead and covers fewer of a pose's families (docs/benchmarks.md).
+            (:mod:`sik_ros.solver.families.search`), in place of the walk. On by default; off,
+            a call walks instead and covers fewer of a pose's families (docs/benchmarks.md).
         family_seed_starts: those calls' starts from the bundle's seed table (7-joint arms
             have a small one, :func:`~sik_ros.tables.seed_table.default_rows`): up to this
             many, chosen as ``seed_starts`` are, refined with the model's postures; curves

@@ -2,7 +2,7 @@
 
 :func:`seed_starts` (from the bundle's seed table) or :func:`branch_starts` (uniform random)
 give the isolated pose solutions of arms with six joints or fewer a start per branch
-(:mod:`sik_ros.solver.branches` gives starts for the branches they miss).
+(:mod:`sik_ros.solver.families.branches` gives starts for the branches they miss).
 :func:`restart` starts again from perturbed and random configurations when no candidate
 converged. :func:`walk` moves found pose solutions along the null space of their Jacobian (the
 self-motion manifold of a redundant arm at a 6-d pose) and refines them back onto the goal, for
@@ -22,8 +22,8 @@ from sik_ros.kinematics.periodic import equivalents
 from sik_ros.solver.batch import Candidates
 from sik_ros.solver.config import EQUIVALENTS_PER_SOLUTION, RESTART_SPREAD, RESTARTS
 from sik_ros.solver.context import Context, Goal
-from sik_ros.solver.ranking import assess, distinct_mask, pose_score
 from sik_ros.solver.refine import refine
+from sik_ros.solver.scores import assess, distinct_mask, pose_score
 from sik_ros.tables.point_sets import pairwise_distances
 from sik_ros.tables.seed_table import SeedTable
 

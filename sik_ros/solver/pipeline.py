@@ -27,7 +27,6 @@ from sik_ros.kinematics.periodic import nearest_turns
 from sik_ros.solver import families
 from sik_ros.solver.adjust import adjust_index, adjust_raw
 from sik_ros.solver.batch import Candidates
-from sik_ros.solver.branches import other_branches, polished
 from sik_ros.solver.call import Call, LEAN, make_call, REFINED, spare
 from sik_ros.solver.candidates import (oriented_postures, own_index, starting_postures,
                                        table_candidates)
@@ -36,13 +35,14 @@ from sik_ros.solver.config import FAR_ITERATIONS, FREE_RESTARTS, FREE_ROUNDS, ST
 from sik_ros.solver.context import Context, Goal, POSE, POSITION
 from sik_ros.solver.explore import (branch_starts, periodic_equivalents, restart, seed_starts,
                                     unindexed, walk)
-from sik_ros.solver.isolated import every_branch
+from sik_ros.solver.families.branches import other_branches, polished
+from sik_ros.solver.families.isolated import every_branch
+from sik_ros.solver.families.search import Atlas, search
 from sik_ros.solver.objectives import Objective
-from sik_ros.solver.ranking import (assess, by_score, distinct_mask,
-                                    from_solutions, merge, pose_score, rank)
+from sik_ros.solver.ranking import from_solutions, merge, rank
 from sik_ros.solver.refine import errors, refine
 from sik_ros.solver.results import IKResult, Solution
-from sik_ros.solver.search import Atlas, search
+from sik_ros.solver.scores import assess, by_score, distinct_mask, pose_score
 from sik_ros.solver.single import (fill_indices, from_starts, oriented_count,
                                    single_starts, turns_centre)
 

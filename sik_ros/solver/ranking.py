@@ -1,7 +1,7 @@
-"""Scores, distinct postures, and the ranking of candidates into solutions.
+"""The ranking of candidates into solutions, and distinct postures by the solver's own rule.
 
-One score orders candidates everywhere (:func:`pose_score`: the position error plus the
-orientation error weighted by :data:`ORIENTATION_WEIGHT`). Ranking is lexicographic, whatever
+Candidates are scored by :mod:`sik_ros.solver.scores` (:func:`pose_score`: the position
+error plus the weighted orientation error). Ranking is lexicographic, whatever
 the scale of the objective (:func:`ranked_order`): the tier first (free and exact, free and
 inexact, colliding; :func:`sik_ros.solver.results.tiers`), then, within a tier, exact before
 inexact, the families not yet ranked before further solutions of those that are, a posture
@@ -14,54 +14,15 @@ from typing import List, Optional, Sequence
 import numpy as np
 
 from sik_ros.deadline import Deadline, NO_DEADLINE
-from sik_ros.kernels import as_arg
-from sik_ros.kernels.sets import distinct_rows, NO_GROUPS
 from sik_ros.kinematics.collision import Obstacle
 from sik_ros.kinematics.periodic import posture_keys
 from sik_ros.solver.batch import Candidates
-from sik_ros.solver.config import INEXACT_COST, ORIENTATION_WEIGHT, SolverConfig
-from sik_ros.solver.context import Context, POSITION
-from sik_ros.solver.families import rounds, same_solution
+from sik_ros.solver.config import INEXACT_COST
+from sik_ros.solver.context import Context
+from sik_ros.solver.families.membership import rounds, same_solution
 from sik_ros.solver.objectives import JointLimitMargin, Objective, SeedDistance
 from sik_ros.solver.results import Solution, tiers
-
-
-def pose_score(perr: np.ndarray, oerr: np.ndarray) -> np.ndarray:
-    """How far candidates are from the goal [m]: position error + weighted orientation error."""
-    return perr + ORIENTATION_WEIGHT * oerr
-
-
-def converged(perr: np.ndarray, oerr: np.ndarray, kind: str, cfg: SolverConfig) -> np.ndarray:
-    """Whether each candidate meets the tolerances of a ``kind`` goal, (M,) bool."""
-    ok = perr <= cfg.position_tolerance
-    if kind != POSITION:
-        ok &= oerr <= cfg.orientation_tolerance
-    return ok
-
-
-def assess(q: np.ndarray, z: np.ndarray, perr: np.ndarray, oerr: np.ndarray, kind: str,
-           cfg: SolverConfig) -> Candidates:
-    """A :class:`Candidates` batch with its ``exact`` flags computed."""
-    return Candidates(q, z, perr, oerr, converged(perr, oerr, kind, cfg))
-
-
-def distinct_mask(q: np.ndarray, threshold: float, ignore_last: bool = False,
-                  periodic: Optional[np.ndarray] = None,
-                  groups: Optional[np.ndarray] = None) -> np.ndarray:
-    """Greedy keep-mask of rows (in their order) at least ``threshold`` apart [rad].
-
-    With ``ignore_last`` the last joint is left out of the distance (for position goals, when
-    it only turns the tool about its own axis: :meth:`Context.ignores_last`). With
-    ``periodic`` (n,) bool, those joints' differences are taken at their nearest 2 pi turns:
-    rows apart however turned. With ``groups`` (M,) int, rows of two posture families (two
-    groups >= 0) are kept however near: two solutions no motion within the limits joins.
-    """
-    if len(q) < 2:
-        return np.ones(len(q), dtype=bool)
-    n = q.shape[1]
-    turns = np.zeros(n, dtype=bool) if periodic is None else as_arg(periodic, bool)
-    return distinct_rows(as_arg(q), float(threshold), n - 1 if ignore_last else n, turns,
-                         NO_GROUPS if groups is None else as_arg(groups, np.int64))
+from sik_ros.solver.scores import best_distinct, distinct_mask, pose_score
 
 
 def posture_mask(ctx: Context, q: np.ndarray, kind: str,
@@ -75,17 +36,6 @@ def posture_mask(ctx: Context, q: np.ndarray, kind: str,
     """
     return distinct_mask(q, same_solution(ctx, kind) if threshold is None else threshold,
                          ctx.ignores_last(kind))
-
-
-def by_score(c: Candidates) -> Candidates:
-    """Exact candidates first, then by score."""
-    return c.take(np.lexsort((pose_score(c.perr, c.oerr), ~c.exact)))
-
-
-def best_distinct(c: Candidates, threshold: float, ignore_last: bool) -> Candidates:
-    """Exact candidates first, then by score; one per distinct posture."""
-    c = by_score(c)
-    return c.take(distinct_mask(c.q, threshold, ignore_last))
 
 
 def equivalents(keys: np.ndarray, cost: np.ndarray) -> np.ndarray:

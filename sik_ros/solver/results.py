@@ -52,7 +52,7 @@ class Solution:
         family: the posture family it belongs to, numbered within one answer by first
             appearance (0: the best-ranked solution's): a branch of an arm with six joints or
             fewer at a pose, a connected piece of self-motion of a redundant arm
-            (:mod:`sik_ros.solver.families`); :data:`NO_FAMILY` for an inexact solution.
+            (:mod:`sik_ros.solver.families.membership`); :data:`NO_FAMILY` for an inexact solution.
     """
 
     q: np.ndarray

@@ -23,9 +23,10 @@ from sik_ros.solver.codec import encode
 from sik_ros.solver.config import ORIENTED_MIN, SolverConfig
 from sik_ros.solver.context import Context, Goal, POSE
 from sik_ros.solver.explore import unindexed
-from sik_ros.solver.ranking import converged, rank
+from sik_ros.solver.ranking import rank
 from sik_ros.solver.refine import refine
 from sik_ros.solver.results import IKResult, PendingIndices, Solution
+from sik_ros.solver.scores import converged
 
 
 def oriented_count(cfg: SolverConfig, num: int) -> int:

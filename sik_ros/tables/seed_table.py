@@ -15,7 +15,7 @@ refinement then takes onto the goal in a few steps (more branches in less time t
 starts; docs/design.md).
 
 A 7-joint arm's table is smaller (:data:`~sik_ros.defaults.SEARCH_SEED_TABLE_ROWS`): its starts
-serve the family search (:mod:`sik_ros.solver.search`), which traces every curve of the
+serve the family search (:mod:`sik_ros.solver.families.search`), which traces every curve of the
 self-motion through the solutions they reach. The nearest rows of a small table lie farther
 from the goal and farther apart, on more of the pose's curves; a self-motion loop or a sliver
 of a curve by the limits that no model posture leads to is reached from one of them.
@@ -362,7 +362,7 @@ def default_rows(robot: Robot) -> Optional[int]:
 
     Arms of six joints or fewer: :data:`DEFAULT_ROWS`, the starts of their isolated pose
     solutions. 7-joint arms: :data:`~sik_ros.defaults.SEARCH_SEED_TABLE_ROWS`, the starts of
-    the family search (:mod:`sik_ros.solver.search`). Others: none.
+    the family search (:mod:`sik_ros.solver.families.search`). Others: none.
     """
     if robot.dof <= 6:
         return DEFAULT_ROWS

@@ -15,8 +15,8 @@ from sik_ros.solver.path.rungs import Plan, Rung, Tracks, waypoint_turns
 from sik_ros.solver.path.settings import JointPath, PathResult, PathSettings
 from sik_ros.solver.path.starts import track_starts
 from sik_ros.solver.path.tracking import chunk
-from sik_ros.solver.ranking import distinct_mask
 from sik_ros.solver.refine import Evaluation
+from sik_ros.solver.scores import distinct_mask
 
 #: A rung and the evaluation of its rows (carried into the next waypoint's steps).
 Step = Tuple[Rung, Evaluation]

@@ -9,8 +9,8 @@ from sik_ros.kinematics.periodic import nearest_turns
 from sik_ros.solver import pipeline  # noqa: I100 (a sibling module, not the package)
 from sik_ros.solver.config import NEAR_POOL, START_ITERATIONS
 from sik_ros.solver.context import Context, Goal, POSITION
-from sik_ros.solver.ranking import distinct_mask
 from sik_ros.solver.refine import Evaluation, follow
+from sik_ros.solver.scores import distinct_mask
 
 
 def track_starts(ctx: Context, goal: Goal, q_seed, obstacles, count: int,

@@ -1,10 +1,10 @@
 """Every branch of an isolated pose goal, ranked by the default objective: the lean path.
 
 An arm with six joints or fewer reaches a pose on a few isolated branches (one or two for the
-SO-100 and the Z1 within their limits, up to eight for a UR5). With the bundle's seed table,
-no seed, no obstacles and the default objective, a call is: the seed table's starts near the
-goal pose, refined (with starts for the branches they missed, and the exact ones polished onto
-their solutions: :mod:`sik_ros.solver.branches`); the exact ones, one per posture; ranked by
+SO-100 and the Z1 within their limits, up to eight for a UR5). With the bundle's seed table, no
+seed, no obstacles and the default objective, a call is: the seed table's starts near the goal
+pose, refined (with starts for the branches they missed, and the exact ones polished onto their
+solutions: :mod:`sik_ros.solver.families.branches`); the exact ones, one per posture; ranked by
 closeness to the joint limits, self-collision checked in that order. :func:`every_branch` does
 just that in a few compiled calls (:func:`~sik_ros.kernels.sets.exact_by_margin` for the last
 steps) and the collision checks, where the general stages of :mod:`sik_ros.solver.pipeline`
@@ -22,15 +22,15 @@ import numpy as np
 from sik_ros.deadline import Deadline
 from sik_ros.kernels.sets import exact_by_margin
 from sik_ros.solver.batch import Candidates
-from sik_ros.solver.branches import other_branches, polished
 from sik_ros.solver.codec import encode
 from sik_ros.solver.config import ORIENTATION_WEIGHT
 from sik_ros.solver.context import Context, Goal
 from sik_ros.solver.explore import unindexed
-from sik_ros.solver.families import number, same_solution
-from sik_ros.solver.ranking import assess
+from sik_ros.solver.families.branches import other_branches, polished
+from sik_ros.solver.families.membership import number, same_solution
 from sik_ros.solver.refine import refine, Refined
 from sik_ros.solver.results import IKResult, PendingIndices, Solution, tiers
+from sik_ros.solver.scores import assess
 from sik_ros.tables.seed_table import SeedTable
 
 #: What :func:`every_branch` returns: the answer, or None and the refined starts as candidates
@@ -44,9 +44,9 @@ def every_branch(ctx: Context, goal: Goal, seeds: SeedTable, num: int,
 
     The starts are refined (all of them; with ``enough``, until as many distinct ones are
     exact; without, starts for the branches they missed follow and the exact rows are polished
-    onto their solutions: :func:`~sik_ros.solver.branches.other_branches`,
-    :func:`~sik_ros.solver.branches.polished`). The exact ones, taken by their goal error, one
-    per posture
+    onto their solutions: :func:`~sik_ros.solver.families.branches.other_branches`,
+    :func:`~sik_ros.solver.families.branches.polished`). The exact ones, taken by their goal
+    error, one per posture
     (``distinct_threshold`` apart), are ranked by
     :class:`~sik_ros.solver.objectives.JointLimitMargin`,
     those free of self-collision first, each checked in that order until ``num`` free ones are

@@ -24,8 +24,8 @@ from sik_ros.solver.config import (BRANCH_CODE_STARTS, NEIGHBOUR_REACH, ORIENTAT
                                    POLISH_DAMPING, POLISH_FACTOR, POLISH_ITERATIONS,
                                    POLISH_MOVED)
 from sik_ros.solver.context import Context, Goal
-from sik_ros.solver.ranking import converged
 from sik_ros.solver.refine import refine, Refined
+from sik_ros.solver.scores import converged
 from sik_ros.tables.seed_table import SeedTable
 
 

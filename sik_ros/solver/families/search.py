@@ -11,7 +11,7 @@ shoulder turned over), where it has them, and from the solutions mirrored across
 angles of the arm with its last joint held (:func:`mirrored`: at one value of that joint, the
 other branches an analytic solver sweeping it finds, such as the elbow's other side). The
 traced points within the limits are the pose's :class:`Atlas`: its pieces are the families
-(the labels of :mod:`sik_ros.solver.families`), and points far apart on each join the
+(the labels of :mod:`sik_ros.solver.families.membership`), and points far apart on each join the
 candidates, so a call gets its distinct solutions from every family without walking
 (:func:`sik_ros.solver.explore.walk`). Its points are exact (the tracer's corrector meets the
 tolerances).
@@ -31,14 +31,14 @@ from sik_ros.kernels.atlas_points import atlas_pieces, spread_points
 from sik_ros.kinematics.branches import robot_flips, singular_angles
 from sik_ros.kinematics.robot import Robot
 from sik_ros.solver.batch import Candidates
-from sik_ros.solver.branches import fits_mirrored
 from sik_ros.solver.config import (MIRROR_ITERATIONS, SEARCH_LINK, SEARCH_PER_PIECE,
                                    SEARCH_POINTS, SEARCH_RECORDED, SEARCH_STEP, SEARCH_STEPS,
                                    START_MERGE)
 from sik_ros.solver.context import Context, Goal, POSE
 from sik_ros.solver.explore import unindexed
-from sik_ros.solver.ranking import assess, converged, distinct_mask
+from sik_ros.solver.families.branches import fits_mirrored
 from sik_ros.solver.refine import errors, refine
+from sik_ros.solver.scores import assess, converged, distinct_mask
 
 
 @dataclass(frozen=True)
@@ -67,7 +67,7 @@ def robot_mirrors(robot: Robot) -> Tuple[np.ndarray, np.ndarray]:
 
     The singular angles of the arm with its last joint held
     (:func:`~sik_ros.kinematics.branches.singular_angles`) whose mirror can fit the joint's
-    limits (:func:`~sik_ros.solver.branches.fits_mirrored`), one of two half a turn apart
+    limits (:func:`~sik_ros.solver.families.branches.fits_mirrored`), one of two half a turn apart
     (the same mirror), less the middle joint of an exact flip: mirrored, it gives the flip's
     curve, recorded as a twin.
     """

@@ -93,8 +93,8 @@ def roots(ctx: Context, c: Candidates, goal: Goal, deadline: Deadline,
           atlas=None) -> np.ndarray:
     """(M,) int64: the family root of each exact candidate of ``c`` (a row of ``c``), -1 else.
 
-    With an ``atlas`` of the pose (:class:`~sik_ros.solver.search.Atlas`), a family is one of
-    its pieces; rows on none of them (found after the search) and every row without an
+    With an ``atlas`` of the pose (:class:`~sik_ros.solver.families.search.Atlas`), a family is
+    one of its pieces; rows on none of them (found after the search) and every row without an
     atlas are linked by :func:`labels`.
     """
     out = np.full(len(c), -1, dtype=np.int64)
