@@ -148,6 +148,7 @@ setup(
     license='Apache-2.0',
     extras_require={
         'test': ['pytest', 'pytest-timeout', 'flake8', 'pydocstyle'],
+        'ray': ['ray==2.60.0'],
     },
     cmdclass={'install': ColconInstall, 'develop': ColconDevelop},
     entry_points={

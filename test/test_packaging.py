@@ -27,6 +27,7 @@ PIP_ONLY = {
     'pytracik': 'pytracik',
     'viser': 'viser',
     'trimesh': 'trimesh',
+    'ray': 'ray',  # the optional extra sik_ros[ray] (solver/cluster.py)
 }
 
 

@@ -26,7 +26,12 @@ def build_parser() -> argparse.ArgumentParser:
                    help='solutions asked per goal (default 16)')
     p.add_argument('--timeout', type=float, help='each goal\'s budget [s]')
     p.add_argument('--out', default='reach', help='output folder (default: reach)')
-    p.add_argument('--workers', type=int, help='processes (default: every core)')
+    p.add_argument('--workers', type=int, help='processes, or Ray workers with --ray (default: '
+                   'every core, or every CPU of the cluster)')
+    p.add_argument('--ray', metavar='ADDRESS',
+                   help='solve on a Ray cluster: auto (one running on this network), '
+                   'HOST:6379, ray://HOST:10001, or local (start one here); needs '
+                   'pip install "sik_ros[ray]"')
     return p
 
 
@@ -63,10 +68,17 @@ def main(argv: Optional[List[str]] = None) -> int:
             bar.total = total
             bar.update(done - bar.n)
 
+        executor = None
+        if args.ray:
+            from sik_ros.solver.cluster import RayExecutor
+            executor = RayExecutor(None if args.ray == 'local' else args.ray, args.workers)
         try:
-            path = build_reach_map(ik, Path(args.out), settings, args.workers, progress)
+            path = build_reach_map(ik, Path(args.out), settings, args.workers, progress,
+                                   executor)
         finally:
             bar.close()
+            if executor is not None:
+                executor.close()
         data = load_reach_map(path)
         plot_reach_map(data, Path(args.out) / 'reach.png')
         reach = data['reachability']

@@ -27,7 +27,8 @@ from sik_ros.solver.codec import encode
 from sik_ros.solver.inputs import check_arrays, check_goal, check_seed
 from sik_ros.solver.results import IKResult, PendingIndices, Solution
 
-__all__ = ['check_rows', 'check_workers', 'default_workers', 'solve_rows']
+__all__ = ['check_rows', 'check_workers', 'default_workers', 'single_threaded',
+           'solve_chunk_with', 'solve_rows']
 
 #: Chunks per worker: small enough to even out slow targets, large enough to pay the pipe.
 CHUNKS_PER_WORKER = 32
@@ -100,11 +101,23 @@ def _for_row(exc: SikError, row: int) -> SikError:
 
 
 def solve_rows(ik, pos: np.ndarray, quat: Optional[np.ndarray], seeds: Optional[np.ndarray],
-               kwargs: Dict[str, Any], workers: int, progress: bool) -> List[IKResult]:
-    """Each row's :meth:`SelectiveIK.solve`, on ``workers`` processes, in row order."""
+               kwargs: Dict[str, Any], workers: int, progress: bool,
+               executor=None) -> List[IKResult]:
+    """Each row's :meth:`SelectiveIK.solve`, on ``workers`` processes or ``executor``, in order.
+
+    ``executor``: None, or one with ``workers`` and ``solve_chunks(ik, chunks, kwargs)``
+    (:class:`~sik_ros.solver.cluster.RayExecutor`).
+    """
     n = len(pos)
     bar = _bar(n, progress)
     try:
+        if executor is not None:
+            if not _picklable(kwargs):
+                raise InvalidArgument('an executor\'s workers need keywords that can be '
+                                      'pickled (an objective of a lambda cannot)')
+            chunks = _chunks(pos, quat, seeds, executor.workers,
+                             getattr(executor, 'chunks_per_worker', CHUNKS_PER_WORKER))
+            return _gathered(ik, pos, quat, executor.solve_chunks(ik, chunks, kwargs), bar)
         workers = max(1, min(int(workers), n // MIN_ROWS_PER_WORKER))
         context = _start_method(ik)
         if workers == 1 or context is None or not _picklable(kwargs):
@@ -116,6 +129,26 @@ def solve_rows(ik, pos: np.ndarray, quat: Optional[np.ndarray], seeds: Optional[
         return _on_processes(ik, pos, quat, seeds, kwargs, workers, context, bar)
     finally:
         bar.close()
+
+
+def _chunks(pos, quat, seeds, workers: int,
+            per_worker: int = CHUNKS_PER_WORKER) -> List[Tuple[int, Any, Any, Any]]:
+    """The batch in chunks of consecutive rows: ``(start, pos, quat, seeds)`` each."""
+    n = len(pos)
+    size = max(1, -(-n // (workers * per_worker)))
+    return [(a, pos[a:a + size], None if quat is None else quat[a:a + size],
+             None if seeds is None else seeds[a:a + size]) for a in range(0, n, size)]
+
+
+def _gathered(ik, pos, quat, replies, bar) -> List[IKResult]:
+    """The answers of the chunks' ``(start, reply)`` (in any order), in row order."""
+    results: List[Optional[IKResult]] = [None] * len(pos)
+    for start, reply in replies:
+        answers, lazy = _checked(reply)
+        _pending_again(ik, pos, quat, start, answers, lazy)
+        results[start:start + len(answers)] = answers
+        bar.update(len(answers))
+    return results
 
 
 def _picklable(value) -> bool:
@@ -145,14 +178,10 @@ def _on_processes(ik, pos, quat, seeds, kwargs, workers: int, method: str,
                   bar) -> List[IKResult]:
     from concurrent.futures import as_completed, ProcessPoolExecutor
     global _INHERITED
-    n = len(pos)
-    size = max(1, -(-n // (workers * CHUNKS_PER_WORKER)))
-    chunks = [(start, min(n, start + size)) for start in range(0, n, size)]
     if method == 'fork':
         _INHERITED, init = ik, (None, None, None)
     else:
         init = (str(ik.bundle), _config_fields(ik.config), type(ik))
-    results: List[Optional[IKResult]] = [None] * n
     if method == 'fork':
         # the caller's objects in the permanent generation: a worker's garbage collections
         # then leave the pages it shares with the caller alone (no copy-on-write of them)
@@ -161,21 +190,13 @@ def _on_processes(ik, pos, quat, seeds, kwargs, workers: int, method: str,
         pool = ProcessPoolExecutor(workers, multiprocessing.get_context(method),
                                    initializer=_start, initargs=init)
         with _stopped_at_once(pool):
-            futures = {pool.submit(_solve_chunk, pos[a:b],
-                                   None if quat is None else quat[a:b],
-                                   None if seeds is None else seeds[a:b], kwargs): a
-                       for a, b in chunks}
-            for future in as_completed(futures):
-                answers, lazy = _checked(future.result())
-                start = futures[future]
-                _pending_again(ik, pos, quat, start, answers, lazy)
-                results[start:start + len(answers)] = answers
-                bar.update(len(answers))
+            futures = [pool.submit(_solve_chunk, *chunk, kwargs)
+                       for chunk in _chunks(pos, quat, seeds, workers)]
+            return _gathered(ik, pos, quat, (f.result() for f in as_completed(futures)), bar)
     finally:
         _INHERITED = None
         if method == 'fork':
             gc.unfreeze()
-    return results
 
 
 @contextlib.contextmanager
@@ -200,6 +221,15 @@ def _config_fields(config) -> Dict[str, Any]:
     return asdict(config)
 
 
+def single_threaded() -> None:
+    """One thread for BLAS and torch in this (worker) process."""
+    from threadpoolctl import threadpool_limits
+    threadpool_limits(1)
+    torch = sys.modules.get('torch')
+    if torch is not None:
+        torch.set_num_threads(1)
+
+
 def _start(bundle: Optional[str], config: Optional[Dict[str, Any]], solver_class) -> None:
     """A worker's start: one thread for BLAS and torch, then its solver, once.
 
@@ -208,11 +238,7 @@ def _start(bundle: Optional[str], config: Optional[Dict[str, Any]], solver_class
     global _SOLVER
     import signal
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # the caller stops the batch
-    from threadpoolctl import threadpool_limits
-    threadpool_limits(1)
-    torch = sys.modules.get('torch')
-    if torch is not None:
-        torch.set_num_threads(1)
+    single_threaded()
     if bundle is None:
         _SOLVER = _INHERITED.clone()
     else:
@@ -220,14 +246,19 @@ def _start(bundle: Optional[str], config: Optional[Dict[str, Any]], solver_class
         _SOLVER = solver_class.load(bundle, SolverConfig(**config))
 
 
-def _solve_chunk(pos, quat, seeds, kwargs) -> Tuple[str, Any]:
+def _solve_chunk(start: int, pos, quat, seeds, kwargs) -> Tuple[int, Tuple[str, Any]]:
+    """The worker's answers to the chunk at ``start`` (:func:`solve_chunk_with`)."""
+    return start, solve_chunk_with(_SOLVER, pos, quat, seeds, kwargs)
+
+
+def solve_chunk_with(solver, pos, quat, seeds, kwargs) -> Tuple[str, Any]:
     """A chunk's answers, packed into arrays (:func:`pack`), or the error that stopped it.
 
     A posture index not yet encoded stays so (encoding costs more than the solve): the
     solution travels without it and the caller encodes it when it is first read.
     """
     try:
-        return 'ok', pack([_solve_one(_SOLVER, pos, quat, seeds, i, kwargs)
+        return 'ok', pack([_solve_one(solver, pos, quat, seeds, i, kwargs)
                            for i in range(len(pos))])
     except SikError as exc:
         return 'error', (type(exc).__name__, str(exc))

@@ -97,7 +97,8 @@ def _write_npz(path: Path, **arrays) -> None:
 
 def build_reach_map(ik, out: Path, settings: ReachSettings = ReachSettings(),
                     workers: Optional[int] = None,
-                    progress: Optional[Callable[[int, int], None]] = None) -> Path:
+                    progress: Optional[Callable[[int, int], None]] = None,
+                    executor=None) -> Path:
     """Solve every pose goal of the map into ``out/reach.npz`` (resuming from its chunks).
 
     Args:
@@ -107,6 +108,8 @@ def build_reach_map(ik, out: Path, settings: ReachSettings = ReachSettings(),
         workers: processes of :meth:`SelectiveIK.solve_batch` (None: every core).
         progress: ``progress(goals_done, goals_total)`` after each chunk (and once at the
             start, chunks already written counted).
+        executor: None, or a :class:`~sik_ros.solver.cluster.RayExecutor`: the goals solved
+            on a Ray cluster (the same map: each goal's answer is the one ``solve`` gives).
 
     Returns:
         the path of ``reach.npz``: ``centers`` (V, 3), ``orientations`` (K, 4), ``success``
@@ -153,7 +156,8 @@ def build_reach_map(ik, out: Path, settings: ReachSettings = ReachSettings(),
         pos = np.repeat(centres[rows], k, 0)
         rot = np.tile(quats, (rows.stop - rows.start, 1))
         answers = ik.solve_batch(pos, rot, num_solutions=settings.num_solutions,
-                                 timeout=settings.timeout, workers=workers)
+                                 timeout=settings.timeout, workers=workers,
+                                 executor=executor)
         ok = np.array([a.success for a in answers]).reshape(-1, k)
         fam = np.array([a.num_families for a in answers], dtype=np.uint16).reshape(-1, k)
         _write_npz(out / 'chunks' / f'{c:06d}.npz', success=ok, families=fam)

@@ -213,13 +213,15 @@ class SelectiveIK:
     def solve_batch(self, positions, orientations=None, *, num_solutions: int = 16, seed=None,
                     obstacles: Sequence[Obstacle] = (), timeout: Optional[float] = None,
                     workers: Optional[int] = None, progress: bool = False,
-                    **kw) -> List[IKResult]:
+                    executor=None, **kw) -> List[IKResult]:
         """:meth:`solve` for many targets, on several cores: one result per target, in order.
 
         Each answer is the one :meth:`solve` gives for its row. The rows go in chunks to
         ``workers`` processes, each holding one solver for the whole batch (forked from this
         one, or, in a process running ``rclpy``, loading the bundle once); a small batch, or
-        ``workers=1``, is solved in this process.
+        ``workers=1``, is solved in this process. With an ``executor``
+        (:class:`~sik_ros.solver.cluster.RayExecutor`) the chunks go to its workers instead,
+        on a Ray cluster.
 
         Args:
             positions: targets (N, 3) [m] in the base frame.
@@ -231,6 +233,8 @@ class SelectiveIK:
             timeout: each target's budget [s].
             workers: processes (None: every core this process may run on).
             progress: show a tqdm progress bar on stderr.
+            executor: None (this machine's processes), or a
+                :class:`~sik_ros.solver.cluster.RayExecutor` (``workers`` is then its own).
             **kw: :meth:`solve`'s other keywords (``refine``, ``objective``,
                 ``one_per_family``).
 
@@ -249,8 +253,12 @@ class SelectiveIK:
             raise InvalidArgument(f'solve_batch got unknown keywords {unknown}')
         if 'objective' in kw:
             check_objective(kw['objective'])
+        if executor is not None and not callable(getattr(executor, 'solve_chunks', None)):
+            raise InvalidArgument(f'executor must be a RayExecutor (or have its solve_chunks); '
+                                  f'got {type(executor).__name__}')
         return _parallel.solve_rows(self, pos, quat, seeds, given,
-                                    _parallel.check_workers(workers), flag(progress, 'progress'))
+                                    _parallel.check_workers(workers), flag(progress, 'progress'),
+                                    executor)
 
     def solve_path(self, positions, orientations=None, seed=None,
                    num_paths: int = PATH_DEFAULTS.num_paths,
