@@ -851,6 +851,26 @@ def render_batch_service(data: dict) -> str:
             f'**{num(ratio["median"])}** (range {num(ratio["min"])}-{num(ratio["max"])})')
 
 
+def render_cluster(data: dict) -> str:
+    """``bench/cluster.py``: a reach map on 1 and 2 workers, local processes and Ray actors."""
+    r = data['results']
+    rows = [[f'{"local processes" if run["kind"] == "processes" else "Ray actors"}',
+             str(run['workers']), num(run['seconds']), num(run['goals_per_s'], 0),
+             (f'{num(run["cluster_start_s"])} s / {num(run["first_map_s"])} s'
+              if 'cluster_start_s' in run else '')]
+            for run in r['runs']]
+    speedups = ', '.join(f'{label} **{num(r[key])}**' for key, label in
+                         (('processes_speedup_2_over_1', 'local processes'),
+                          ('ray_speedup_2_over_1', 'Ray actors')) if key in r)
+    return (f'The Panda map at {r["voxel"]} m and {r["orientations"]} orientations: '
+            f'{r["voxels"]} voxels, {r["goals"]} pose goals ({pct(r["reached"])} reached), '
+            f'{r["num_solutions"]} solutions asked, no timeout:\n\n'
+            + table(['workers on', 'workers', 'map [s] (median)', 'pose goals/s',
+                     'cluster start / first map with the actors loading'], rows)
+            + f'\n\n2 workers over 1: {speedups}; every map the same, goal for goal: '
+            f'**{"yes" if r["same_maps"] else "no"}**')
+
+
 RENDER: Dict[str, Callable] = {
     'collect': render_collect, 'solve': render_solve, 'solve_ab': render_ab,
     'arms': render_arms, 'paths': render_paths, 'paths_ab': render_paths_ab,
@@ -859,7 +879,7 @@ RENDER: Dict[str, Callable] = {
     'ablation': render_ablation, 'families': render_families, 'stream': render_stream,
     'executors': render_executors, 'service_ab': render_service_ab,
     'first_answer': render_first_answer, 'moveit_ik': render_moveit_ik,
-    'batch_service': render_batch_service}
+    'batch_service': render_batch_service, 'cluster': render_cluster}
 
 
 def load() -> Dict[str, List[dict]]:
