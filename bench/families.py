@@ -95,7 +95,7 @@ class HeldSweep:
     def __init__(self, ik: SelectiveIK, starts: int):
         from sik_ros.solver.refine import kernel_settings
         self.robot, self.cfg = ik.robot, ik.config
-        self.settings = kernel_settings(ik.config, 60, 0, False, False)
+        self.settings = kernel_settings(ik.config, 60, 0, False, False, True)
         self.rng = np.random.default_rng(0)
         self.starts = starts
 
@@ -120,10 +120,9 @@ class HeldSweep:
         q[:, 6] = q7
         m = len(q)
         perr, oerr, status = np.empty(m), np.empty(m), np.empty(m, dtype=np.int8)
-        reals, ints, prune_at = self.settings
+        reals, ints = self.settings
         refine_rows(robot.frames, lower, upper, np.asarray(robot.periodic, dtype=bool), q,
-                    self.pos, self.rot, True, reals.copy(), ints, prune_at, perr, oerr,
-                    status)
+                    self.pos, self.rot, reals.copy(), ints, perr, oerr, status)
         out: List[np.ndarray] = []
         for i in np.flatnonzero((perr <= POS_TOL) & (oerr <= ROT_TOL)):
             if all(np.linalg.norm(q[i] - k) > SAME_SAMPLE for k in out):

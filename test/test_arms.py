@@ -312,8 +312,8 @@ def test_refinement_turns_a_periodic_joint_back_at_its_limit(ur5_bundle, ur5):
     work = np.empty((6, 6)), np.empty((6, 6)), np.empty(6)
     turned, clamped = start[None].copy(), start[None].copy()
     for row, turn in ((turned[0], True), (clamped[0], False)):
-        limited_step(row, jac, err, 6, ur5.lower, ur5.upper, ur5.periodic, turn, 1e-6,
-                     ik.config.max_step, *work)
+        limited_step(row, jac, err, 6, (ur5.lower, ur5.upper, ur5.periodic), turn,
+                     (1e-6, ik.config.max_step), work)
     assert turned[0, 3] == pytest.approx(0.217, abs=1e-3)
     assert clamped[0, 3] == ur5.upper[3]
 

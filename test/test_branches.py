@@ -29,10 +29,9 @@ def every_branch(robot, q0, starts=300, seed=0):
     q = np.random.default_rng(seed).uniform(robot.lower, robot.upper, (starts, robot.dof))
     perr, oerr = np.empty(starts), np.empty(starts)
     status = np.empty(starts, dtype=np.int8)
-    reals, ints, prune_at = kernel_settings(cfg, 40, 0, False, False)
+    reals, ints = kernel_settings(cfg, 40, 0, False, False, True)
     refine_rows(robot.frames, robot.lower, robot.upper, as_arg(robot.periodic, bool), q,
-                as_arg(p[0]), as_arg(r[0]), True, reals.copy(), ints, prune_at, perr, oerr,
-                status)
+                as_arg(p[0]), as_arg(r[0]), reals.copy(), ints, perr, oerr, status)
     return q[(perr <= cfg.position_tolerance) & (oerr <= cfg.orientation_tolerance)]
 
 

@@ -86,13 +86,13 @@ def test_a_row_heading_for_an_earlier_solution_is_pruned(bundled):
                     max_step=1e-3, stall_ratio=0.7, prune_radius=1.0, distinct_threshold=0.5,
                     deadline=np.inf, orientation_weight=0.1, converge_factor=0.5,
                     give_up_factor=10.0, iterations=12, stall_window=0,
-                    stall_after=0, give_up_after=100, enough=0, prune=1, roll_free=0)
+                    stall_after=0, give_up_after=100, enough=0, prune=1, roll_free=0, pose=1)
     perr, oerr, status = np.empty(2), np.empty(2), np.empty(2, dtype=np.int8)
     q_in = q.copy()
-    refine_rows(robot.frames, robot.lower, robot.upper, robot.periodic, q_in, p, r, True,
+    refine_rows(robot.frames, robot.lower, robot.upper, robot.periodic, q_in, p, r,
                 np.array([settings[k] for k in REALS], dtype=float),
-                np.array([settings[k] for k in INTS], dtype=np.int64),
-                np.array(cfg.prune_at, dtype=np.int64), perr, oerr, status)
+                np.array([settings[k] for k in INTS] + list(cfg.prune_at), dtype=np.int64),
+                perr, oerr, status)
     # tiny steps never reach 1e-12: the first row runs out, the second meets it at step 3
     assert status[0] not in (UNTOUCHED, PRUNED, CONVERGED)
     assert status[1] == PRUNED

@@ -15,7 +15,8 @@ import numpy as np
 from sik_ros.kernels._cache import CACHE
 from sik_ros.kernels.angles import angle_distance, flip_triple, PER_TURN, TURN, turned_into
 from sik_ros.kernels.clock import monotonic
-from sik_ros.kernels.selfmotion import advance, correct
+from sik_ros.kernels.selfmotion import (advance, correct, T_DEADLINE, T_LINK, T_MAX_STEP,
+                                        T_MAX_STEPS, T_STEP, T_TOL_O, T_TOL_P)
 from sik_ros.kernels.sets import root, union
 
 #: A free joint's bounds while a curve is followed past the limits [rad].
@@ -119,19 +120,19 @@ def _outside_by(x, lower, upper):  # pragma: no cover (compiled)
 
 
 @njit(cache=CACHE, nogil=True)
-def _jumped(frames, lo, up, free, prev, x, pos, rot, tol_p, tol_o, max_step, h, mid, chord, p,
-            r, jac, jm, a, err, xs):  # pragma: no cover (compiled)
+def _jumped(chain, prev, x, goal, tols, h, mid, chord, work):  # pragma: no cover (compiled)
     """Whether a step of ``h`` from ``prev`` to ``x`` crossed from one curve to another.
 
     The middle of the chord, corrected onto the pose, lies near it on one smooth curve; it
     lands farther than :data:`MIDPOINT` steps away (or nowhere) where the chord joins two
-    curves passing near each other. ``mid``, ``chord`` and the rest: work space.
+    curves passing near each other. ``chain``, ``goal``, ``tols``, ``work``: the corrector's
+    (:func:`~sik_ros.kernels.selfmotion.correct`); ``mid``, ``chord``: work space.
     """
+    free = chain[3]
     for j in range(x.shape[0]):
         mid[j] = 0.5 * (prev[j] + x[j])
         chord[j] = mid[j]
-    if not correct(frames, lo, up, free, mid, pos, rot, True, tol_p, tol_o, max_step, p, r,
-                   jac, jm, a, err, xs):
+    if not correct(chain, mid, goal, tols, work):
         return True
     return angle_distance(mid, chord, free) > MIDPOINT * h
 
@@ -150,15 +151,19 @@ def _crossed(x, prev, flips):  # pragma: no cover (compiled)
 
 
 @njit(cache=CACHE, nogil=True)
-def _twins(path, length, flips, lower, upper, periodic, link, q, points, piece, count,
-           row_piece, row_dist, parent, pieces, y, inside):  # pragma: no cover (compiled)
+def _twins(path, length, flips, bounds, link, q, record, count, pieces,
+           scratch):  # pragma: no cover (compiled)
     """The twins of a closed traced curve recorded: its exact flips, curves of their own.
 
     ``path[:length]``: the curve's points in order, free of the limits. Twin ``t`` (1 .. 2^F
-    - 1) flips the triples of its set bits (``flips``); its points within the limits are
-    recorded as the trace's are, its last piece joined to its first (the twin closes too).
-    Returns the count and the pieces numbered.
+    - 1) flips the triples of its set bits (``flips``); its points within the limits
+    (``bounds``: ``(lower, upper, periodic)``) are recorded as the trace's are (``record``:
+    ``(points, piece, row_piece, row_dist, parent)``), its last piece joined to its first (the
+    twin closes too). ``scratch``: ``(y, inside)``. Returns the count and the pieces numbered.
     """
+    lower, upper, periodic = bounds
+    points, piece, row_piece, row_dist, parent = record
+    y, inside = scratch
     for t in range(1, 1 << flips.shape[0]):
         cur, first = -1, -1
         for k in range(length):
@@ -182,37 +187,39 @@ def _twins(path, length, flips, lower, upper, periodic, link, q, points, piece, 
 
 
 @njit('int64(float64[:, :, ::1], float64[::1], float64[::1], boolean[::1], float64[:, ::1], '
-      'int64[::1], float64[::1], float64[:, ::1], float64, int64, float64, float64, float64, '
-      'float64, float64, float64[:, ::1], int64[::1], int64[::1])', cache=CACHE, nogil=True)
-def trace_atlas(frames, lower, upper, periodic, q, flips, pos, rot, step, max_steps, link,
-                tol_p, tol_o, max_step, deadline, points, piece,
+      'int64[::1], float64[::1], float64[:, ::1], float64[::1], float64[:, ::1], int64[::1], '
+      'int64[::1])', cache=CACHE, nogil=True)
+def trace_atlas(frames, lower, upper, periodic, q, flips, pos, rot, settings, points, piece,
                 row_piece):  # pragma: no cover (compiled)
     """The atlas of a 7-joint arm's self-motion at a pose through its known solutions ``q``.
 
-    ``q`` (M, 7): exact solutions at the pose (position ``pos`` (3,) [m], rotation ``rot``
-    (3, 3), tolerances ``tol_p`` [m], ``tol_o`` [rad]). From each row no earlier trace passed
-    (within ``link`` [rad]) the curve is followed both ways in steps of ``step`` [rad] *free
-    of the limits* (:func:`advance`, then :func:`correct`; the step halved up to
-    :data:`HALVINGS` times where the corrector fails or moves the point more than
+    ``settings``: float64 values named by :data:`~sik_ros.kernels.selfmotion.TRACE` (below by
+    their names). ``q`` (M, 7): exact solutions at the pose (position ``pos`` (3,) [m],
+    rotation ``rot`` (3, 3), tolerances ``tol_p`` [m], ``tol_o`` [rad]). From each row no
+    earlier trace passed (within ``link`` [rad]) the curve is followed both ways in steps of
+    ``step`` [rad] *free of the limits* (:func:`advance`, then :func:`correct`; the step halved
+    up to :data:`HALVINGS` times where the corrector fails or moves the point more than
     :data:`DRIFT` steps, near a singularity or another curve, or where the step crossed to
     another curve passing near, :func:`_jumped`; outside the limits shortened to how far
-    outside it is, :data:`NEAR_LIMITS`) until it closes on its start (after :data:`CLOSE` links)
-    (every angle modulo a turn), fails or has taken ``max_steps``. Every point, its angles
-    turned by whole turns into the limits where they fit, is recorded in ``points`` (P, 7)
-    with its piece in ``piece`` (P,): consecutive points within the limits are one piece,
-    and pieces a closed curve joins are one. The arm's exact flips (``flips``: the
-    first joints of :func:`~sik_ros.kinematics.branches.exact_flips`' triples) map a curve
-    onto its twins, other curves at the pose: a closed curve's twins are recorded from its
-    points flipped (:func:`_twins`), without a trace; where a trace does not close (it ends
-    near a singularity), the row's flips are traced as rows are, unless they lie on a
-    recorded curve. ``row_piece`` (M,): each row's piece, that of its nearest recorded point
-    within ``link`` (-1: none reached it). Piece
-    numbers are resolved to the smallest of their joined set. Past ``deadline`` (a
-    :func:`~sik_ros.kernels.clock.monotonic` time) no trace goes on.
+    outside it is, :data:`NEAR_LIMITS`) until it closes on its start (after :data:`CLOSE`
+    links) (every angle modulo a turn), fails or has taken ``max_steps``. Every point, its
+    angles turned by whole turns into the limits where they fit, is recorded in ``points`` (P,
+    7) with its piece in ``piece`` (P,): consecutive points within the limits are one piece,
+    and pieces a closed curve joins are one. The arm's exact flips (``flips``: the first joints
+    of :func:`~sik_ros.kinematics.branches.exact_flips`' triples) map a curve onto its twins,
+    other curves at the pose: a closed curve's twins are recorded from its points flipped
+    (:func:`_twins`), without a trace; where a trace does not close (it ends near a
+    singularity), the row's flips are traced as rows are, unless they lie on a recorded curve.
+    ``row_piece`` (M,): each row's piece, that of its nearest recorded point within ``link``
+    (-1: none reached it). Piece numbers are resolved to the smallest of their joined set. Past
+    ``deadline`` (a :func:`~sik_ros.kernels.clock.monotonic` time) no trace goes on.
 
     Returns:
         how many points were recorded (at most P; the traces stop when ``points`` is full).
     """
+    step, max_steps, link = settings[T_STEP], int(settings[T_MAX_STEPS]), settings[T_LINK]
+    tol_p, tol_o = settings[T_TOL_P], settings[T_TOL_O]
+    max_step, deadline = settings[T_MAX_STEP], settings[T_DEADLINE]
     m, n = q.shape[0], q.shape[1]
     lo, up = np.full(n, -FREE), np.full(n, FREE)
     free, turns = np.zeros(n, dtype=np.bool_), np.ones(n, dtype=np.bool_)
@@ -224,6 +231,8 @@ def trace_atlas(frames, lower, upper, periodic, q, flips, pos, rot, step, max_st
     mid, p_mid, r_mid, jac_mid = np.empty(n), np.empty(3), np.empty((3, 3)), np.empty((6, n))
     path = np.empty((max_steps + 1, n))
     parent = np.arange(points.shape[0])
+    free_chain = (frames, lo, up, free)  # the corrector free of the limits
+    goal, tols = (pos, rot, True), (tol_p, tol_o, max_step)
     row_piece[:] = -1
     row_dist = np.full(m, np.inf)
     count, pieces = 0, 0
@@ -271,14 +280,12 @@ def trace_atlas(frames, lower, upper, periodic, q, flips, pos, rot, step, max_st
                         break
                     placed = False
                     predicted[:] = x
-                    on = correct(frames, lo, up, free, x, pos, rot, True, tol_p, tol_o,
-                                 max_step, p, r, jac, jm, a, err, xs)
+                    on = correct(free_chain, x, goal, tols, (p, r, jac, jm, a, err, xs))
                     moved = angle_distance(x, predicted, free)  # by the corrector
                     if not on or moved > DRIFT * h or _crossed(x, prev, flips) or \
                             (moved > CHECK_DRIFT * h and
-                             _jumped(frames, lo, up, free, prev, x, pos, rot, tol_p, tol_o,
-                                     max_step, h, mid, y, p_mid, r_mid, jac_mid, jm, a, err,
-                                     xs)):
+                             _jumped(free_chain, prev, x, goal, tols, h, mid, y,
+                                     (p_mid, r_mid, jac_mid, jm, a, err, xs))):
                         if h < step / 2 ** (HALVINGS - 0.5):
                             break
                         x[:] = prev  # near a singularity: the step halved, the same heading
@@ -318,9 +325,9 @@ def trace_atlas(frames, lower, upper, periodic, q, flips, pos, rot, step, max_st
                         home = False
                         h = min(h, max(_outside_by(x, lower, upper), NEAR_LIMITS * step))
             if f < 0 and closed and flips.shape[0] > 0:
-                count, pieces = _twins(path, length, flips, lower, upper, periodic, link, q,
-                                       points, piece, count, row_piece, row_dist, parent,
-                                       pieces, y, inside)
+                count, pieces = _twins(path, length, flips, (lower, upper, periodic), link,
+                                       q, (points, piece, row_piece, row_dist, parent),
+                                       count, pieces, (y, inside))
                 twinned = True
     # a curve recorded twice (traced through a point where two curves nearly meet, near a
     # singularity, from one and from the other): its two records are one

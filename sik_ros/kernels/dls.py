@@ -29,11 +29,17 @@ REALS = ('position_tolerance', 'orientation_tolerance', 'damping2', 'max_step', 
          'prune_radius', 'distinct_threshold', 'deadline', 'orientation_weight',
          'converge_factor', 'give_up_factor')
 INTS = ('iterations', 'stall_window', 'stall_after', 'give_up_after', 'enough', 'prune',
-        'roll_free')
+        'roll_free', 'pose')
 (R_TOL_P, R_TOL_O, R_DAMPING2, R_MAX_STEP, R_STALL_RATIO, R_PRUNE_RADIUS, R_DISTINCT,
  R_DEADLINE, R_WEIGHT, R_CONVERGE, R_GIVE_UP) = range(len(REALS))
 (I_ITERATIONS, I_STALL_WINDOW, I_STALL_AFTER, I_GIVE_UP_AFTER, I_ENOUGH, I_PRUNE,
- I_ROLL_FREE) = range(len(INTS))
+ I_ROLL_FREE, I_POSE) = range(len(INTS))
+#: ``ints`` goes on past :data:`INTS` with the iterations at which rows are pruned.
+PRUNE_AT = len(INTS)
+#: The fields of :func:`polish_rows`'s ``settings``, in order.
+POLISH = ('position_tolerance', 'orientation_tolerance', 'damping2', 'max_step',
+          'orientation_weight', 'iterations')
+P_TOL_P, P_TOL_O, P_DAMPING2, P_MAX_STEP, P_WEIGHT, P_ITERATIONS = range(len(POLISH))
 
 
 @njit(cache=CACHE, nogil=True)
@@ -94,12 +100,16 @@ def damped_solve(jm, err, dims, n, lam2, a, x):  # pragma: no cover (compiled)
 
 
 @njit(cache=CACHE, nogil=True)
-def limited_step(q, jac, err, dims, lower, upper, periodic, turn, lam2, max_step,
-                 jm, a, x):  # pragma: no cover (compiled)
+def limited_step(q, jac, err, dims, bounds, turn, step, scratch):  # pragma: no cover (compiled)
     """``q`` (n,) after one damped least squares step on ``err``, within the limits (in place).
 
-    ``jm`` (6, n), ``a`` (6, 6), ``x`` (6,): work arrays. ``jac`` is left as it is.
+    ``bounds``: ``(lower, upper, periodic)``; ``turn``: periodic joints past a limit turned
+    back by 2 pi; ``step``: ``(damping squared, largest joint step)``; ``scratch``: the work
+    arrays ``(jm (6, n), a (6, 6), x (6,))``. ``jac`` is left as it is.
     """
+    lower, upper, periodic = bounds
+    lam2, max_step = step
+    jm, a, x = scratch
     n = q.shape[0]
     for j in range(n):
         free = not (turn and periodic[j])
@@ -144,14 +154,21 @@ def _near_better(q, row, score, status, radius, cols):  # pragma: no cover (comp
 
 
 @njit(cache=CACHE, nogil=True)
-def _refine_row(frames, lower, upper, periodic, q, row, pos, rot, pose, reals, ints, prune_at,
-                perr, oerr, status, score, stale, history, p, r, jac, jm, a, err,
-                x):  # pragma: no cover (compiled)
+def _refine_row(chain, q, row, goal, settings, out, state, work):  # pragma: no cover (compiled)
     """Row ``row`` of :func:`refine_rows` refined until it stops; whether the deadline did.
 
-    ``score``, ``stale``: the rows' scores and whether their errors are out of date;
-    ``history`` (window,): the row's recent scores; the rest: work arrays.
+    ``chain``: ``(frames, lower, upper, periodic)``; ``goal``: ``(pos, rot, pose)``;
+    ``settings``: ``(reals, ints)``; ``out``: ``(perr, oerr, status)``; ``state``: ``(score,
+    stale, history)``, the rows' scores, whether their errors are out of date and the row's
+    recent scores; ``work``: ``(p, r, jac, jm, a, err, x)``, work arrays.
     """
+    frames, lower, upper, periodic = chain
+    pos, rot, pose = goal
+    reals, ints = settings
+    perr, oerr, status = out
+    score, stale, history = state
+    p, r, jac, jm, a, err, x = work
+    prune_at = ints[PRUNE_AT:]
     tol_p, tol_o = reals[R_TOL_P], reals[R_TOL_O]
     lam2, max_step = reals[R_DAMPING2], reals[R_MAX_STEP]
     radius, deadline, weight = reals[R_PRUNE_RADIUS], reals[R_DEADLINE], reals[R_WEIGHT]
@@ -185,8 +202,8 @@ def _refine_row(frames, lower, upper, periodic, q, row, pos, rot, pose, reals, i
         if verdict != ITERATIONS:
             status[row] = verdict
             break
-        limited_step(qi, jac, err, dims, lower, upper, periodic, True, lam2, max_step,
-                     jm, a, x)
+        limited_step(qi, jac, err, dims, (lower, upper, periodic), True, (lam2, max_step),
+                     (jm, a, x))
         stale[row] = True
     return False
 
@@ -237,23 +254,25 @@ def _is_new(q, row, found, nfound, distinct, cols):  # pragma: no cover (compile
     return True
 
 
-@njit(f'boolean({F3}, {F1}, {F1}, boolean[::1], {F2}, {F1}, {F2}, boolean, {F1}, int64[::1], '
-      f'int64[::1], {F1}, {F1}, int8[::1])', cache=CACHE, nogil=True)
-def refine_rows(frames, lower, upper, periodic, q, pos, rot, pose, reals, ints, prune_at,
-                perr, oerr, status):  # pragma: no cover (compiled)
+@njit(f'boolean({F3}, {F1}, {F1}, boolean[::1], {F2}, {F1}, {F2}, {F1}, int64[::1], {F1}, '
+      f'{F1}, int8[::1])', cache=CACHE, nogil=True)
+def refine_rows(frames, lower, upper, periodic, q, pos, rot, reals, ints, perr, oerr,
+                status):  # pragma: no cover (compiled)
     """Damped least squares from each row of ``q`` (M, n) towards a goal, in place.
 
     Args:
         frames: the chain (:func:`~sik_ros.kernels.chain.chain_frames`).
         lower, upper: joint limits (n,) [rad]; periodic: (n,) bool, joints spanning a turn.
         q: starts (M, n) [rad], refined in place, row by row in order.
-        pos: goal position (3,) [m]; rot: goal rotation (3, 3) (read when ``pose``).
+        pos: goal position (3,) [m]; rot: goal rotation (3, 3) (read for a pose goal:
+            ``ints``' ``pose`` 1).
         reals: float64 values named by :data:`REALS` (``damping2``: the damping squared;
             ``deadline``: a ``time.perf_counter()`` value, inf for none;
             ``orientation_weight``: metres of a row's score per radian of orientation error).
         ints: int64 values named by :data:`INTS` (``enough`` 0: no early stop; ``prune`` and
-            ``roll_free`` 0 or 1: the last joint left out of the distances).
-        prune_at: iterations at which a row near an earlier, better one stops (int64).
+            ``roll_free`` 0 or 1: the last joint left out of the distances; ``pose`` 1: a
+            pose goal), then (from :data:`PRUNE_AT`) the iterations at which a row near an
+            earlier, better one stops.
         perr, oerr: out (M,): the rows' position [m] and orientation [rad] errors.
         status: out (M,) int8, each row's outcome (:data:`CONVERGED`, ...).
 
@@ -261,6 +280,7 @@ def refine_rows(frames, lower, upper, periodic, q, pos, rot, pose, reals, ints, 
         whether the deadline stopped refinement before every row had finished.
     """
     enough, distinct = ints[I_ENOUGH], reals[R_DISTINCT]
+    pose = ints[I_POSE] != 0
     m, n = q.shape
     cols = n - 1 if ints[I_ROLL_FREE] != 0 else n
     p, r = np.empty(3), np.empty((3, 3))
@@ -278,9 +298,9 @@ def refine_rows(frames, lower, upper, periodic, q, pos, rot, pose, reals, ints, 
     for row in range(m):
         if cut or (enough > 0 and nfound >= enough):
             break
-        cut = _refine_row(frames, lower, upper, periodic, q, row, pos, rot, pose, reals, ints,
-                          prune_at, perr, oerr, status, score, stale, history, p, r, jac, jm,
-                          a, err, x)
+        cut = _refine_row((frames, lower, upper, periodic), q, row, (pos, rot, pose),
+                          (reals, ints), (perr, oerr, status), (score, stale, history),
+                          (p, r, jac, jm, a, err, x))
         if status[row] == CONVERGED and enough > 0 and \
                 _is_new(q, row, found, nfound, distinct, cols):
             found[nfound] = row
@@ -292,18 +312,22 @@ def refine_rows(frames, lower, upper, periodic, q, pos, rot, pose, reals, ints, 
     return cut
 
 
-@njit(f'void({F3}, {F1}, {F1}, boolean[::1], {F2}, int64[::1], {F1}, {F2}, float64, float64, '
-      f'float64, float64, float64, int64, {F1}, {F1}, {F1})', cache=CACHE, nogil=True)
-def polish_rows(frames, lower, upper, periodic, q, rows, pos, rot, tol_p, tol_o, lam2,
-                max_step, weight, iterations, perr, oerr, moved):  # pragma: no cover (compiled)
+@njit(f'void({F3}, {F1}, {F1}, boolean[::1], {F2}, int64[::1], {F1}, {F2}, {F1}, {F1}, {F1}, '
+      f'{F1})', cache=CACHE, nogil=True)
+def polish_rows(frames, lower, upper, periodic, q, rows, pos, rot, settings, perr, oerr,
+                moved):  # pragma: no cover (compiled)
     """Rows ``rows`` of ``q`` (M, n) taken closer onto a pose goal, in place where it helps.
 
-    Each row takes damped least squares steps (damping squared ``lam2``, within the limits,
-    periodic joints turned back past a limit) until its errors are under ``tol_p`` [m] and
-    ``tol_o`` [rad], at most ``iterations`` steps. It is kept only where its score (``perr +
-    weight * oerr``) ends lower than it was, with ``perr``, ``oerr`` (M,) updated; ``moved``
+    ``settings``: float64 values named by :data:`POLISH`. Each row takes damped least squares
+    steps (damping squared ``damping2``, within the limits, periodic joints turned back past a
+    limit) until its errors are under ``position_tolerance`` [m] and ``orientation_tolerance``
+    [rad], at most ``iterations`` steps. It is kept only where its score (``perr + weight *
+    oerr``) ends lower than it was, with ``perr``, ``oerr`` (M,) updated; ``moved``
     (len(rows),): how far each kept row moved [rad] (0 where it was left as it was).
     """
+    tol_p, tol_o = settings[P_TOL_P], settings[P_TOL_O]
+    lam2, max_step, weight = settings[P_DAMPING2], settings[P_MAX_STEP], settings[P_WEIGHT]
+    iterations = int(settings[P_ITERATIONS])
     n = q.shape[1]
     p, r = np.empty(3), np.empty((3, 3))
     jac, jm, a = np.empty((6, n)), np.empty((6, n)), np.empty((6, 6))
@@ -320,8 +344,8 @@ def polish_rows(frames, lower, upper, periodic, q, rows, pos, rot, tol_p, tol_o,
             pe, oe = goal_error(pos, rot, True, p, r, err)
             if (pe < tol_p and oe < tol_o) or it == iterations:
                 break
-            limited_step(qi, jac, err, 6, lower, upper, periodic, True, lam2, max_step,
-                         jm, a, x)
+            limited_step(qi, jac, err, 6, (lower, upper, periodic), True, (lam2, max_step),
+                         (jm, a, x))
         if pe + weight * oe < perr[row] + weight * oerr[row]:
             d = 0.0
             for j in range(n):

@@ -27,8 +27,16 @@ import numpy as np
 from sik_ros.kernels._cache import CACHE
 from sik_ros.kernels.angles import angle_distance, PER_TURN, TURN, turn_once
 from sik_ros.kernels.clock import monotonic
-from sik_ros.kernels.selfmotion import advance, correct
+from sik_ros.kernels.selfmotion import (advance, correct, T_DEADLINE, T_LINK, T_MAX_STEP,
+                                        T_MAX_STEPS, T_STEP, T_TOL_O, T_TOL_P)
 from sik_ros.kernels.sets import root, roots, union
+
+#: The fields of :func:`segment_labels`'s ``settings``, in order: the segment's step [rad],
+#: the farthest pair tried [rad], the corrector's tolerances [m], [rad] and largest joint step
+#: [rad], the deadline (a :func:`~sik_ros.kernels.clock.monotonic` time, inf for none).
+SEGMENT = ('step', 'reach', 'position_tolerance', 'orientation_tolerance', 'max_step',
+           'deadline')
+S_STEP, S_REACH, S_TOL_P, S_TOL_O, S_MAX_STEP, S_DEADLINE = range(len(SEGMENT))
 
 
 @njit('int64[::1](float64[:, ::1], int64[::1], int64[::1], boolean[::1], boolean)',
@@ -114,11 +122,13 @@ def _at_limit(x, lower, upper, periodic):  # pragma: no cover (compiled)
 
 
 @njit('int64[::1](float64[:, :, ::1], float64[::1], float64[::1], boolean[::1], '
-      'float64[:, ::1], float64[::1], float64[:, ::1], float64, int64, float64, float64, '
-      'float64, float64, float64)', cache=CACHE, nogil=True)
-def trace_labels(frames, lower, upper, periodic, q, pos, rot, step, max_steps, link, tol_p,
-                 tol_o, max_step, deadline):  # pragma: no cover (compiled)
+      'float64[:, ::1], float64[::1], float64[:, ::1], float64[::1])', cache=CACHE, nogil=True)
+def trace_labels(frames, lower, upper, periodic, q, pos, rot,
+                 settings):  # pragma: no cover (compiled)
     """Family roots of exact pose solutions ``q`` (M, 7) of a 7-joint arm by tracing.
+
+    ``settings``: float64 values named by :data:`~sik_ros.kernels.selfmotion.TRACE` (below by
+    their names).
 
     From each solution not yet reached by an earlier trace, the self-motion curve is followed
     both ways in steps of ``step`` [rad] (at most ``max_steps`` per way): the unit null vector
@@ -130,12 +140,16 @@ def trace_labels(frames, lower, upper, periodic, q, pos, rot, step, max_steps, l
     :func:`~sik_ros.kernels.clock.monotonic` time) no trace starts and a running one stops:
     solutions not reached stay families of their own.
     """
+    step, max_steps, link = settings[T_STEP], int(settings[T_MAX_STEPS]), settings[T_LINK]
+    tols = (settings[T_TOL_P], settings[T_TOL_O], settings[T_MAX_STEP])
+    deadline = settings[T_DEADLINE]
     m, n = q.shape[0], q.shape[1]
     parent = np.arange(m)
     p, r = np.empty(3), np.empty((3, 3))
     jac, jm = np.empty((6, n)), np.empty((6, n))
     a, err, xs = np.empty((6, 6)), np.empty(6), np.empty(6)
     minor = np.empty((6, 6))
+    chain, goal = (frames, lower, upper, periodic), (pos, rot, True)
     v, heading = np.empty(n), np.empty(n)
     x, prev = np.empty(n), np.empty(n)
     timed = deadline < np.inf
@@ -155,8 +169,7 @@ def trace_labels(frames, lower, upper, periodic, q, pos, rot, step, max_steps, l
                                s > 0):
                     break
                 _into_limits(x, lower, upper, periodic)
-                if not correct(frames, lower, upper, periodic, x, pos, rot, True, tol_p,
-                               tol_o, max_step, p, r, jac, jm, a, err, xs):
+                if not correct(chain, x, goal, tols, (p, r, jac, jm, a, err, xs)):
                     break
                 if angle_distance(x, prev, periodic) > 2.0 * step:
                     break
@@ -172,11 +185,13 @@ def trace_labels(frames, lower, upper, periodic, q, pos, rot, step, max_steps, l
 
 
 @njit('int64[::1](float64[:, :, ::1], float64[::1], float64[::1], boolean[::1], '
-      'float64[:, ::1], float64[::1], float64[:, ::1], boolean, float64, float64, float64, '
-      'float64, float64, float64)', cache=CACHE, nogil=True)
-def segment_labels(frames, lower, upper, periodic, q, pos, rot, pose, step, reach, tol_p,
-                   tol_o, max_step, deadline):  # pragma: no cover (compiled)
+      'float64[:, ::1], float64[::1], float64[:, ::1], boolean, float64[::1])', cache=CACHE,
+      nogil=True)
+def segment_labels(frames, lower, upper, periodic, q, pos, rot, pose,
+                   settings):  # pragma: no cover (compiled)
     """Family roots of exact solutions ``q`` (M, n) linked by corrected straight segments.
+
+    ``settings``: float64 values named by :data:`SEGMENT` (below by their names).
 
     Pairs up to ``reach`` [rad] apart are tried nearest first, only between families not yet
     joined (a chain of near solutions links far ones): the segment from
@@ -187,6 +202,9 @@ def segment_labels(frames, lower, upper, periodic, q, pos, rot, pose, step, reac
     most two steps, and the last lands within ``2 * step`` of the other solution. Past
     ``deadline`` no more pairs are tried.
     """
+    step, reach = settings[S_STEP], settings[S_REACH]
+    tols = (settings[S_TOL_P], settings[S_TOL_O], settings[S_MAX_STEP])
+    deadline = settings[S_DEADLINE]
     m, n = q.shape[0], q.shape[1]
     parent = np.arange(m)
     if m < 2:
@@ -226,8 +244,8 @@ def segment_labels(frames, lower, upper, periodic, q, pos, rot, pose, step, reac
             for c in range(n):
                 x[c] += delta[c]
             _into_limits(x, lower, upper, periodic)
-            if not correct(frames, lower, upper, periodic, x, pos, rot, pose, tol_p, tol_o,
-                           max_step, p, r, jac, jm, a, err, xs) or \
+            if not correct((frames, lower, upper, periodic), x, (pos, rot, pose), tols,
+                           (p, r, jac, jm, a, err, xs)) or \
                     angle_distance(x, prev, periodic) > 2.0 * step:
                 ok = False
                 break

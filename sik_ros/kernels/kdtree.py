@@ -118,15 +118,18 @@ def _sift_down(heap_d, heap_r, size, i):  # pragma: no cover (compiled)
 
 
 @njit(cache=CACHE, nogil=True)
-def _walk(points, nodes, split, low, high, depth, key, eps, heap_d, heap_r, size, k,
-          unique):  # pragma: no cover (compiled)
+def _walk(tree, key, eps, heap, size, k, unique):  # pragma: no cover (compiled)
     """Push the rows near ``key`` into the max-heap (``size`` filled of ``k``); the new size.
+
+    ``tree``: ``(points, nodes, split, low, high, depth)``; ``heap``: ``(heap_d, heap_r)``.
 
     A node's distance from ``key`` is bounded below by the offsets from its box, carried down
     the walk (a far child's offset along the cut is the distance to the cut), so the walk reads
     only the cuts, not every node's box. ``unique``: a row already in the heap is not pushed
     again, but takes the nearer distance (the second key's walk).
     """
+    points, nodes, split, low, high, depth = tree
+    heap_d, heap_r = heap
     d = key.shape[0]
     stack = np.empty(depth + 2, dtype=np.int64)
     bounds = np.empty(depth + 2)
@@ -212,13 +215,12 @@ def nearest_rows(points, nodes, split, low, high, depth, columns, key, other, k,
     kept = np.empty(columns.shape[0])
     for c in range(columns.shape[0]):
         kept[c] = key[columns[c]]
-    size = _walk(points, nodes, split, low, high, depth, kept, eps, heap_d, heap_r, 0, k,
-                 False)
+    tree = (points, nodes, split, low, high, depth)
+    size = _walk(tree, kept, eps, (heap_d, heap_r), 0, k, False)
     if other.shape[0] == key.shape[0] and size > 0:
         for c in range(columns.shape[0]):
             kept[c] = other[columns[c]]
-        size = _walk(points, nodes, split, low, high, depth, kept, 0.0, heap_d, heap_r, size,
-                     k, True)
+        size = _walk(tree, kept, 0.0, (heap_d, heap_r), size, k, True)
     rank = np.argsort(heap_d[:size], kind='mergesort')
     rows = np.empty(size, dtype=np.int64)
     dist = np.empty(size)

@@ -14,6 +14,16 @@ from sik_ros.kernels.angles import LIMIT_SLACK, turn_once
 from sik_ros.kernels.kdtree import nearest_rows, TREE_TYPES
 from sik_ros.kernels.sets import farthest_rows
 
+#: The fields of :func:`table_starts`'s ``reals`` and ``ints``, in order: the goal's azimuth
+#: [rad], the first joint's limits [rad], the look-up's slack, the starts' spacing and the
+#: distance under which two are one; whether the first joint is turned to the azimuth, the
+#: rows wanted, the first look-up's size, the most rows looked up, the starts asked and the
+#: fewest kept.
+STARTS_REALS = ('azimuth', 'lower', 'upper', 'eps', 'spacing', 'same')
+STARTS_INTS = ('turn_first', 'k', 'wanted', 'most', 'count', 'at_least')
+S_AZIMUTH, S_LOWER, S_UPPER, S_EPS, S_SPACING, S_SAME = range(len(STARTS_REALS))
+S_TURN_FIRST, S_K, S_WANTED, S_MOST, S_COUNT, S_AT_LEAST = range(len(STARTS_INTS))
+
 
 @njit('Tuple((float64[::1], float64))(float64[::1], float64[:, ::1], float64[::1], '
       'float64[::1], float64[::1], float64)', cache=CACHE, nogil=True)
@@ -48,14 +58,14 @@ def axis_key(origin, rot, inverse, position, quaternion, scale):  # pragma: no c
 
 
 @njit('float64[:, ::1](' + TREE_TYPES + ', float64[:, ::1], float64[::1], float64[::1], '
-      'float64, boolean, float64, float64, int64, int64, int64, float64, int64, float64, '
-      'int64, float64)', cache=CACHE, nogil=True)
-def table_starts(points, nodes, split, low, high, depth, columns, base_q, key, other, azimuth,
-                 turn_first, lower, upper, k, wanted, most, eps, count, spacing, at_least,
-                 same):  # pragma: no cover (compiled)
+      'float64[::1], int64[::1])', cache=CACHE, nogil=True)
+def table_starts(points, nodes, split, low, high, depth, columns, base_q, key, other, reals,
+                 ints):  # pragma: no cover (compiled)
     """Up to ``count`` of the ``k`` table rows nearest a key, far apart (the table's starts).
 
-    ``base_q``: the table's configurations in the tree's leaf order. With ``turn_first``, the
+    ``reals`` and ``ints``: the values named by :data:`STARTS_REALS` and :data:`STARTS_INTS`
+    (below by their names). ``base_q``: the table's configurations in the tree's leaf order.
+    With ``turn_first``, the
     rows' first joints are turned by ``azimuth`` (a whole turn added or taken off where that
     brings them within ``lower``..``upper``), rows that still do not fit are passed over, and
     the look-up goes further (``wanted`` doubled) until ``k`` fit, at most to the ``most``
@@ -64,6 +74,10 @@ def table_starts(points, nodes, split, low, high, depth, columns, base_q, key, o
     by :func:`farthest_rows` over the joints' cosines and sines (``spacing``, ``at_least``,
     ``same``), the nearest row first.
     """
+    azimuth, lower, upper = reals[S_AZIMUTH], reals[S_LOWER], reals[S_UPPER]
+    eps, spacing, same = reals[S_EPS], reals[S_SPACING], reals[S_SAME]
+    turn_first, k, wanted = ints[S_TURN_FIRST] != 0, ints[S_K], ints[S_WANTED]
+    most, count, at_least = ints[S_MOST], ints[S_COUNT], ints[S_AT_LEAST]
     total, n = points.shape[0], base_q.shape[1]
     while True:
         rows, _ = nearest_rows(points, nodes, split, low, high, depth, columns, key, other,

@@ -23,23 +23,36 @@ from sik_ros.kernels.dls import goal_error, limited_step
 CORRECTIONS = 8
 #: Squared damping of the corrector's steps [1].
 CORRECT_DAMPING2 = 1e-8
+#: The fields of a trace's ``settings`` (:func:`~sik_ros.kernels.atlas.trace_atlas`,
+#: :func:`~sik_ros.kernels.families.trace_labels`), in order: the step along the curve [rad],
+#: the most steps each way, the link distance [rad], the corrector's tolerances [m], [rad] and
+#: largest joint step [rad], and the deadline (a :func:`~sik_ros.kernels.clock.monotonic`
+#: time, inf for none).
+TRACE = ('step', 'max_steps', 'link', 'position_tolerance', 'orientation_tolerance',
+         'max_step', 'deadline')
+T_STEP, T_MAX_STEPS, T_LINK, T_TOL_P, T_TOL_O, T_MAX_STEP, T_DEADLINE = range(len(TRACE))
 
 
 @njit(cache=CACHE, nogil=True)
-def correct(frames, lower, upper, periodic, x, pos, rot, pose, tol_p, tol_o, max_step,
-            p, r, jac, jm, a, err, xs):  # pragma: no cover (compiled)
+def correct(chain, x, goal, tols, work):  # pragma: no cover (compiled)
     """``x`` corrected onto the goal in place; whether it met the tolerances within limits.
 
-    ``p``, ``r`` and ``jac`` are left those of ``x`` (a predictor may step from them).
+    ``chain``: ``(frames, lower, upper, periodic)``; ``goal``: ``(pos, rot, pose)``; ``tols``:
+    ``(tol_p, tol_o, max_step)``; ``work``: ``(p, r, jac, jm, a, err, xs)``, whose ``p``,
+    ``r`` and ``jac`` are left those of ``x`` (a predictor may step from them).
     """
+    frames, lower, upper, periodic = chain
+    pos, rot, pose = goal
+    tol_p, tol_o, max_step = tols
+    p, r, jac, jm, a, err, xs = work
     dims = 6 if pose else 3
     for _ in range(CORRECTIONS):
         place(frames, x, p, r, jac, True)
         pe, oe = goal_error(pos, rot, pose, p, r, err)
         if pe < tol_p and (not pose or oe < tol_o):
             return True
-        limited_step(x, jac, err, dims, lower, upper, periodic, True, CORRECT_DAMPING2,
-                     max_step, jm, a, xs)
+        limited_step(x, jac, err, dims, (lower, upper, periodic), True,
+                     (CORRECT_DAMPING2, max_step), (jm, a, xs))
     place(frames, x, p, r, jac, True)
     pe, oe = goal_error(pos, rot, pose, p, r, err)
     return pe < tol_p and (not pose or oe < tol_o)

@@ -19,6 +19,7 @@ import numpy as np
 from sik_ros.deadline import Deadline, NO_DEADLINE
 from sik_ros.kernels import as_arg, follow_rows, refine_rows
 from sik_ros.kernels.dls import goal_errors_rows, INTS, REALS
+from sik_ros.kernels.follow import FOLLOW
 from sik_ros.solver.config import (CONVERGE_FACTOR, GIVE_UP_FACTOR, ORIENTATION_WEIGHT,
                                    SolverConfig)
 from sik_ros.solver.context import Context, Goal
@@ -27,6 +28,7 @@ from sik_ros.solver.context import Context, Goal
 NO_ROTATION = np.eye(3)
 #: Where the deadline is in :func:`refine_rows`'s real settings.
 DEADLINE = REALS.index('deadline')
+FOLLOW_DEADLINE = FOLLOW.index('deadline')
 
 
 @dataclass(frozen=True)
@@ -122,23 +124,25 @@ def refine(ctx: Context, q: np.ndarray, goal: Goal, deadline: Deadline = NO_DEAD
     q = np.array(q, dtype=float, order='C')
     m = len(q)
     perr, oerr, status = np.empty(m), np.empty(m), np.empty(m, dtype=np.int8)
-    reals, ints, prune_at = kernel_settings(cfg, iterations or cfg.refine_iterations,
-                                            enough or 0, bool(prune),
-                                            ctx.ignores_last(goal.kind))
+    pose = goal.rotation is not None
+    reals, ints = kernel_settings(cfg, iterations or cfg.refine_iterations, enough or 0,
+                                  bool(prune), ctx.ignores_last(goal.kind), pose)
     reals = reals.copy()
     reals[DEADLINE] = deadline.at
-    pose = goal.rotation is not None
     lower, upper = (robot.lower, robot.upper) if limits is None else limits
     cut = refine_rows(robot.frames, lower, upper, robot.periodic, q,
                       as_arg(goal.position), as_arg(goal.rotation) if pose else NO_ROTATION,
-                      pose, reals, ints, prune_at, perr, oerr, status)
+                      reals, ints, perr, oerr, status)
     return Refined(q, perr, oerr, bool(cut))
 
 
 @functools.lru_cache(maxsize=256)
 def kernel_settings(cfg: SolverConfig, iterations: int, enough: int, prune: bool,
-                    roll_free: bool) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
+                    roll_free: bool, pose: bool) -> Tuple[np.ndarray, np.ndarray]:
     """:func:`refine_rows`'s settings arrays (its ``deadline`` left infinite), made once each.
+
+    ``ints`` holds the named values, then ``config.prune_at``
+    (:data:`~sik_ros.kernels.dls.PRUNE_AT`).
 
     Shared: not to be written (a caller copies ``reals`` to set its deadline; the kernels
     take writeable arrays only).
@@ -152,10 +156,23 @@ def kernel_settings(cfg: SolverConfig, iterations: int, enough: int, prune: bool
                 'converge_factor': CONVERGE_FACTOR, 'give_up_factor': GIVE_UP_FACTOR,
                 'iterations': iterations, 'stall_window': cfg.stall_window,
                 'stall_after': cfg.stall_after, 'give_up_after': cfg.give_up_after,
-                'enough': enough, 'prune': int(prune), 'roll_free': int(roll_free)}
+                'enough': enough, 'prune': int(prune), 'roll_free': int(roll_free),
+                'pose': int(pose)}
     return (np.array([settings[k] for k in REALS], dtype=float),
-            np.array([settings[k] for k in INTS], dtype=np.int64),
-            np.array(cfg.prune_at, dtype=np.int64))
+            np.array([settings[k] for k in INTS] + list(cfg.prune_at), dtype=np.int64))
+
+
+@functools.lru_cache(maxsize=256)
+def follow_settings(cfg: SolverConfig, iterations: int, pose: bool,
+                    per_row: bool) -> np.ndarray:
+    """:func:`follow_rows`'s settings (:data:`~sik_ros.kernels.follow.FOLLOW`), made once each.
+
+    Its deadline left infinite; shared: a caller copies it to set its deadline.
+    """
+    values = {'tol2': cfg.position_tolerance ** 2, 'otol2': cfg.orientation_tolerance ** 2,
+              'damping2': cfg.damping ** 2, 'max_step': cfg.max_step,
+              'iterations': iterations, 'deadline': math.inf, 'pose': pose, 'per_row': per_row}
+    return np.array([values[k] for k in FOLLOW], dtype=float)
 
 
 def follow(ctx: Context, q: np.ndarray, start: Evaluation, goal: Goal, iterations: int,
@@ -189,12 +206,12 @@ def follow(ctx: Context, q: np.ndarray, start: Evaluation, goal: Goal, iteration
     pose = goal.rotation is not None
     pos = as_arg(np.reshape(goal.position, (-1, 3)))
     rot = as_arg(np.reshape(goal.rotation, (-1, 3, 3))) if pose else NO_ROTATION[None]
-    ok, steps = np.empty(m, dtype=bool), np.empty(m, dtype=np.int64)
-    follow_rows(robot.frames, robot.lower, robot.upper, q, p, r, jac,
-                as_arg(start.djac), pos, rot, pose,
-                goal.position.ndim == 2, cfg.position_tolerance ** 2,
-                cfg.orientation_tolerance ** 2, cfg.damping ** 2, cfg.max_step, iterations,
-                deadline.at, ok, steps)
+    outcome = np.empty((2, m), dtype=np.int64)
+    settings = follow_settings(cfg, iterations, pose, goal.position.ndim == 2).copy()
+    settings[FOLLOW_DEADLINE] = deadline.at
+    follow_rows(robot.frames, robot.lower, robot.upper, q, p, r, jac, as_arg(start.djac), pos,
+                rot, settings, outcome)
+    ok, steps = outcome[0] != 0, outcome[1]
     rows = np.flatnonzero(ok)
     jac = jac[rows]
     # a row exact where it was keeps its last change

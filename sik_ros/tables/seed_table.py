@@ -181,11 +181,12 @@ class SeedTable:
         other = np.concatenate([key[:3], -key[3:]])
         # far apart in joint space, an angle and its 2 pi equivalents alike; no two within
         # START_SPACING, which head for one solution (at least START_LEAST of them)
-        return table_starts(*tree.arrays(), base_q, key, other, azimuth,
-                            self._axis is not None, float(self._lower), float(self._upper),
-                            int(k), int(wanted), max(int(wanted), LOOKUP_MOST * int(k)),
-                            LOOKUP_EPS, int(count), START_SPACING,
-                            START_LEAST, SAME_DISTANCE)
+        reals = np.array([azimuth, self._lower, self._upper, LOOKUP_EPS, START_SPACING,
+                          SAME_DISTANCE], dtype=float)
+        ints = np.array([self._axis is not None, k, wanted,
+                         max(int(wanted), LOOKUP_MOST * int(k)), count, START_LEAST],
+                        dtype=np.int64)
+        return table_starts(*tree.arrays(), base_q, key, other, reals, ints)
 
     def turned_key(self, position: np.ndarray, quaternion: np.ndarray
                    ) -> Tuple[np.ndarray, float]:

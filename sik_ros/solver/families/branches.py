@@ -17,7 +17,7 @@ import numpy as np
 from sik_ros.deadline import Deadline
 from sik_ros.kernels import as_arg
 from sik_ros.kernels.angles import TURN, turned_rows
-from sik_ros.kernels.dls import polish_rows
+from sik_ros.kernels.dls import POLISH, polish_rows
 from sik_ros.kinematics.branches import BranchSigns, flip, robot_flips
 from sik_ros.kinematics.robot import Robot
 from sik_ros.solver.config import (BRANCH_CODE_STARTS, NEIGHBOUR_REACH, ORIENTATION_WEIGHT,
@@ -141,6 +141,19 @@ def fits_mirrored(robot: Robot, j: int, c: float) -> bool:
     return bool(np.any(lower + np.mod(mirror - lower, TURN) <= upper))
 
 
+@functools.lru_cache(maxsize=64)
+def polish_settings(cfg) -> np.ndarray:
+    """:func:`~sik_ros.kernels.dls.polish_rows`'s settings (:data:`~sik_ros.kernels.dls.POLISH`).
+
+    Shared, made once per configuration: not to be written.
+    """
+    values = {'position_tolerance': cfg.position_tolerance * POLISH_FACTOR,
+              'orientation_tolerance': cfg.orientation_tolerance * POLISH_FACTOR,
+              'damping2': POLISH_DAMPING ** 2, 'max_step': cfg.max_step,
+              'orientation_weight': ORIENTATION_WEIGHT, 'iterations': POLISH_ITERATIONS}
+    return np.array([values[k] for k in POLISH], dtype=float)
+
+
 def polished(ctx: Context, goal: Goal, signs: Optional[BranchSigns], r: Refined) -> Refined:
     """``r`` with its exact rows taken closer onto the goal, each kept on its branch.
 
@@ -162,10 +175,8 @@ def polished(ctx: Context, goal: Goal, signs: Optional[BranchSigns], r: Refined)
     q, perr, oerr = r.q.copy(), r.perr.copy(), r.oerr.copy()
     moved = np.empty(len(rows))
     polish_rows(robot.frames, robot.lower, robot.upper, robot.periodic, q, rows,
-                as_arg(goal.position), as_arg(goal.rotation),
-                cfg.position_tolerance * POLISH_FACTOR,
-                cfg.orientation_tolerance * POLISH_FACTOR, POLISH_DAMPING ** 2, cfg.max_step,
-                ORIENTATION_WEIGHT, POLISH_ITERATIONS, perr, oerr, moved)
+                as_arg(goal.position), as_arg(goal.rotation), polish_settings(cfg), perr, oerr,
+                moved)
     far = rows[moved >= POLISH_MOVED]  # nearer: one solution with where it was by any rule
     if signs is not None and len(far):
         back = far[signs.codes(robot, q[far]) != signs.codes(robot, r.q[far])]

@@ -27,13 +27,29 @@ import numpy as np
 
 from sik_ros.deadline import Deadline
 from sik_ros.kernels import as_arg
-from sik_ros.kernels.families import branch_labels, segment_labels, spread_rounds, trace_labels
+from sik_ros.kernels.families import (branch_labels, SEGMENT, segment_labels, spread_rounds,
+                                      trace_labels)
+from sik_ros.kernels.selfmotion import TRACE
 from sik_ros.solver.batch import Candidates
 from sik_ros.solver.config import (FAMILY_LINK, FAMILY_REACH, FAMILY_SEGMENT_STEP,
                                    FAMILY_TRACE_STEP, FAMILY_TRACE_STEPS, SAME_BRANCH)
 from sik_ros.solver.context import Context, Goal, POSE
 from sik_ros.solver.refine import NO_ROTATION
 from sik_ros.solver.results import NO_FAMILY, Solution
+
+
+def trace_settings(step: float, max_steps: int, link: float, cfg, deadline: Deadline
+                   ) -> np.ndarray:
+    """A trace's settings array (:data:`~sik_ros.kernels.selfmotion.TRACE`).
+
+    Its step [rad], most steps each way, link distance [rad], ``cfg``'s tolerances and
+    largest joint step, and ``deadline``.
+    """
+    values = {'step': step, 'max_steps': max_steps, 'link': link,
+              'position_tolerance': cfg.position_tolerance,
+              'orientation_tolerance': cfg.orientation_tolerance, 'max_step': cfg.max_step,
+              'deadline': deadline.at}
+    return np.array([values[k] for k in TRACE], dtype=float)
 
 
 def isolated(ctx: Context, kind: str) -> bool:
@@ -68,9 +84,11 @@ def labels(ctx: Context, q: np.ndarray, goal: Goal, deadline: Deadline) -> np.nd
         return branch_labels(q, same_solution(ctx, goal.kind), periodic)
     rot = as_arg(goal.rotation) if pose else NO_ROTATION
     args = (robot.frames, robot.lower, robot.upper, periodic, q, as_arg(goal.position), rot)
-    return segment_labels(*args, pose, FAMILY_SEGMENT_STEP, FAMILY_REACH,
-                          cfg.position_tolerance, cfg.orientation_tolerance, cfg.max_step,
-                          deadline.at)
+    values = {'step': FAMILY_SEGMENT_STEP, 'reach': FAMILY_REACH,
+              'position_tolerance': cfg.position_tolerance,
+              'orientation_tolerance': cfg.orientation_tolerance, 'max_step': cfg.max_step,
+              'deadline': deadline.at}
+    return segment_labels(*args, pose, np.array([values[k] for k in SEGMENT]))
 
 
 def traced(ctx: Context, q: np.ndarray, goal: Goal, deadline: Deadline) -> np.ndarray:
@@ -84,9 +102,9 @@ def traced(ctx: Context, q: np.ndarray, goal: Goal, deadline: Deadline) -> np.nd
         raise ValueError('tracing needs a pose goal of a 7-joint arm')
     return trace_labels(robot.frames, robot.lower, robot.upper,
                         as_arg(robot.periodic, bool), as_arg(q), as_arg(goal.position),
-                        as_arg(goal.rotation), FAMILY_TRACE_STEP, FAMILY_TRACE_STEPS,
-                        FAMILY_LINK * FAMILY_TRACE_STEP, cfg.position_tolerance,
-                        cfg.orientation_tolerance, cfg.max_step, deadline.at)
+                        as_arg(goal.rotation),
+                        trace_settings(FAMILY_TRACE_STEP, FAMILY_TRACE_STEPS,
+                                       FAMILY_LINK * FAMILY_TRACE_STEP, cfg, deadline))
 
 
 def roots(ctx: Context, c: Candidates, goal: Goal, deadline: Deadline,

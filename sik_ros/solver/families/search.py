@@ -37,6 +37,7 @@ from sik_ros.solver.config import (MIRROR_ITERATIONS, SEARCH_LINK, SEARCH_PER_PI
 from sik_ros.solver.context import Context, Goal, POSE
 from sik_ros.solver.explore import unindexed
 from sik_ros.solver.families.branches import fits_mirrored
+from sik_ros.solver.families.membership import trace_settings
 from sik_ros.solver.refine import errors, refine
 from sik_ros.solver.scores import assess, converged, distinct_mask
 
@@ -131,11 +132,10 @@ def search(ctx: Context, c: Candidates, goal: Goal,
     points = np.empty((SEARCH_RECORDED, robot.dof))
     piece = np.empty(SEARCH_RECORDED, dtype=np.int64)
     row_piece = np.empty(len(known), dtype=np.int64)
+    settings = trace_settings(SEARCH_STEP, SEARCH_STEPS, SEARCH_LINK, cfg, deadline)
     count = trace_atlas(robot.frames, robot.lower, robot.upper, periodic, known,
                         robot_flips(robot), as_arg(goal.position), as_arg(goal.rotation),
-                        SEARCH_STEP, SEARCH_STEPS, SEARCH_LINK, cfg.position_tolerance,
-                        cfg.orientation_tolerance, cfg.max_step, deadline.at, points, piece,
-                        row_piece)
+                        settings, points, piece, row_piece)
     if count == 0:
         return c, None
     out = np.empty((SEARCH_POINTS, robot.dof))
