@@ -7,7 +7,7 @@ table that gives its starts, which route it takes (:data:`LEAN`, :data:`REFINED`
 exact solutions refinement stops (``enough``). No stage decides them again.
 """
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Optional, Sequence
 
 import numpy as np
@@ -110,12 +110,12 @@ def make_call(ctx: Context, goal: Goal, num: int, q_seed: Optional[np.ndarray],
         enough = num + (0 if first_found else spare(cfg, num))
     if isolated and (seeds is not None or cfg.branch_restarts > 0) and num != 1:
         enough = None
-    call = Call(goal, num, q_seed, obstacles, refined, objective, deadline, first_found, one,
-                single, far, seeds, isolated, search, search_seeds, per_family, RAW, enough)
-    route = RAW if not refined else LEAN if lean(call) else REFINED
-    return Call(goal, num, q_seed, obstacles, refined, objective, deadline, first_found, one,
-                single, far, seeds, isolated, search, search_seeds, per_family, route,
-                enough)
+    call = Call(goal=goal, num=num, q_seed=q_seed, obstacles=obstacles, refined=refined,
+                objective=objective, deadline=deadline, first_found=first_found, one=one,
+                single=single, far=far, seeds=seeds, isolated=isolated, search=search,
+                search_seeds=search_seeds, one_per_family=per_family, route=RAW,
+                enough=enough)
+    return replace(call, route=RAW if not refined else LEAN if lean(call) else REFINED)
 
 
 def lean(call: Call) -> bool:
