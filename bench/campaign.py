@@ -3,12 +3,14 @@
 Each run's ``last.pt`` holds its validation history (``sik-train --eval-every``); this prints,
 per run, the validation distance (decoded from each row's own index: the decoder's floor) and,
 for pose models, the orientation, against steps, samples seen and hours of training, and draws
-them in one figure. With ``--target`` it fits the last points' error against log(samples)
-(a straight line, the shape the curves take once past their warm-up) and says how many more
-samples and hours that line needs to reach the target: an extrapolation, printed as such.
+them in one figure (a second panel for the orientation). With ``--target`` (and
+``--target-deg`` for pose models' orientation) it fits the last third of the points' error
+against log(samples) (a straight line, the shape the curves take once past their warm-up; a
+third smooths the validation's noise) and says how many more samples and hours that line
+needs to reach the target: an extrapolation, printed as such.
 
 Usage: ``python bench/campaign.py NAME=RUN_DIR [NAME=RUN_DIR ...] [--target CM]
-[--figure PNG] [--json PATH]``. Nothing is asserted.
+[--target-deg DEG] [--figure PNG] [--json PATH]``. Nothing is asserted.
 """
 
 import argparse
@@ -21,8 +23,8 @@ import numpy as np
 
 from report import add_json_argument, write_json  # noqa: I100 (bench/report.py)
 
-#: Points of a curve's tail the extrapolation fits.
-TAIL = 4
+#: The share of a curve's points, its last ones, that the extrapolation fits (at least 4).
+TAIL_SHARE = 1 / 3
 
 
 def history(run: Path) -> Dict:
@@ -40,20 +42,34 @@ def history(run: Path) -> Dict:
                       for h in rows])
 
 
-def extrapolate(rows: List[Dict], target_cm: float) -> Optional[Dict]:
-    """Samples and hours a straight line in log(samples) through the tail needs, or None."""
-    tail = rows[-TAIL:]
+def extrapolate(rows: List[Dict], target: float, key: str = 'dist_cm') -> Optional[Dict]:
+    """Samples and hours a straight line in log(samples) through the tail needs, or None.
+
+    ``key``: ``dist_cm`` or ``rot_deg`` (the target in its unit).
+    """
+    rows = [r for r in rows if r.get(key) is not None]
+    tail = rows[-max(4, int(len(rows) * TAIL_SHARE)):]
     if len(tail) < 3:
         return None
     x = np.log([r['samples'] for r in tail])
-    y = np.array([r['dist_cm'] for r in tail])
+    y = np.array([r[key] for r in tail])
     slope, cut = np.polyfit(x, y, 1)
     if slope >= 0:
-        return dict(slope_cm_per_e=float(slope), reached=False)
-    samples = math.exp((target_cm - cut) / slope)
+        return dict(slope_per_e=float(slope), points=len(tail), reached=False)
+    samples = math.exp((target - cut) / slope)
     rate = tail[-1]['samples'] / max(tail[-1]['hours'], 1e-9)  # samples per hour so far
-    return dict(slope_cm_per_e=float(slope), reached=True, samples=samples,
+    return dict(slope_per_e=float(slope), points=len(tail), reached=True, samples=samples,
                 hours=samples / rate, hours_more=max(samples - tail[-1]['samples'], 0) / rate)
+
+
+def say(ex: Optional[Dict], target: float, unit: str) -> None:
+    """Print an extrapolation."""
+    if ex and ex['reached']:
+        print(f'extrapolated (a line in log(samples) through the last {ex["points"]} points): '
+              f'{target} {unit} at {ex["samples"] / 1e6:,.0f} M samples, '
+              f'{ex["hours_more"]:,.1f} more hours at this rate')
+    elif ex:
+        print(f'the last {ex["points"]} points do not fall: no extrapolation to {target} {unit}')
 
 
 def main(argv=None) -> int:
@@ -61,6 +77,8 @@ def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument('runs', nargs='+', help='NAME=RUN_DIR (a sik-train --out folder)')
     parser.add_argument('--target', type=float, help='validation distance to reach [cm]')
+    parser.add_argument('--target-deg', type=float,
+                        help='validation orientation to reach, pose models [deg]')
     parser.add_argument('--figure', help='write the curves to this PNG')
     add_json_argument(parser)
     args = parser.parse_args(argv)
@@ -73,6 +91,8 @@ def main(argv=None) -> int:
         run = history(Path(folder))
         if args.target is not None:
             run['extrapolation'] = extrapolate(run['rows'], args.target)
+        if args.target_deg is not None and run['rows'] and run['rows'][-1]['rot_deg']:
+            run['extrapolation_deg'] = extrapolate(run['rows'], args.target_deg, 'rot_deg')
         out[name] = run
         print(f'\n{name} (batch {run["batch"]}, FK weight {run["fk_weight"]}, from '
               f'{run["init"] or "scratch"})\n')
@@ -82,21 +102,33 @@ def main(argv=None) -> int:
             rot = '' if r['rot_deg'] is None else f'{r["rot_deg"]:.1f}°'
             print(f'| {r["step"]:,} | {r["samples"] / 1e6:.1f} M | {r["hours"]:.2f} | '
                   f'{r["dist_cm"]:.2f} cm | {rot} |')
-        ex = run.get('extrapolation')
-        if ex and ex['reached']:
-            print(f'\nextrapolated (a line in log(samples) through the last {TAIL} points): '
-                  f'{args.target} cm at {ex["samples"] / 1e6:,.0f} M samples, '
-                  f'{ex["hours_more"]:,.1f} more hours at this rate')
-        elif ex:
-            print(f'\nthe last {TAIL} points do not fall: no extrapolation to {args.target} cm')
+        print()
+        say(run.get('extrapolation'), args.target, 'cm')
+        say(run.get('extrapolation_deg'), args.target_deg, 'deg')
     if args.figure:
         import matplotlib
         matplotlib.use('Agg')
         import matplotlib.pyplot as plt
-        fig, ax = plt.subplots(figsize=(7, 4))
+        posed = {n: r for n, r in out.items() if r['rows'] and r['rows'][-1]['rot_deg']}
+        fig, axes = plt.subplots(1, 2 if posed else 1, figsize=(12 if posed else 7, 4),
+                                 squeeze=False)
+        ax = axes[0, 0]
         for name, run in out.items():
             ax.plot([r['samples'] / 1e6 for r in run['rows']],
-                    [r['dist_cm'] for r in run['rows']], marker='o', label=name)
+                    [r['dist_cm'] for r in run['rows']], marker='.', label=name)
+        if posed:
+            right = axes[0, 1]
+            for name, run in posed.items():
+                right.plot([r['samples'] / 1e6 for r in run['rows']],
+                           [r['rot_deg'] for r in run['rows']], marker='.', label=name,
+                           color='C1')
+            if args.target_deg is not None:
+                right.axhline(args.target_deg, color='grey', linestyle='--', label='target')
+            right.set_xlabel('samples seen in this run [M]')
+            right.set_ylabel('validation orientation, own index [deg]')
+            right.set_xscale('log')
+            right.grid(True, alpha=0.3)
+            right.legend()
         if args.target is not None:
             ax.axhline(args.target, color='grey', linestyle='--', label='target')
         ax.set_xlabel('samples seen in this run [M]')
