@@ -233,6 +233,7 @@ def trace_atlas(frames, lower, upper, periodic, q, flips, pos, rot, settings, po
     parent = np.arange(points.shape[0])
     free_chain = (frames, lo, up, free)  # the corrector free of the limits
     goal, tols = (pos, rot, True), (tol_p, tol_o, max_step)
+    work, mid_work = (p, r, jac, jm, a, err, xs), (p_mid, r_mid, jac_mid, jm, a, err, xs)
     row_piece[:] = -1
     row_dist = np.full(m, np.inf)
     count, pieces = 0, 0
@@ -280,12 +281,11 @@ def trace_atlas(frames, lower, upper, periodic, q, flips, pos, rot, settings, po
                         break
                     placed = False
                     predicted[:] = x
-                    on = correct(free_chain, x, goal, tols, (p, r, jac, jm, a, err, xs))
+                    on = correct(free_chain, x, goal, tols, work)
                     moved = angle_distance(x, predicted, free)  # by the corrector
                     if not on or moved > DRIFT * h or _crossed(x, prev, flips) or \
                             (moved > CHECK_DRIFT * h and
-                             _jumped(free_chain, prev, x, goal, tols, h, mid, y,
-                                     (p_mid, r_mid, jac_mid, jm, a, err, xs))):
+                             _jumped(free_chain, prev, x, goal, tols, h, mid, y, mid_work)):
                         if h < step / 2 ** (HALVINGS - 0.5):
                             break
                         x[:] = prev  # near a singularity: the step halved, the same heading

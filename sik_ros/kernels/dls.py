@@ -179,6 +179,7 @@ def _refine_row(chain, q, row, goal, settings, out, state, work):  # pragma: no 
     cols = n - 1 if ints[I_ROLL_FREE] != 0 else n
     timed = deadline < np.inf
     qi = q[row]
+    bounds, step, scratch = (lower, upper, periodic), (lam2, max_step), (jm, a, x)
     status[row] = ITERATIONS
     history[:] = np.inf
     for it in range(iterations):
@@ -202,8 +203,7 @@ def _refine_row(chain, q, row, goal, settings, out, state, work):  # pragma: no 
         if verdict != ITERATIONS:
             status[row] = verdict
             break
-        limited_step(qi, jac, err, dims, (lower, upper, periodic), True, (lam2, max_step),
-                     (jm, a, x))
+        limited_step(qi, jac, err, dims, bounds, True, step, scratch)
         stale[row] = True
     return False
 
@@ -295,12 +295,13 @@ def refine_rows(frames, lower, upper, periodic, q, pos, rot, reals, ints, perr, 
     for row in range(m):
         status[row] = UNTOUCHED
         perr[row], oerr[row] = np.inf, 0.0
+    chain, goal, settings = (frames, lower, upper, periodic), (pos, rot, pose), (reals, ints)
+    out, state = (perr, oerr, status), (score, stale, history)
+    work = (p, r, jac, jm, a, err, x)
     for row in range(m):
         if cut or (enough > 0 and nfound >= enough):
             break
-        cut = _refine_row((frames, lower, upper, periodic), q, row, (pos, rot, pose),
-                          (reals, ints), (perr, oerr, status), (score, stale, history),
-                          (p, r, jac, jm, a, err, x))
+        cut = _refine_row(chain, q, row, goal, settings, out, state, work)
         if status[row] == CONVERGED and enough > 0 and \
                 _is_new(q, row, found, nfound, distinct, cols):
             found[nfound] = row
@@ -333,6 +334,7 @@ def polish_rows(frames, lower, upper, periodic, q, rows, pos, rot, settings, per
     jac, jm, a = np.empty((6, n)), np.empty((6, n)), np.empty((6, 6))
     err, x = np.empty(6), np.empty(6)
     qi = np.empty(n)
+    bounds, step, scratch = (lower, upper, periodic), (lam2, max_step), (jm, a, x)
     for k in range(rows.shape[0]):
         row = rows[k]
         moved[k] = 0.0
@@ -344,8 +346,7 @@ def polish_rows(frames, lower, upper, periodic, q, rows, pos, rot, settings, per
             pe, oe = goal_error(pos, rot, True, p, r, err)
             if (pe < tol_p and oe < tol_o) or it == iterations:
                 break
-            limited_step(qi, jac, err, 6, (lower, upper, periodic), True, (lam2, max_step),
-                         (jm, a, x))
+            limited_step(qi, jac, err, 6, bounds, True, step, scratch)
         if pe + weight * oe < perr[row] + weight * oerr[row]:
             d = 0.0
             for j in range(n):

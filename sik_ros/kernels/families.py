@@ -150,6 +150,7 @@ def trace_labels(frames, lower, upper, periodic, q, pos, rot,
     a, err, xs = np.empty((6, 6)), np.empty(6), np.empty(6)
     minor = np.empty((6, 6))
     chain, goal = (frames, lower, upper, periodic), (pos, rot, True)
+    work = (p, r, jac, jm, a, err, xs)
     v, heading = np.empty(n), np.empty(n)
     x, prev = np.empty(n), np.empty(n)
     timed = deadline < np.inf
@@ -169,7 +170,7 @@ def trace_labels(frames, lower, upper, periodic, q, pos, rot,
                                s > 0):
                     break
                 _into_limits(x, lower, upper, periodic)
-                if not correct(chain, x, goal, tols, (p, r, jac, jm, a, err, xs)):
+                if not correct(chain, x, goal, tols, work):
                     break
                 if angle_distance(x, prev, periodic) > 2.0 * step:
                     break
@@ -224,6 +225,8 @@ def segment_labels(frames, lower, upper, periodic, q, pos, rot, pose,
     jac, jm = np.empty((6, n)), np.empty((6, n))
     a, err, xs = np.empty((6, 6)), np.empty(6), np.empty(6)
     x, prev, delta = np.empty(n), np.empty(n), np.empty(n)
+    chain, goal = (frames, lower, upper, periodic), (pos, rot, pose)
+    work = (p, r, jac, jm, a, err, xs)
     timed = deadline < np.inf
     for k in np.argsort(dist):
         i, j = ia[k], ib[k]
@@ -244,8 +247,7 @@ def segment_labels(frames, lower, upper, periodic, q, pos, rot, pose,
             for c in range(n):
                 x[c] += delta[c]
             _into_limits(x, lower, upper, periodic)
-            if not correct((frames, lower, upper, periodic), x, (pos, rot, pose), tols,
-                           (p, r, jac, jm, a, err, xs)) or \
+            if not correct(chain, x, goal, tols, work) or \
                     angle_distance(x, prev, periodic) > 2.0 * step:
                 ok = False
                 break

@@ -54,6 +54,7 @@ def follow_rows(frames, lower, upper, q, p, r, jac, djac, pos, rot, settings,
     j0 = np.empty((6, n))
     periodic = np.zeros(n, dtype=np.bool_)
     late = False
+    bounds, step, scratch = (lower, upper, periodic), (lam2, max_step), (jm, a, x)
     for row in range(m):
         g = row if per_row else 0
         ok[row], steps[row] = 0, 0
@@ -77,11 +78,9 @@ def follow_rows(frames, lower, upper, q, p, r, jac, djac, pos, rot, settings,
                 for i in range(dims):
                     for j in range(n):
                         j0[i, j] = jac[row, i, j] + 0.5 * djac[row, i, j]
-                limited_step(q[row], j0, err, dims, (lower, upper, periodic), False,
-                             (lam2, max_step), (jm, a, x))
+                limited_step(q[row], j0, err, dims, bounds, False, step, scratch)
             else:
-                limited_step(q[row], jac[row], err, dims, (lower, upper, periodic), False,
-                             (lam2, max_step), (jm, a, x))
+                limited_step(q[row], jac[row], err, dims, bounds, False, step, scratch)
             place(frames, q[row], p[row], r[row], jac[row], True)
             steps[row] += 1
 

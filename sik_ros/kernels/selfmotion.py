@@ -45,14 +45,14 @@ def correct(chain, x, goal, tols, work):  # pragma: no cover (compiled)
     pos, rot, pose = goal
     tol_p, tol_o, max_step = tols
     p, r, jac, jm, a, err, xs = work
+    bounds, step, scratch = (lower, upper, periodic), (CORRECT_DAMPING2, max_step), (jm, a, xs)
     dims = 6 if pose else 3
     for _ in range(CORRECTIONS):
         place(frames, x, p, r, jac, True)
         pe, oe = goal_error(pos, rot, pose, p, r, err)
         if pe < tol_p and (not pose or oe < tol_o):
             return True
-        limited_step(x, jac, err, dims, (lower, upper, periodic), True,
-                     (CORRECT_DAMPING2, max_step), (jm, a, xs))
+        limited_step(x, jac, err, dims, bounds, True, step, scratch)
     place(frames, x, p, r, jac, True)
     pe, oe = goal_error(pos, rot, pose, p, r, err)
     return pe < tol_p and (not pose or oe < tol_o)

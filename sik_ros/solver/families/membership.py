@@ -21,6 +21,8 @@ known, then a second of each, the one farthest from its first, and so on: the an
 over every family.
 """
 
+import functools
+import math
 from typing import List, Sequence
 
 import numpy as np
@@ -45,11 +47,28 @@ def trace_settings(step: float, max_steps: int, link: float, cfg, deadline: Dead
     Its step [rad], most steps each way, link distance [rad], ``cfg``'s tolerances and
     largest joint step, and ``deadline``.
     """
-    values = {'step': step, 'max_steps': max_steps, 'link': link,
-              'position_tolerance': cfg.position_tolerance,
-              'orientation_tolerance': cfg.orientation_tolerance, 'max_step': cfg.max_step,
-              'deadline': deadline.at}
-    return np.array([values[k] for k in TRACE], dtype=float)
+    settings = _settings(TRACE, cfg, step=step, max_steps=max_steps, link=link).copy()
+    settings[TRACE.index('deadline')] = deadline.at
+    return settings
+
+
+def segment_settings(cfg, deadline: Deadline) -> np.ndarray:
+    """:func:`segment_labels`' settings array (:data:`~sik_ros.kernels.families.SEGMENT`)."""
+    settings = _settings(SEGMENT, cfg, step=FAMILY_SEGMENT_STEP, reach=FAMILY_REACH).copy()
+    settings[SEGMENT.index('deadline')] = deadline.at
+    return settings
+
+
+@functools.lru_cache(maxsize=64)
+def _settings(fields, cfg, **given) -> np.ndarray:
+    """A kernel's settings array of ``fields``: ``given``, ``cfg``'s tolerances and step.
+
+    Its deadline infinite; shared, made once each: a caller copies it.
+    """
+    values = dict(given, position_tolerance=cfg.position_tolerance,
+                  orientation_tolerance=cfg.orientation_tolerance, max_step=cfg.max_step,
+                  deadline=math.inf)
+    return np.array([values[k] for k in fields], dtype=float)
 
 
 def isolated(ctx: Context, kind: str) -> bool:
@@ -84,11 +103,7 @@ def labels(ctx: Context, q: np.ndarray, goal: Goal, deadline: Deadline) -> np.nd
         return branch_labels(q, same_solution(ctx, goal.kind), periodic)
     rot = as_arg(goal.rotation) if pose else NO_ROTATION
     args = (robot.frames, robot.lower, robot.upper, periodic, q, as_arg(goal.position), rot)
-    values = {'step': FAMILY_SEGMENT_STEP, 'reach': FAMILY_REACH,
-              'position_tolerance': cfg.position_tolerance,
-              'orientation_tolerance': cfg.orientation_tolerance, 'max_step': cfg.max_step,
-              'deadline': deadline.at}
-    return segment_labels(*args, pose, np.array([values[k] for k in SEGMENT]))
+    return segment_labels(*args, pose, segment_settings(cfg, deadline))
 
 
 def traced(ctx: Context, q: np.ndarray, goal: Goal, deadline: Deadline) -> np.ndarray:
