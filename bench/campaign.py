@@ -72,6 +72,21 @@ def say(ex: Optional[Dict], target: float, unit: str) -> None:
         print(f'the last {ex["points"]} points do not fall: no extrapolation to {target} {unit}')
 
 
+def panel(ax, runs: Dict, colours: Dict, key: str, ylabel: str,
+          target: Optional[float]) -> None:
+    """One panel of the figure: each run's ``key`` against samples seen, and the target."""
+    for name, run in runs.items():
+        ax.plot([r['samples'] / 1e6 for r in run['rows']], [r[key] for r in run['rows']],
+                marker='.', label=name, color=colours[name])
+    if target is not None:
+        ax.axhline(target, color='grey', linestyle='--', label='target')
+    ax.set_xlabel('samples seen in this run [M]')
+    ax.set_ylabel(ylabel)
+    ax.set_xscale('log')
+    ax.grid(True, alpha=0.3)
+    ax.legend()
+
+
 def main(argv=None) -> int:
     """Print each run's curve and, with ``--target``, its extrapolation; draw the figure."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -112,30 +127,12 @@ def main(argv=None) -> int:
         posed = {n: r for n, r in out.items() if r['rows'] and r['rows'][-1]['rot_deg']}
         fig, axes = plt.subplots(1, 2 if posed else 1, figsize=(12 if posed else 7, 4),
                                  squeeze=False)
-        ax = axes[0, 0]
-        for name, run in out.items():
-            ax.plot([r['samples'] / 1e6 for r in run['rows']],
-                    [r['dist_cm'] for r in run['rows']], marker='.', label=name)
+        colours = {name: f'C{i}' for i, name in enumerate(out)}  # a run's colour in both
+        panel(axes[0, 0], out, colours, 'dist_cm', 'validation distance, own index [cm]',
+              args.target)
         if posed:
-            right = axes[0, 1]
-            for name, run in posed.items():
-                right.plot([r['samples'] / 1e6 for r in run['rows']],
-                           [r['rot_deg'] for r in run['rows']], marker='.', label=name,
-                           color='C1')
-            if args.target_deg is not None:
-                right.axhline(args.target_deg, color='grey', linestyle='--', label='target')
-            right.set_xlabel('samples seen in this run [M]')
-            right.set_ylabel('validation orientation, own index [deg]')
-            right.set_xscale('log')
-            right.grid(True, alpha=0.3)
-            right.legend()
-        if args.target is not None:
-            ax.axhline(args.target, color='grey', linestyle='--', label='target')
-        ax.set_xlabel('samples seen in this run [M]')
-        ax.set_ylabel('validation distance, own index [cm]')
-        ax.set_xscale('log')
-        ax.grid(True, alpha=0.3)
-        ax.legend()
+            panel(axes[0, 1], posed, colours, 'rot_deg',
+                  'validation orientation, own index [deg]', args.target_deg)
         fig.tight_layout()
         fig.savefig(args.figure, dpi=110)
         print(f'\nwrote {args.figure}')
